@@ -1,0 +1,448 @@
+#include "canonical.hpp"
+
+#include <fmt/format.h>
+
+#include <functional>
+
+#include "expr_print.hpp"
+#include "integrate.hpp"
+#include "symbolic.hpp"
+
+namespace obsynth {
+
+using GiNaC::ex;
+using GiNaC::numeric;
+
+const char* completeness_name(Completeness c) {
+  switch (c) {
+    case Completeness::global: return "global";
+    case Completeness::local: return "local";
+    case Completeness::unknown: return "unknown";
+  }
+  return "unknown";
+}
+
+const char* availability_name(Availability a) {
+  switch (a) {
+    case Availability::symbolic: return "symbolic";
+    case Availability::numeric: return "numeric";
+    case Availability::none: return "none";
+  }
+  return "none";
+}
+
+namespace {
+
+ZeroVerdict worst(ZeroVerdict a, ZeroVerdict b) { return static_cast<int>(a) > static_cast<int>(b) ? a : b; }
+
+ZeroVerdict vector_verdict(const ExVec& v, const SampleBoxes& boxes, const ZeroTestOptions& opt) {
+  ZeroVerdict w = ZeroVerdict::proved;
+  for (const auto& e : v) {
+    w = worst(w, zero_test(e, boxes, opt));
+    if (w == ZeroVerdict::nonzero) break;
+  }
+  return w;
+}
+
+bool bounded(const ex& e, const Symbols& x) {
+  if (!depends_on(e, x)) return true;
+  if (GiNaC::is_a<GiNaC::symbol>(e)) return false;
+  if (GiNaC::is_a<GiNaC::function>(e)) {
+    const std::string n = GiNaC::ex_to<GiNaC::function>(e).get_name();
+    return n == "sin" || n == "cos" || n == "tanh" || n == "atan";
+  }
+  if (GiNaC::is_a<GiNaC::power>(e)) {
+    const ex q = e.op(1);
+    return GiNaC::is_a<numeric>(q) && GiNaC::ex_to<numeric>(q).is_pos_integer() && bounded(e.op(0), x);
+  }
+  if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
+    for (std::size_t i = 0; i < e.nops(); ++i)
+      if (!bounded(e.op(i), x)) return false;
+    return true;
+  }
+  return false;
+}
+
+// Base point: the origin when the domain box contains it, else the box centre.
+ExVec choose_base_point(const Model& m) {
+  ExVec x0;
+  for (const auto& s : m.states) {
+    const Interval b = m.box(s);
+    if (b.lo <= 0 && b.hi >= 0)
+      x0.push_back(0);
+    else
+      x0.push_back((b.lo + b.hi) / 2);
+  }
+  return x0;
+}
+
+GiNaC::exmap point_map(const Symbols& x, const ExVec& x0) {
+  GiNaC::exmap mp;
+  for (std::size_t i = 0; i < x.size(); ++i) mp[x[i]] = x0[i];
+  return mp;
+}
+
+// Known inverses of invertible atoms phi(xk): returns xk as a function of w = phi(xk).
+std::optional<ex> invert_atom(const ex& atom, const GiNaC::symbol& xk, const ex& w) {
+  if (!GiNaC::is_a<GiNaC::function>(atom)) return std::nullopt;
+  const std::string n = GiNaC::ex_to<GiNaC::function>(atom).get_name();
+  const ex arg = GiNaC::expand(atom.op(0));
+  const ex a = arg.diff(xk);
+  if (a.has(xk) || a.is_zero()) return std::nullopt;
+  const ex b = GiNaC::expand(arg - a * xk);
+  ex inner;
+  if (n == "exp") inner = GiNaC::log(w);
+  else if (n == "log") inner = GiNaC::exp(w);
+  else if (n == "atan") inner = GiNaC::tan(w);
+  else if (n == "tanh") inner = GiNaC::atanh(w);
+  else return std::nullopt;
+  return (inner - b) / a;
+}
+
+// Solve eq(xk) = 0 for xk when eq is linear in xk or in one invertible atom of xk.
+std::optional<ex> solve_for(const ex& eq, const GiNaC::symbol& xk) {
+  const ex e = GiNaC::expand(eq);
+  const ex a = e.diff(xk);
+  if (!a.is_zero() && !a.has(xk)) {
+    const ex b = e.subs(xk == 0);
+    return GiNaC::normal(-b / a);
+  }
+  // Linear in a single atom phi(xk)?
+  std::vector<ex> atoms;
+  std::function<void(const ex&)> find = [&](const ex& t) {
+    if (GiNaC::is_a<GiNaC::function>(t) && t.has(xk)) {
+      for (const auto& q : atoms)
+        if (q.is_equal(t)) return;
+      atoms.push_back(t);
+      return;
+    }
+    for (std::size_t i = 0; i < t.nops(); ++i) find(t.op(i));
+  };
+  find(e);
+  if (atoms.size() != 1) return std::nullopt;
+  GiNaC::symbol w("w_atom");
+  const ex ew = e.subs(atoms[0] == w);
+  if (ew.has(xk)) return std::nullopt;
+  const ex aw = ew.diff(w);
+  if (aw.is_zero() || aw.has(w)) return std::nullopt;
+  const ex wsol = GiNaC::normal(-ew.subs(w == 0) / aw);
+  return invert_atom(atoms[0], xk, wsol);
+}
+
+}  // namespace
+
+Completeness classify_completeness(const ExVec& v, const Symbols& x, std::string& reason) {
+  const ExMatrix J = jacobian(v, x);
+  bool affine = true, lipschitz = true, poles = false;
+  std::string culprit;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (depends_on(GiNaC::denom(GiNaC::normal(v[i])), x)) {
+      poles = true;
+      culprit = to_string(v[i]);
+    }
+    for (std::size_t j = 0; j < x.size(); ++j) {
+      if (depends_on(J[i][j], x)) affine = false;
+      if (!bounded(GiNaC::expand(J[i][j]), x)) {
+        lipschitz = false;
+        if (culprit.empty()) culprit = to_string(v[i]);
+      }
+    }
+  }
+  if (poles) {
+    reason = fmt::format("has a pole ({}): defined only locally", culprit);
+    return Completeness::local;
+  }
+  if (affine) {
+    reason = "affine in x, hence complete";
+    return Completeness::global;
+  }
+  if (lipschitz) {
+    reason = "Jacobian bounded (sin, cos, tanh, atan of x only), globally Lipschitz, hence complete";
+    return Completeness::global;
+  }
+  reason = fmt::format("component {} grows faster than linearly; completeness not decided", culprit);
+  return Completeness::unknown;
+}
+
+std::optional<ex> express_in_output(const ex& e, const ex& h, const Symbols& x, const GiNaC::symbol& y,
+                                    const ExVec& base_point, const SampleBoxes& boxes) {
+  // Choose a state in which h is linear with a coefficient free of that state.
+  std::optional<std::size_t> k;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    if (h.is_equal(x[i])) k = i;
+  ex solution;
+  if (k) {
+    solution = y;
+  } else {
+    for (std::size_t i = 0; i < x.size() && !k; ++i) {
+      const auto s = solve_for(h - y, x[i]);
+      if (s) {
+        k = i;
+        solution = *s;
+      }
+    }
+  }
+  if (!k) return std::nullopt;
+  ex r = simplify(e.subs(x[*k] == solution));
+  Symbols others;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    if (i != *k && r.has(x[i])) others.push_back(x[i]);
+  if (others.empty()) return r;
+  // Remaining dependence must vanish identically (e.g. sin^2 + cos^2 left by normal()).
+  for (const auto& s : others)
+    if (zero_test(r.diff(s), boxes) == ZeroVerdict::nonzero) return std::nullopt;
+  GiNaC::exmap at;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    if (i != *k) at[x[i]] = base_point[i];
+  return simplify(r.subs(at));
+}
+
+std::optional<ExVec> invert_map(const ExVec& T, const Symbols& x, const std::vector<GiNaC::symbol>& z,
+                                const SampleBoxes& boxes) {
+  const std::size_t n = x.size();
+  std::vector<ex> eqs;
+  for (std::size_t i = 0; i < n; ++i) eqs.push_back(T[i] - z[i]);
+  std::vector<bool> used(n, false), solved(n, false);
+  std::vector<ex> sol(n);
+  std::vector<std::size_t> order;
+  for (std::size_t step = 0; step < n; ++step) {
+    // Prefer the equation with the fewest unsolved states (triangular structure first).
+    std::optional<std::pair<std::size_t, std::size_t>> pick;
+    std::size_t best = n + 1;
+    ex best_sol;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (used[i]) continue;
+      std::size_t count = 0;
+      for (std::size_t k = 0; k < n; ++k)
+        if (!solved[k] && eqs[i].has(x[k])) ++count;
+      if (count == 0 || count >= best) continue;
+      for (std::size_t k = 0; k < n; ++k) {
+        if (solved[k] || !eqs[i].has(x[k])) continue;
+        auto s = solve_for(eqs[i], x[k]);
+        if (s) {
+          pick = {i, k};
+          best = count;
+          best_sol = *s;
+          break;
+        }
+      }
+    }
+    if (!pick) return std::nullopt;
+    const auto [i, k] = *pick;
+    used[i] = solved[k] = true;
+    sol[k] = best_sol;
+    order.push_back(k);
+    for (std::size_t q = 0; q < n; ++q)
+      if (!used[q]) eqs[q] = simplify(eqs[q].subs(x[k] == best_sol));
+  }
+  // Back-substitute: later solutions are free of earlier-eliminated states.
+  for (std::size_t a = order.size(); a-- > 0;) {
+    const std::size_t k = order[a];
+    for (std::size_t b = 0; b < a; ++b) {
+      const std::size_t q = order[b];
+      sol[q] = sol[q].subs(x[k] == sol[k]);
+    }
+  }
+  ExVec out;
+  for (std::size_t k = 0; k < n; ++k) {
+    const ex s = simplify(sol[k]);
+    if (depends_on(s, x)) return std::nullopt;
+    out.push_back(s);
+  }
+  (void)boxes;
+  return out;
+}
+
+CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget& budget,
+                                const CanonicalOptions& opt) {
+  CanonicalForm cf;
+  const std::size_t n = m.n();
+  const Symbols& x = m.states;
+  for (std::size_t i = 0; i < n; ++i) cf.z.push_back(GiNaC::symbol(fmt::format("z{}", i + 1)));
+  if (m.p() != 1) {
+    cf.not_applicable = fmt::format(
+        "the canonical-form stages (r, frame, brackets, T, l) are single-output for now; this "
+        "model has {} outputs",
+        m.p());
+    return cf;
+  }
+  if (ob.generic_rank < n) {
+    cf.not_applicable = fmt::format("C1 fails: the generic observability rank is {} < n = {}",
+                                    ob.generic_rank, n);
+    return cf;
+  }
+  cf.applicable = true;
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+
+  {
+    StageScope stage(budget, "frame");
+    // r = adj(O) e_n / det O: the cofactors of O's last row.
+    for (std::size_t i = 0; i < n; ++i) cf.r.push_back(simplify(ob.last_row_cofactors[i] / ob.det));
+    // tau_1 = r, tau_{k+1} = [-f, tau_k] = J_f tau_k - J_tau_k f
+    ExVec minus_f;
+    for (const auto& e : m.f) minus_f.push_back(-e);
+    const ExMatrix Jmf = jacobian(minus_f, x);
+    cf.frame.push_back(cf.r);
+    for (std::size_t k = 1; k < n; ++k) {
+      cf.frame.push_back(lie_bracket(minus_f, Jmf, cf.frame.back(), jacobian(cf.frame.back(), x)));
+      std::size_t sz = 0;
+      for (const auto& e : cf.frame.back()) sz = std::max(sz, expression_size(e));
+      budget.check(sz);
+    }
+  }
+  {
+    StageScope stage(budget, "conditions");
+    std::vector<ExMatrix> J;
+    for (const auto& t : cf.frame) J.push_back(jacobian(t, x));
+    bool ok = true;
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t j = i + 1; j < n; ++j) {
+        BracketCheck b;
+        b.i = i + 1;
+        b.j = j + 1;
+        b.residual = lie_bracket(cf.frame[i], J[i], cf.frame[j], J[j]);
+        b.verdict = vector_verdict(b.residual, boxes, opt.zero);
+        ok &= b.holds();
+        cf.drift.push_back(std::move(b));
+        budget.check();
+      }
+    const ExMatrix Jg = jacobian(m.g, x);
+    for (std::size_t j = 0; j + 1 < n; ++j) {
+      BracketCheck b;
+      b.i = 0;
+      b.j = j + 1;
+      b.residual = lie_bracket(m.g, Jg, cf.frame[j], J[j]);
+      b.verdict = vector_verdict(b.residual, boxes, opt.zero);
+      ok &= b.holds();
+      cf.input.push_back(std::move(b));
+      budget.check();
+    }
+    cf.linearizable = ok;
+    // C4: every tau_k complete.
+    cf.complete = Completeness::global;
+    std::vector<std::string> reasons;
+    for (std::size_t k = 0; k < n; ++k) {
+      std::string why;
+      const Completeness c = classify_completeness(cf.frame[k], x, why);
+      reasons.push_back(fmt::format("tau_{} {}", k + 1, why));
+      if (c == Completeness::local || (c == Completeness::unknown && cf.complete == Completeness::global))
+        cf.complete = c;
+    }
+    cf.complete_reason = fmt::format("{}", fmt::join(reasons, "; "));
+  }
+  if (!cf.linearizable) {
+    cf.T_note = cf.T_inverse_note = cf.l_note =
+        "not computed: the bracket conditions fail, no observer canonical form exists";
+    return cf;
+  }
+
+  StageScope stage(budget, "diffeomorphism");
+  cf.base_point = choose_base_point(m);
+  const GiNaC::exmap at_x0 = point_map(x, cf.base_point);
+  const ex& h = m.h[0];
+  const ex y0 = simplify(h.subs(at_x0));
+  const ExVec& tau_n = cf.frame[n - 1];
+  // z_n = h - h(x0); z_{i-1} = L_f z_i - l_i(y) with l_i'(y) = L_{tau_n} L_f z_i (a function
+  // of y alone when C2 holds), the constant fixing T_{i-1}(x0) = 0.
+  ExVec T(n);
+  T[n - 1] = simplify(h - y0);
+  bool closed = true;
+  for (std::size_t i = n - 1; i >= 1 && closed; --i) {
+    const ex LfTi = lie_derivative(T[i], m.f, x);
+    const ex a_x = lie_derivative(LfTi, tau_n, x);
+    const auto a_y = express_in_output(a_x, h, x, cf.y, cf.base_point, boxes);
+    if (!a_y) {
+      closed = false;
+      cf.T_note = fmt::format("L_tau_n L_f T_{} = {} could not be written as a function of y", i + 1,
+                              to_string(a_x));
+      break;
+    }
+    const auto A = antiderivative(*a_y, cf.y);
+    if (!A) {
+      closed = false;
+      cf.T_note = fmt::format("no closed-form antiderivative in y of {}", to_string(*a_y));
+      break;
+    }
+    const ex integral = A->subs(cf.y == h) - A->subs(cf.y == y0);
+    const ex c = simplify(LfTi.subs(at_x0));
+    T[i - 1] = simplify(LfTi - integral - c);
+    budget.check(expression_size(T[i - 1]));
+  }
+  if (!closed) {
+    cf.T_kind = Availability::numeric;
+    cf.T_note += "; T is to be evaluated numerically (quadrature of the closed 1-form [tau]^-1 dx)";
+    cf.T_inverse_kind = Availability::numeric;
+    cf.T_inverse_note = "runtime Newton solve with [tau] as inverse Jacobian";
+    cf.l_note = "needs T in closed form";
+    return cf;
+  }
+  // Verify dT/dx [tau] = I by substitution.
+  ZeroVerdict v = ZeroVerdict::proved;
+  for (std::size_t i = 0; i < n && v != ZeroVerdict::nonzero; ++i) {
+    const ExVec dTi = gradient(T[i], x);
+    for (std::size_t j = 0; j < n; ++j) {
+      ex acc = 0;
+      for (std::size_t k = 0; k < n; ++k) acc += dTi[k] * cf.frame[j][k];
+      v = worst(v, zero_test(simplify(acc - (i == j ? 1 : 0)), boxes, opt.zero));
+    }
+  }
+  cf.T_verdict = v;
+  if (v == ZeroVerdict::nonzero) {
+    OBSYNTH_ASSERT(false, "constructed T does not satisfy dT/dx [tau] = I");
+  }
+  cf.T = T;
+  cf.T_kind = Availability::symbolic;
+  cf.T_note = fmt::format("dT/dx [tau] = I {}", v == ZeroVerdict::proved ? "proved" : "verified numerically");
+
+  // l_i = L_{f+g} T_i - T_{i-1}, as a function of (u, y).
+  {
+    const ExVec F = m.field();
+    ExVec l;
+    ZeroVerdict lv = ZeroVerdict::proved;
+    for (std::size_t i = 0; i < n; ++i) {
+      const ex li_x = simplify(lie_derivative(T[i], F, x) - (i > 0 ? T[i - 1] : ex(0)));
+      const auto li = express_in_output(li_x, h, x, cf.y, cf.base_point, boxes);
+      if (!li) {
+        lv = ZeroVerdict::nonzero;
+        cf.l_note = fmt::format("l_{} = {} is not a function of (u, y)", i + 1, to_string(li_x));
+        break;
+      }
+      // Independent check: l_i(u, h(x)) equals the x-expression.
+      lv = worst(lv, zero_test(simplify(li->subs(cf.y == h) - li_x), boxes, opt.zero));
+      l.push_back(*li);
+    }
+    cf.l_verdict = lv;
+    if (lv != ZeroVerdict::nonzero) {
+      cf.l = l;
+      cf.l_kind = Availability::symbolic;
+      cf.l_note = "l(u, h(x)) = L_{f+g} T - A T verified by substitution";
+    }
+  }
+  // T^-1 by elimination, verified by T^-1(T(x)) = x.
+  {
+    const auto inv = invert_map(T, x, cf.z, boxes);
+    if (inv) {
+      GiNaC::exmap zt;
+      for (std::size_t i = 0; i < n; ++i) zt[cf.z[i]] = T[i];
+      ZeroVerdict iv = ZeroVerdict::proved;
+      for (std::size_t k = 0; k < n; ++k) iv = worst(iv, zero_test(simplify((*inv)[k].subs(zt) - x[k]), boxes, opt.zero));
+      cf.T_inverse_verdict = iv;
+      if (iv != ZeroVerdict::nonzero) {
+        cf.T_inverse = *inv;
+        cf.T_inverse_kind = Availability::symbolic;
+        cf.T_inverse_note = "T^-1(T(x)) = x verified by substitution";
+      } else {
+        cf.T_inverse_note = "elimination gave a branch that does not invert T on the domain";
+      }
+    } else {
+      cf.T_inverse_note = "T is not triangular in a solvable way";
+    }
+    if (cf.T_inverse_kind != Availability::symbolic) {
+      cf.T_inverse_kind = Availability::numeric;
+      cf.T_inverse_note += "; runtime Newton solve with [tau] as inverse Jacobian";
+    }
+  }
+  return cf;
+}
+
+}  // namespace obsynth
