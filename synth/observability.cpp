@@ -58,8 +58,16 @@ ExVec dependent_factors(const ex& e, const Symbols& x) {
   auto add = [&](const ex& f) {
     ex g = f;
     if (GiNaC::is_a<GiNaC::power>(g) && GiNaC::is_a<numeric>(g.op(1))) g = g.op(0);
+    if (!depends_on(g.subs(back), x)) return;
+    // Drop the integer content: 2*x1^2 + 2*x2^2 vanishes where x1^2 + x2^2 does.
+    if (g.info(GiNaC::info_flags::polynomial)) {
+      const GiNaC::ex ge = GiNaC::expand(g);
+      const GiNaC::numeric ic = ge.integer_content();
+      if (!ic.is_zero()) g = ge / ic;
+    }
     g = g.subs(back);
-    if (!depends_on(g, x)) return;
+    // exp(.) never vanishes on the reals: it cannot be where the rank drops.
+    if (GiNaC::is_a<GiNaC::function>(g) && GiNaC::ex_to<GiNaC::function>(g).get_name() == "exp") return;
     parts.push_back(g);
   };
   if (GiNaC::is_a<GiNaC::mul>(fac)) {

@@ -270,7 +270,18 @@ std::vector<GiNaC::exmap> sample_points(const std::vector<GiNaC::symbol>& symbol
   static const long primes[] = {1000003, 1000033, 1000037, 1000039, 1000081, 1000099};
   std::vector<GiNaC::exmap> out;
   std::uint64_t state = seed;
-  for (int k = 0; k < count; ++k) {
+  // Two points near opposite corners of the box (distinct fractions per symbol, so no
+  // diagonal x = y), where branch-dependent identities such as atan(tan x) = x break.
+  for (int edge = 0; edge < 2 && edge < count; ++edge) {
+    GiNaC::exmap pt;
+    for (std::size_t j = 0; j < symbols.size(); ++j) {
+      const Interval b = boxes.box(symbols[j]);
+      const numeric frac = numeric(static_cast<long>(3 + 2 * (j % 16)), 101 + 2 * static_cast<long>(j / 16));
+      pt[symbols[j]] = edge == 0 ? b.lo + (b.hi - b.lo) * frac : b.hi - (b.hi - b.lo) * frac;
+    }
+    out.push_back(pt);
+  }
+  for (int k = static_cast<int>(out.size()); k < count; ++k) {
     GiNaC::exmap pt;
     for (const auto& s : symbols) {
       const Interval b = boxes.box(s);

@@ -21,7 +21,7 @@ const char* verdict_name(ZeroVerdict v);
 inline bool is_zero_verdict(ZeroVerdict v) { return v != ZeroVerdict::nonzero; }
 
 struct ZeroTestOptions {
-  int points = 6;         // random points for the numeric verdict
+  int points = 8;  // sample points: 2 near opposite box corners, the rest random
   int digits = 40;        // decimal digits for numeric evaluation
   std::uint64_t seed = 0x5eed0b5;
 };

@@ -1,0 +1,39 @@
+// Models built by construction for property tests: a canonical form z' = A z + l(u, y),
+// y = z_n, pulled back through a known triangular diffeomorphism T, so that T, l and T^-1
+// are known independently of the pipeline.
+#pragma once
+
+#include <ginac/ginac.h>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "model.hpp"
+
+namespace obsynth::testing {
+
+enum class Flavor { polynomial, transcendental };
+
+struct Constructed {
+  Model model;
+  ExVec T;          // the diffeomorphism used, T(0) = 0
+  ExVec T_inverse;  // in z1..zn (symbols named z1..zn)
+  ExVec l;          // in u and y (symbols named u, y)
+  std::vector<GiNaC::symbol> z;
+  GiNaC::symbol y;
+};
+
+// T_n = x1, T_{n-k} = x_{k+1} + psi_k(x_1..x_k), psi_k from a fixed list (polynomial,
+// or exp/sin/atan); f = (dT/dx)^-1 (A T + l(0, x1)), g = (dT/dx)^-1 (l(u, x1) - l(0, x1)).
+// extra_g (in z coordinates, may use u) is added to the input part to break C3 on purpose.
+// A perturbation in z coordinates: component vector given the symbols z1..zn and u.
+using Perturbation = std::function<ExVec(const std::vector<GiNaC::symbol>& z, const GiNaC::symbol& u)>;
+
+Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation& extra_f_z = {},
+                               const Perturbation& extra_g_z = {});
+
+// Solve (dT/dx) v = w for the unit-triangular Jacobian of the chain above.
+ExVec pull_back(const ExVec& T, const std::vector<GiNaC::symbol>& x, const ExVec& w);
+
+}  // namespace obsynth::testing
