@@ -595,11 +595,24 @@ class Parser {
     };
     GiNaC::exmap u_zero;
     for (const auto& u : model_.inputs) u_zero[u] = 0;
+    // Substituting u = 0 can throw (a pole such as 1/u): that is the user's model, not a bug.
+    auto at_u_zero = [&](const ex& e, const char* field, std::size_t i) -> ex {
+      try {
+        return e.subs(u_zero);
+      } catch (const std::exception& err) {
+        throw UserError(where(fmt::format("{}[{}]", field, i)),
+                        fmt::format("{}[{}] is undefined at u = 0 ({}); the input part g(x,u) must "
+                                    "be defined and zero at u = 0",
+                                    field, i + 1, err.what()));
+      }
+    };
     if (F_) {
       check_len("F", *F_);
-      for (const auto& c : *F_) {
-        model_.f.push_back(c.subs(u_zero));
-        model_.g.push_back(c - c.subs(u_zero));
+      for (std::size_t i = 0; i < n; ++i) {
+        const ex& c = (*F_)[i];
+        const ex c0 = at_u_zero(c, "F", i);
+        model_.f.push_back(c0);
+        model_.g.push_back(c - c0);
       }
     } else {
       check_len("f", *f_);
@@ -628,7 +641,7 @@ class Parser {
     const SampleBoxes boxes = SampleBoxes::from_model(model_);
     if (g_) {
       for (std::size_t i = 0; i < n; ++i) {
-        const ex g0 = model_.g[i].subs(u_zero);
+        const ex g0 = at_u_zero(model_.g[i], "g", i);
         if (zero_test(g0, boxes) == ZeroVerdict::nonzero)
           throw UserError(where(fmt::format("g[{}]", i)),
                           fmt::format("g[{}] is not zero at u = 0 (it is {} there); move that part to 'f'",
