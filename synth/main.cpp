@@ -8,7 +8,9 @@
 #include "analysis.hpp"
 #include "diagnostics.hpp"
 #include "parse.hpp"
+#include "output_dir.hpp"
 #include "report.hpp"
+#include "synthesize.hpp"
 #include "worker.hpp"
 
 #ifndef OBSYNTH_VERSION
@@ -70,6 +72,31 @@ int guarded(const CommonOptions& c, const std::function<int()>& job) {
   return r.exit_code;
 }
 
+std::vector<std::string> split_list(const std::string& s) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (char c : s) {
+    if (c == ',') {
+      if (!cur.empty()) out.push_back(cur);
+      cur.clear();
+    } else if (c != ' ') {
+      cur += c;
+    }
+  }
+  if (!cur.empty()) out.push_back(cur);
+  return out;
+}
+
+// A real number given on the command line, as an exact rational (decimals are exact).
+GiNaC::numeric parse_real(const std::string& text, const char* option) {
+  try {
+    const Model m = parse_model("model q\nstates q\nf = [0]\nh = [q]\nparams v = " + text + "\n", option);
+    return *m.params[0].value;
+  } catch (const UserError&) {
+    throw UserError(SourceLoc{}, fmt::format("{}: '{}' is not a real number", option, text));
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -88,6 +115,24 @@ int main(int argc, char** argv) {
   check->add_flag("--no-timings", no_timings, "omit stage timings (byte-identical output between runs)");
   add_common(check, common);
 
+  // The main job: obsynth model.sym -o out/
+  std::string model_path, out_dir, methods = "auto", precision = "double", poles, realisation;
+  app.add_option("model", model_path, "the .sym model file (main job: generate observers)");
+  app.add_option("-o,--output", out_dir, "output directory for headers and reports");
+  app.add_option("--method", methods,
+                 "auto, or a comma-separated list of: canonical, perfect (riccati, high-gain, "
+                 "kalman-theta, thau, kou, extended-linearization, finite-time: planned)")
+      ->capture_default_str();
+  app.add_option("--precision", precision, "literal precision and default scalar of the generated code")
+      ->check(CLI::IsMember({"float", "double"}))
+      ->capture_default_str();
+  app.add_option("--poles", poles, "canonical observer error poles, comma-separated negative reals "
+                                   "(default -2, -2.5, -3, ...)");
+  app.add_option("--realisation", realisation, "canonical observer realisation: z or x (default: z when T^-1 is closed-form)")
+      ->check(CLI::IsMember({"z", "x"}));
+  CommonOptions main_common;
+  add_common(&app, main_common);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -105,6 +150,28 @@ int main(int argc, char** argv) {
       ReportOptions ro;
       ro.timings = !no_timings;
       std::fputs(render_report(a, f, ro).c_str(), stdout);
+      return 0;
+    });
+  }
+  if (!model_path.empty()) {
+    if (out_dir.empty()) {
+      std::fprintf(stderr, "obsynth: error: the main job needs an output directory: obsynth %s -o out/\n",
+                   model_path.c_str());
+      return 1;
+    }
+    return guarded(main_common, [&] {
+      SynthesisOptions so;
+      so.methods = split_list(methods);
+      so.emit.precision = precision == "float" ? Precision::single : Precision::double_precision;
+      so.emit.source_name = model_path;
+      for (const auto& p : split_list(poles)) so.canonical.poles.push_back(parse_real(p, "--poles"));
+      if (!realisation.empty()) so.canonical.realisation = realisation == "z" ? Realisation::z : Realisation::x;
+      const Model m = load_model(model_path);
+      const Analysis a = analyse(m, analysis_options(main_common));
+      const Synthesis s = synthesize(a, so);
+      write_output_dir(out_dir, s.files);
+      for (const auto& f : s.files) std::printf("wrote %s/%s\n", out_dir.c_str(), f.name.c_str());
+      if (!s.explanation.empty()) std::printf("%s\n", s.explanation.c_str());
       return 0;
     });
   }

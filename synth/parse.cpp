@@ -19,6 +19,10 @@ using GiNaC::numeric;
 
 namespace {
 
+// Largest exact number (in bits) a model may produce when it is built or evaluated exactly at
+// a rational point; beyond this, exact arithmetic (gcds of huge integers) takes seconds to hours.
+constexpr long kMaxExactBits = 1L << 18;  // about 79,000 decimal digits
+
 const char* const kFunctions[] = {"sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "atan"};
 const char* const kKeywords[] = {"model", "states", "inputs", "params", "f",
                                  "g",     "h",      "F",      "domain"};
@@ -510,6 +514,7 @@ class Parser {
         if (GiNaC::abs(q.numer()) > lim_.max_integer_exponent || q.denom() > lim_.max_integer_exponent)
           fail(at, fmt::format("exponent {} is out of range (limit {})", to_string(e), lim_.max_integer_exponent));
         if (q.is_negative() && base.is_zero()) fail(op, "division by zero (0 to a negative power)");
+        check_folded_power(base, q, at);
         if (q.is_negative()) divisors_.push_back({base, loc(op)});
       } else {
         // Symbolic exponent: only e^(...) style via exp() is supported, keep the model algebraic.
@@ -518,6 +523,39 @@ class Parser {
       return guarded(op, [&] { return GiNaC::pow(base, e); });
     }
     return base;
+  }
+
+  static long bit_size(const numeric& c) {
+    if (!c.is_real()) return bit_size(c.real()) + bit_size(c.imag());
+    if (!c.is_rational()) return 64;
+    return c.numer().int_length() + c.denom().int_length();
+  }
+  static long saturating_mul(long a, long b) {
+    return (b != 0 && a > (1L << 40) / b) ? (1L << 40) : a * b;
+  }
+
+  // GiNaC folds (b^p)^q into b^(p*q) and distributes integer powers over products, so the
+  // limits must hold for what comes out, not only for what is written: otherwise
+  // (((x1+1)^1000)^1000)^1000 becomes (x1+1)^1000000000 and ((2*x1)^1000)^1000 computes
+  // 2^1000000 on the spot.
+  void check_folded_power(const ex& base, const numeric& q, const Token& at) {
+    const auto check = [&](const ex& b) {
+      if (GiNaC::is_a<GiNaC::power>(b) && GiNaC::is_a<numeric>(b.op(1))) {
+        const numeric p = GiNaC::ex_to<numeric>(b.op(1)) * q;
+        if (p.is_rational() &&
+            (GiNaC::abs(p.numer()) > lim_.max_integer_exponent || p.denom() > lim_.max_integer_exponent))
+          fail(at, fmt::format("exponent out of range: the powers combine to an exponent of {} (limit {})",
+                               to_string(p), lim_.max_integer_exponent));
+      } else if (GiNaC::is_a<numeric>(b)) {
+        if (saturating_mul(bit_size(GiNaC::ex_to<numeric>(b)), GiNaC::abs(q.numer()).to_long()) > kMaxExactBits)
+          fail(at, fmt::format("number too large: this power has more than {} binary digits", kMaxExactBits));
+      }
+    };
+    if (GiNaC::is_a<GiNaC::mul>(base)) {
+      for (std::size_t k = 0; k < base.nops(); ++k) check(base.op(k));
+    } else {
+      check(base);
+    }
   }
 
   ex primary() {
@@ -572,6 +610,63 @@ class Parser {
   }
 
   // ---- whole-model checks --------------------------------------------------------------
+  // Later stages and the zero tests below substitute exact rational points and evaluate
+  // exactly before rounding, so a short model such as 1/(1e400*x1 + 1e-400)^999 would spend
+  // seconds per evaluation in bignum gcds. Bound the size of every exact number that arises.
+  struct ExactSize {
+    long bits;   // bit size of the exactly computed (numeric) part
+    bool exact;  // the whole subexpression evaluates to an exact number
+  };
+  ExactSize exact_size(const ex& e, const std::map<std::string, long>& point_bits, long& worst) const {
+    ExactSize r{0, true};
+    if (GiNaC::is_a<numeric>(e)) {
+      r.bits = bit_size(GiNaC::ex_to<numeric>(e));
+    } else if (GiNaC::is_a<GiNaC::symbol>(e)) {
+      auto it = point_bits.find(GiNaC::ex_to<GiNaC::symbol>(e).get_name());
+      r.bits = it != point_bits.end() ? it->second : 64;
+    } else if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
+      for (std::size_t k = 0; k < e.nops(); ++k) {
+        const ExactSize c = exact_size(e.op(k), point_bits, worst);
+        r.bits = std::min(r.bits + c.bits, 1L << 40);
+        r.exact = r.exact && c.exact;
+      }
+    } else if (GiNaC::is_a<GiNaC::power>(e) && GiNaC::is_a<numeric>(e.op(1))) {
+      const ExactSize b = exact_size(e.op(0), point_bits, worst);
+      const numeric& q = GiNaC::ex_to<numeric>(e.op(1));
+      const long k = q.is_rational() ? GiNaC::abs(q.numer()).to_long() : 1;
+      // An integer power of a product is distributed, so its numeric part is raised too.
+      r.exact = b.exact;
+      r.bits = (b.exact || GiNaC::is_a<GiNaC::mul>(e.op(0))) ? saturating_mul(b.bits, k) : 0;
+    } else {
+      // Function calls (and anything else) stay symbolic until rounded: only their
+      // arguments are computed exactly.
+      for (std::size_t k = 0; k < e.nops(); ++k) exact_size(e.op(k), point_bits, worst);
+      r = {0, false};
+    }
+    worst = std::max(worst, r.bits);
+    return r;
+  }
+
+  void check_exact_size(const SampleBoxes& boxes) const {
+    std::map<std::string, long> point_bits;
+    for (const auto& [name, box] : boxes.by_name)
+      point_bits[name] = 2 * (bit_size(box.lo) + bit_size(box.hi)) + 48;
+    const auto check = [&](const ex& e, const SourceLoc& l) {
+      long worst = 0;
+      exact_size(e, point_bits, worst);
+      if (worst > kMaxExactBits)
+        throw UserError(l, fmt::format("expression too large: evaluating it exactly at a point needs "
+                                       "numbers of about {} binary digits (limit {})",
+                                       worst, kMaxExactBits));
+    };
+    const std::pair<const char*, const ExVec*> fields[] = {{F_ ? "F" : "f", &model_.f},
+                                                           {F_ ? "F" : "g", &model_.g},
+                                                           {"h", &model_.h}};
+    for (const auto& [key, vec] : fields)
+      for (std::size_t i = 0; i < vec->size(); ++i) check((*vec)[i], where(fmt::format("{}[{}]", key, i)));
+    for (const auto& [d, l] : divisors_) check(d, l);
+  }
+
   SourceLoc where(const std::string& key) const {
     auto it = model_.locations.find(key);
     return it != model_.locations.end() ? it->second : SourceLoc{file_, 1, 1};
@@ -639,6 +734,7 @@ class Parser {
           throw UserError(where(fmt::format("h[{}]", i)),
                           fmt::format("h[{}] depends on the input '{}'; outputs must be h(x)", i + 1, u.get_name()));
     const SampleBoxes boxes = SampleBoxes::from_model(model_);
+    check_exact_size(boxes);
     if (g_) {
       for (std::size_t i = 0; i < n; ++i) {
         const ex g0 = at_u_zero(model_.g[i], "g", i);

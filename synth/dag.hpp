@@ -1,0 +1,78 @@
+// Expression DAG for code generation: GiNaC expressions are converted, unexpanded, into
+// hash-consed nodes, so that common subexpressions across all outputs of a function become
+// one node (design.md §5: emit from the unexpanded DAG with CSE). Operands of sums and
+// products are ordered by a structural hash computed from content only, so emission order
+// (and hence the generated text) does not depend on GiNaC's run-dependent term order.
+#pragma once
+
+#include <ginac/ginac.h>
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace obsynth {
+
+enum class NodeOp {
+  constant,  // value (rational or floating)
+  variable,  // name
+  add,       // args
+  mul,       // args
+  div,       // args[0] / args[1]
+  neg,       // -args[0]
+  pow_int,   // args[0]^exponent, exponent >= 2
+  sqrt,      // sqrt(args[0])
+  pow_real,  // args[0]^value (non-integer rational exponent other than 1/2)
+  call,      // name(args[0]): sin cos tan exp log tanh atan atanh
+};
+
+struct Node {
+  NodeOp op;
+  std::vector<int> args;
+  GiNaC::numeric value;  // constant value, or exponent for pow_real
+  long exponent = 0;     // pow_int
+  std::string name;      // variable or function name
+  std::uint64_t hash = 0;
+};
+
+class Dag {
+ public:
+  // Adds an expression; returns its node id. Equal subexpressions share ids.
+  int add(const GiNaC::ex& e);
+  int constant(const GiNaC::numeric& v);
+  int variable(const std::string& name);
+
+  const Node& node(int id) const { return nodes_[static_cast<std::size_t>(id)]; }
+  std::size_t size() const { return nodes_.size(); }
+
+  // Evaluates nodes in double precision with the given variable values (missing variables
+  // are an internal error): the same operations, in the same order, as the emitted C++.
+  class Evaluator {
+   public:
+    explicit Evaluator(const Dag& dag) : dag_(dag) {}
+    void set(const std::string& name, double v) { vars_[name] = v; }
+    double eval(int id);
+    void clear_cache() { cache_.clear(); }
+
+   private:
+    const Dag& dag_;
+    std::unordered_map<std::string, double> vars_;
+    std::unordered_map<int, double> cache_;
+  };
+
+ private:
+  int intern(Node n);
+  int convert(const GiNaC::ex& e);
+  int convert_owned(const GiNaC::ex& e);
+  int make(NodeOp op, std::vector<int> args, bool commutative);
+
+  std::vector<Node> nodes_;
+  std::map<std::string, int> index_;  // structural key -> id
+  std::unordered_map<const GiNaC::basic*, int> memo_;
+  std::deque<GiNaC::ex> keep_alive_;  // memo_ keys must outlive the map
+};
+
+}  // namespace obsynth
