@@ -171,54 +171,77 @@ int Dag::convert(const ex& e) {
   return id;
 }
 
-double Dag::Evaluator::eval(int id) {
-  auto c = cache_.find(id);
-  if (c != cache_.end()) return c->second;
-  const Node& n = dag_.node(id);
-  auto arg = [&](std::size_t i) { return eval(n.args[i]); };
-  double v = 0;
-  switch (n.op) {
-    case NodeOp::constant: v = n.value.to_double(); break;
-    case NodeOp::variable: {
-      auto it = vars_.find(n.name);
-      OBSYNTH_ASSERT(it != vars_.end(), "unbound variable " + n.name);
-      v = it->second;
-      break;
-    }
-    case NodeOp::add:
-      v = 0;
-      for (std::size_t i = 0; i < n.args.size(); ++i) v += arg(i);
-      break;
-    case NodeOp::mul:
-      v = 1;
-      for (std::size_t i = 0; i < n.args.size(); ++i) v *= arg(i);
-      break;
-    case NodeOp::div: v = arg(0) / arg(1); break;
-    case NodeOp::neg: v = -arg(0); break;
-    case NodeOp::pow_int: {
-      const double b = arg(0);
-      v = 1;
-      for (long k = 0; k < n.exponent; ++k) v *= b;
-      break;
-    }
-    case NodeOp::sqrt: v = std::sqrt(arg(0)); break;
-    case NodeOp::pow_real: v = std::pow(arg(0), n.value.to_double()); break;
-    case NodeOp::call: {
-      const double a = arg(0);
-      if (n.name == "sin") v = std::sin(a);
-      else if (n.name == "cos") v = std::cos(a);
-      else if (n.name == "tan") v = std::tan(a);
-      else if (n.name == "exp") v = std::exp(a);
-      else if (n.name == "log") v = std::log(a);
-      else if (n.name == "tanh") v = std::tanh(a);
-      else if (n.name == "atan") v = std::atan(a);
-      else if (n.name == "atanh") v = std::atanh(a);
-      else OBSYNTH_ASSERT(false, "unsupported function " + n.name);
-      break;
+NumericFunction::NumericFunction(const std::vector<ex>& outputs, const std::vector<std::string>& inputs) {
+  for (const auto& e : outputs) out_ids_.push_back(dag_.add(e));
+  std::vector<bool> needed(dag_.size(), false);
+  std::vector<int> stack(out_ids_.begin(), out_ids_.end());
+  while (!stack.empty()) {
+    const int id = stack.back();
+    stack.pop_back();
+    if (needed[static_cast<std::size_t>(id)]) continue;
+    needed[static_cast<std::size_t>(id)] = true;
+    for (int a : dag_.node(id).args) stack.push_back(a);
+  }
+  input_of_node_.assign(dag_.size(), -1);
+  for (std::size_t id = 0; id < dag_.size(); ++id) {
+    if (!needed[id]) continue;
+    order_.push_back(static_cast<int>(id));  // ids are created children first
+    const Node& n = dag_.node(static_cast<int>(id));
+    if (n.op == NodeOp::variable) {
+      auto it = std::find(inputs.begin(), inputs.end(), n.name);
+      OBSYNTH_ASSERT(it != inputs.end(), "numeric function: unbound variable " + n.name);
+      input_of_node_[id] = static_cast<int>(it - inputs.begin());
     }
   }
-  cache_[id] = v;
-  return v;
+  values_.assign(dag_.size(), 0.0);
+}
+
+std::vector<double> NumericFunction::operator()(const std::vector<double>& in) const {
+  for (int id : order_) {
+    const Node& n = dag_.node(id);
+    auto arg = [&](std::size_t i) { return values_[static_cast<std::size_t>(n.args[i])]; };
+    double v = 0;
+    switch (n.op) {
+      case NodeOp::constant: v = n.value.to_double(); break;
+      case NodeOp::variable: v = in[static_cast<std::size_t>(input_of_node_[static_cast<std::size_t>(id)])]; break;
+      case NodeOp::add:
+        v = arg(0);
+        for (std::size_t i = 1; i < n.args.size(); ++i) v += arg(i);
+        break;
+      case NodeOp::mul:
+        v = arg(0);
+        for (std::size_t i = 1; i < n.args.size(); ++i) v *= arg(i);
+        break;
+      case NodeOp::div: v = arg(0) / arg(1); break;
+      case NodeOp::neg: v = -arg(0); break;
+      case NodeOp::pow_int: {
+        const double b = arg(0);
+        v = b;
+        for (long k = 1; k < n.exponent; ++k) v *= b;
+        break;
+      }
+      case NodeOp::sqrt: v = std::sqrt(arg(0)); break;
+      case NodeOp::pow_real: v = std::pow(arg(0), n.value.to_double()); break;
+      case NodeOp::call: {
+        const double a = arg(0);
+        if (n.name == "sin") v = std::sin(a);
+        else if (n.name == "cos") v = std::cos(a);
+        else if (n.name == "tan") v = std::tan(a);
+        else if (n.name == "exp") v = std::exp(a);
+        else if (n.name == "log") v = std::log(a);
+        else if (n.name == "tanh") v = std::tanh(a);
+        else if (n.name == "atan") v = std::atan(a);
+        else if (n.name == "atanh") v = std::atanh(a);
+        else OBSYNTH_ASSERT(false, "unsupported function " + n.name);
+        break;
+      }
+    }
+    values_[static_cast<std::size_t>(id)] = v;
+  }
+  std::vector<double> out;
+  out.reserve(out_ids_.size());
+  for (int id : out_ids_) out.push_back(values_[static_cast<std::size_t>(id)]);
+  return out;
 }
 
 }  // namespace obsynth

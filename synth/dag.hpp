@@ -48,21 +48,6 @@ class Dag {
   const Node& node(int id) const { return nodes_[static_cast<std::size_t>(id)]; }
   std::size_t size() const { return nodes_.size(); }
 
-  // Evaluates nodes in double precision with the given variable values (missing variables
-  // are an internal error): the same operations, in the same order, as the emitted C++.
-  class Evaluator {
-   public:
-    explicit Evaluator(const Dag& dag) : dag_(dag) {}
-    void set(const std::string& name, double v) { vars_[name] = v; }
-    double eval(int id);
-    void clear_cache() { cache_.clear(); }
-
-   private:
-    const Dag& dag_;
-    std::unordered_map<std::string, double> vars_;
-    std::unordered_map<int, double> cache_;
-  };
-
  private:
   int intern(Node n);
   int convert(const GiNaC::ex& e);
@@ -73,6 +58,24 @@ class Dag {
   std::map<std::string, int> index_;  // structural key -> id
   std::unordered_map<const GiNaC::basic*, int> memo_;
   std::deque<GiNaC::ex> keep_alive_;  // memo_ keys must outlive the map
+};
+
+// Double-precision evaluation of a set of expressions through their DAG: the same
+// operations, in the same order, as the emitted C++ (used by `obsynth simulate` and tests).
+class NumericFunction {
+ public:
+  NumericFunction() = default;
+  // inputs: variable names in the order of the argument vector.
+  NumericFunction(const std::vector<GiNaC::ex>& outputs, const std::vector<std::string>& inputs);
+  std::vector<double> operator()(const std::vector<double>& in) const;
+  std::size_t outputs() const { return out_ids_.size(); }
+
+ private:
+  Dag dag_;
+  std::vector<int> out_ids_;
+  std::vector<int> order_;                 // needed nodes, children first
+  std::vector<int> input_of_node_;         // node id -> argument index (variables)
+  mutable std::vector<double> values_;
 };
 
 }  // namespace obsynth

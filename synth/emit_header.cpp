@@ -96,15 +96,31 @@ class {{class_name}} {
       zh_ = z_prev;
       return status_ = obsynth::Status::non_finite;
     }
-{{inverse}}    return status_;
+    return status_ = update_estimate();
   }
 
   const State& estimate() const noexcept { return xh_; }
-  /// The observer's own state zh = T(xh) in canonical coordinates.
-  const State& canonical_state() const noexcept { return zh_; }
   obsynth::Status status() const noexcept { return status_; }
 
+  /// The observer as a continuous-time system, d/dt zh = derivative(zh, u, y): for
+  /// simulating plant and observer as one ODE (then the error decays exactly as designed).
+  static void derivative(const State& zh, const Input& u, const Output& y, State& dzh) noexcept {
+    State c;
+    F::step_constant(u, y, c);
+    F::z_rhs(zh, c, dzh);
+  }
+  /// The observer's own state zh = T(xh), in canonical coordinates.
+  const State& observer_state() const noexcept { return zh_; }
+  /// Sets zh and recomputes the estimate xh = T^-1(zh).
+  obsynth::Status set_observer_state(const State& zh) noexcept {
+    zh_ = zh;
+    return status_ = update_estimate();
+  }
+
  private:
+  obsynth::Status update_estimate() noexcept {
+{{inverse}}  }
+
   State zh_;
   State xh_;
   obsynth::Status status_ = obsynth::Status::ok;
@@ -113,9 +129,9 @@ class {{class_name}} {
 
 const char* kInverseClosed = R"(    State x;
     F::T_inverse(zh_, x);
-    if (!obsynth::all_finite(x)) return status_ = obsynth::Status::non_finite;
+    if (!obsynth::all_finite(x)) return obsynth::Status::non_finite;
     xh_ = x;
-    status_ = obsynth::Status::ok;
+    return obsynth::Status::ok;
 )";
 
 const char* kInverseNewton = R"(    // T^-1 has no closed form: Newton on T(x) = zh seeded from the previous estimate, with the
@@ -124,7 +140,7 @@ const char* kInverseNewton = R"(    // T^-1 has no closed form: Newton on T(x) =
         [](const State& x, State& Tx) noexcept { F::T(x, Tx); },
         [](const State& x, typename F::Frame& tau) noexcept { F::frame(x, tau); }, zh_, xh_,
         {{iterations}}, {{tolerance}});
-    status_ = r.status;
+    return r.status;
 )";
 
 const char* kCanonicalXClass = R"(/// Canonical-form Luenberger observer, realised in the original coordinates:
@@ -164,6 +180,17 @@ class {{class_name}} {
 
   const State& estimate() const noexcept { return xh_; }
   obsynth::Status status() const noexcept { return status_; }
+
+  /// The observer as a continuous-time system, d/dt xh = derivative(xh, u, y).
+  static void derivative(const State& xh, const Input& u, const Output& y, State& dxh) noexcept {
+    F::x_rhs(xh, u, y, dxh);
+  }
+  /// The observer's own state is the estimate itself.
+  const State& observer_state() const noexcept { return xh_; }
+  obsynth::Status set_observer_state(const State& xh) noexcept {
+    xh_ = xh;
+    return status_ = obsynth::all_finite(xh_) ? obsynth::Status::ok : obsynth::Status::non_finite;
+  }
 
  private:
   State xh_;

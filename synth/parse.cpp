@@ -225,6 +225,23 @@ class Parser {
   Parser(std::vector<Token> toks, std::string file, const ParseLimits& lim)
       : toks_(std::move(toks)), file_(std::move(file)), lim_(lim) {}
 
+  // A comma-separated list of expressions over the given symbols (e.g. --u "sin(t)").
+  ExVec standalone_list(const std::vector<GiNaC::symbol>& symbols) {
+    for (const auto& sym : symbols) names_.emplace(sym.get_name(), Declared{Declared::state, sym, SourceLoc{file_, 0, 0}});
+    ExVec out;
+    if (peek().kind == Tok::end) fail(peek(), "expected an expression");
+    do {
+      out.push_back(expression());
+    } while (accept_op(','));
+    if (peek().kind == Tok::newline) ++i_;
+    if (peek().kind != Tok::end) fail(peek(), fmt::format("unexpected {} after the expression", describe(peek())));
+    const SampleBoxes boxes;
+    for (const auto& [d, l] : divisors_)
+      if (zero_test(d, boxes) != ZeroVerdict::nonzero)
+        throw UserError(l, fmt::format("division by an expression that is identically zero: {}", to_string(d)));
+    return out;
+  }
+
   Model run() {
     model_.file = file_;
     if (toks_.size() == 1)
@@ -363,17 +380,44 @@ class Parser {
   }
 
   numeric numeric_value(const ex& v, const Token& at, const std::string& what) {
-    const ex e = GiNaC::evalf(v);
     for (const auto& s : symbols_in_expr(v)) {
       auto it = names_.find(s);
       if (it != names_.end())
         fail(at, fmt::format("{} must be a number, but it uses the {} '{}'", what,
                              kind_name(it->second.kind), s));
     }
-    if (!GiNaC::is_a<numeric>(e) || !GiNaC::ex_to<numeric>(e).is_real())
+    // numeric::is_real() is false for I^2 = -1, so test the imaginary part instead.
+    if (GiNaC::is_a<numeric>(v) && GiNaC::ex_to<numeric>(v).imag().is_zero() &&
+        GiNaC::ex_to<numeric>(v).real().is_rational())
+      return GiNaC::ex_to<numeric>(v).real();
+    check_float_arguments(v, at, what);
+    ex e;
+    try {
+      e = GiNaC::evalf(v);
+    } catch (const std::exception& err) {  // e.g. cln::floating_point_underflow_exception
+      fail(at, fmt::format("{} cannot be evaluated: {}", what, err.what()));
+    }
+    if (!GiNaC::is_a<numeric>(e) || !GiNaC::ex_to<numeric>(e).imag().is_zero())
       fail(at, fmt::format("{} must be a real number", what));
-    if (GiNaC::is_a<numeric>(v) && GiNaC::ex_to<numeric>(v).is_rational()) return GiNaC::ex_to<numeric>(v);
-    return GiNaC::ex_to<numeric>(e);
+    return GiNaC::ex_to<numeric>(e).real();
+  }
+
+  // Rounded evaluation goes silently wrong for huge arguments (CLN gives exp(10^400) = 1,
+  // sin(10^400) = 0, tanh(10^400) = 0) or throws (exp(-10^400) underflows): refuse them.
+  void check_float_arguments(const ex& v, const Token& at, const std::string& what) {
+    for (std::size_t k = 0; k < v.nops(); ++k) check_float_arguments(v.op(k), at, what);
+    if (!GiNaC::is_a<GiNaC::function>(v)) return;
+    const std::string name = GiNaC::ex_to<GiNaC::function>(v).get_name();
+    if (name == "log" || name == "atan") return;  // well behaved for any magnitude
+    ex a;
+    try {
+      a = GiNaC::evalf(v.op(0));
+    } catch (const std::exception& err) {
+      fail(at, fmt::format("{} cannot be evaluated: {}", what, err.what()));
+    }
+    if (GiNaC::is_a<numeric>(a) && GiNaC::abs(GiNaC::ex_to<numeric>(a)) > numeric(1000000))
+      fail(at, fmt::format("{} cannot be evaluated reliably: the argument of {}() exceeds 10^6 in "
+                           "magnitude", what, name));
   }
 
   static std::vector<std::string> symbols_in_expr(const ex& e) {
@@ -514,6 +558,8 @@ class Parser {
         if (GiNaC::abs(q.numer()) > lim_.max_integer_exponent || q.denom() > lim_.max_integer_exponent)
           fail(at, fmt::format("exponent {} is out of range (limit {})", to_string(e), lim_.max_integer_exponent));
         if (q.is_negative() && base.is_zero()) fail(op, "division by zero (0 to a negative power)");
+        // Checked here rather than left to GiNaC, whose exception for 0^0 leaks the power object.
+        if (q.is_zero() && base.is_zero()) fail(op, "0^0 is undefined");
         check_folded_power(base, q, at);
         if (q.is_negative()) divisors_.push_back({base, loc(op)});
       } else {
@@ -663,8 +709,23 @@ class Parser {
                                                            {F_ ? "F" : "g", &model_.g},
                                                            {"h", &model_.h}};
     for (const auto& [key, vec] : fields)
-      for (std::size_t i = 0; i < vec->size(); ++i) check((*vec)[i], where(fmt::format("{}[{}]", key, i)));
+      for (std::size_t i = 0; i < vec->size(); ++i) {
+        const SourceLoc l = where(fmt::format("{}[{}]", key, i));
+        check((*vec)[i], l);
+        // sqrt(-1) and log(-2) evaluate to I and log(2) + I*Pi: the model must stay real.
+        if (has_nonreal_number((*vec)[i]))
+          throw UserError(l, fmt::format("{}[{}] is not real: {} (the imaginary unit comes from sqrt or "
+                                         "log of a negative number)",
+                                         key, i + 1, to_string((*vec)[i])));
+      }
     for (const auto& [d, l] : divisors_) check(d, l);
+  }
+
+  static bool has_nonreal_number(const ex& e) {
+    if (GiNaC::is_a<numeric>(e)) return !GiNaC::ex_to<numeric>(e).imag().is_zero();  // I^2 is not is_real()
+    for (std::size_t k = 0; k < e.nops(); ++k)
+      if (has_nonreal_number(e.op(k))) return true;
+    return false;
   }
 
   SourceLoc where(const std::string& key) const {
@@ -761,6 +822,13 @@ Model parse_model(std::string_view text, const std::string& filename, const Pars
   Lexer lexer(text, filename, limits);
   Parser parser(lexer.run(), filename, limits);
   return parser.run();
+}
+
+ExVec parse_expression_list(std::string_view text, const std::string& what,
+                            const std::vector<GiNaC::symbol>& symbols, const ParseLimits& limits) {
+  Lexer lexer(text, what, limits);
+  Parser parser(lexer.run(), what, limits);
+  return parser.standalone_list(symbols);
 }
 
 Model load_model(const std::string& path, const ParseLimits& limits) {

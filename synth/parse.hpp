@@ -21,6 +21,11 @@ Model parse_model(std::string_view text, const std::string& filename, const Pars
 // Reads the file; an unreadable file is a UserError.
 Model load_model(const std::string& path, const ParseLimits& = {});
 
+// A comma-separated list of expressions over the given symbols, with the model syntax
+// (command-line inputs such as --u "sin(t)"); `what` names the source in diagnostics.
+ExVec parse_expression_list(std::string_view text, const std::string& what,
+                            const std::vector<GiNaC::symbol>& symbols, const ParseLimits& = {});
+
 // Functions a model may call.
 bool is_supported_function(const std::string& name);
 
