@@ -721,6 +721,14 @@ class Parser {
     for (const auto& [d, l] : divisors_) check(d, l);
   }
 
+  template <class OnPole>
+  static void check_poles_at_zero(const ex& e, const GiNaC::exmap& zero, const OnPole& on_pole) {
+    for (std::size_t k = 0; k < e.nops(); ++k) check_poles_at_zero(e.op(k), zero, on_pole);
+    if (GiNaC::is_a<GiNaC::power>(e) && GiNaC::is_a<numeric>(e.op(1)) &&
+        !GiNaC::ex_to<numeric>(e.op(1)).is_positive() && e.op(0).subs(zero).is_zero())
+      on_pole(e.op(0));
+  }
+
   static bool has_nonreal_number(const ex& e) {
     if (GiNaC::is_a<numeric>(e)) return !GiNaC::ex_to<numeric>(e).imag().is_zero();  // I^2 is not is_real()
     for (std::size_t k = 0; k < e.nops(); ++k)
@@ -753,13 +761,23 @@ class Parser {
     for (const auto& u : model_.inputs) u_zero[u] = 0;
     // Substituting u = 0 can throw (a pole such as 1/u): that is the user's model, not a bug.
     auto at_u_zero = [&](const ex& e, const char* field, std::size_t i) -> ex {
+      const SourceLoc l = where(fmt::format("{}[{}]", field, i));
+      const auto undefined = [&](const std::string& why) {
+        return UserError(l, fmt::format("{}[{}] is undefined at u = 0 ({}); the input part g(x,u) must "
+                                        "be defined and zero at u = 0",
+                                        field, i + 1, why));
+      };
+      // GiNaC leaks the half-built term when a pole makes subs() throw (x2/u*x2 with u = 0),
+      // so look for vanishing denominators first, innermost first.
       try {
+        check_poles_at_zero(e, u_zero, [&](const ex& base) {
+          throw undefined(fmt::format("it divides by {}, which vanishes there", to_string(base)));
+        });
         return e.subs(u_zero);
-      } catch (const std::exception& err) {
-        throw UserError(where(fmt::format("{}[{}]", field, i)),
-                        fmt::format("{}[{}] is undefined at u = 0 ({}); the input part g(x,u) must "
-                                    "be defined and zero at u = 0",
-                                    field, i + 1, err.what()));
+      } catch (const UserError&) {
+        throw;
+      } catch (const std::exception& err) {  // e.g. log(u)
+        throw undefined(err.what());
       }
     };
     if (F_) {

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include "expr_print.hpp"
+
 namespace obsynth::testing {
 
 using GiNaC::ex;
@@ -14,7 +16,7 @@ ExVec pull_back(const ExVec& T, const std::vector<GiNaC::symbol>& x, const ExVec
     const std::size_t row = n - 1 - k;
     ex acc = w[row];
     for (std::size_t j = 0; j < k; ++j) acc -= T[row].diff(x[j]) * v[j];
-    v[k] = GiNaC::normal(acc);  // coefficient of x_{k+1} in T[row] is 1
+    v[k] = GiNaC::normal(acc / T[row].diff(x[k]));  // dT_row/dx_{k+1}: 1, or 1 + x^2 (newton)
   }
   return v;
 }
@@ -23,7 +25,8 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
                                const Perturbation& extra_g) {
   Constructed c;
   Model& m = c.model;
-  m.name = fmt::format("chain{}_{}", n, flavor == Flavor::polynomial ? "poly" : "trans");
+  static const char* const flavor_names[] = {"poly", "trans", "stable", "newton"};
+  m.name = fmt::format("chain{}_{}", n, flavor_names[static_cast<int>(flavor)]);
   m.file = m.name + ".sym";
   for (std::size_t i = 0; i < n; ++i) m.states.push_back(GiNaC::symbol(fmt::format("x{}", i + 1)));
   GiNaC::symbol u("u");
@@ -35,7 +38,7 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
   // psi_k(x_1..x_k), each zero at the origin.
   auto psi = [&](std::size_t k) -> ex {  // k = 1..n-1
     const ex a = x[k - 1], b = x[0];
-    if (flavor == Flavor::polynomial) {
+    if (flavor != Flavor::transcendental) {
       switch (k % 3) {
         case 0: return a * a / 2;
         case 1: return a * b;
@@ -48,9 +51,10 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
       default: return GiNaC::atan(a);
     }
   };
+  const bool newton = flavor == Flavor::stable_newton;
   c.T.assign(n, 0);
   c.T[n - 1] = x[0];
-  for (std::size_t k = 1; k < n; ++k) c.T[n - 1 - k] = x[k] + psi(k);
+  for (std::size_t k = 1; k < n; ++k) c.T[n - 1 - k] = x[k] + (newton ? GiNaC::pow(x[k], 3) / 3 : ex(0)) + psi(k);
   // Inverse: x1 = zn, x_{k+1} = z_{n-k} - psi_k(x_1..x_k) with the earlier x substituted.
   ExVec xs(n);
   xs[0] = c.z[n - 1];
@@ -59,7 +63,7 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
     for (std::size_t j = 0; j < k; ++j) sub[x[j]] = xs[j];
     xs[k] = c.z[n - 1 - k] - psi(k).subs(sub);
   }
-  c.T_inverse = xs;
+  c.T_inverse = newton ? ExVec{} : xs;  // no closed form with the cubic terms
   // l(u, y): nonlinear in y, one input term.
   c.l.assign(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
@@ -70,7 +74,23 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
       default: c.l[i] = (flavor == Flavor::polynomial ? -yy : -GiNaC::atan(yy)); break;
     }
   }
-  c.l[0] += u * (1 + c.y * c.y);
+  if (flavor == Flavor::stable || newton) {
+    // Hurwitz: prod (s + 1 + k/2) gives a_i; the z-system is A - a e_n^T plus bounded terms.
+    std::vector<GiNaC::numeric> poles;
+    for (std::size_t k = 0; k < n; ++k) poles.push_back(-1 - GiNaC::numeric(static_cast<long>(k), 2));
+    GiNaC::symbol s("s");
+    ex poly = 1;
+    for (const auto& q : poles) poly *= (s - q);
+    poly = GiNaC::expand(poly);
+    for (std::size_t i = 0; i < n; ++i) {
+      const ex a = poly.coeff(s, static_cast<int>(i));
+      c.l[i] = -a * c.y + (i % 2 == 0 ? GiNaC::sin(c.y) / 4 : c.y * c.y / (4 * (1 + c.y * c.y)));
+    }
+    c.l[0] += u * GiNaC::cos(c.y);
+    for (const auto& s2 : x) m.domain[s2.get_name()] = Interval{GiNaC::numeric(-1), GiNaC::numeric(1)};
+  } else {
+    c.l[0] += u * (1 + c.y * c.y);
+  }
   // Drift and input field in z coordinates, then pulled back.
   GiNaC::exmap z_of_x, y_of_x, u0;
   for (std::size_t i = 0; i < n; ++i) z_of_x[c.z[i]] = c.T[i];
@@ -93,6 +113,21 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
   if (flavor == Flavor::transcendental)
     for (const auto& s : x) m.domain[s.get_name()] = Interval{GiNaC::numeric(-1), GiNaC::numeric(1)};
   return c;
+}
+
+std::string to_sym(const Model& m) {
+  std::vector<std::string> xs, us;
+  for (const auto& s : m.states) xs.push_back(s.get_name());
+  for (const auto& s : m.inputs) us.push_back(s.get_name());
+  std::string out = fmt::format("# constructed by the obsynth test suite\nmodel {}\nstates {}\n", m.name, fmt::join(xs, " "));
+  if (!us.empty()) out += fmt::format("inputs {}\n", fmt::join(us, " "));
+  out += fmt::format("f = [\n  {}\n]\n", fmt::join(to_strings(m.f), ",\n  "));
+  out += fmt::format("g = [\n  {}\n]\n", fmt::join(to_strings(m.g), ",\n  "));
+  out += fmt::format("h = [ {} ]\n", fmt::join(to_strings(m.h), ", "));
+  std::vector<std::string> dom;
+  for (const auto& [name, box] : m.domain) dom.push_back(fmt::format("{} in [{}, {}]", name, to_string(box.lo), to_string(box.hi)));
+  if (!dom.empty()) out += fmt::format("domain {}\n", fmt::join(dom, ", "));
+  return out;
 }
 
 }  // namespace obsynth::testing

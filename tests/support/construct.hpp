@@ -13,7 +13,11 @@
 
 namespace obsynth::testing {
 
-enum class Flavor { polynomial, transcendental };
+// polynomial / transcendental: T from the lists below, l with polynomial or exp/sin/atan terms
+// (used for the analysis tests). stable / stable_newton: l(u, y) = -a y + bounded terms with
+// s^n + a_n s^(n-1) + ... Hurwitz, so trajectories stay bounded (closed-loop tests);
+// stable_newton adds x_{k+1}^3/3 to each T row, so T^-1 has no closed form (runtime Newton).
+enum class Flavor { polynomial, transcendental, stable, stable_newton };
 
 struct Constructed {
   Model model;
@@ -33,7 +37,10 @@ using Perturbation = std::function<ExVec(const std::vector<GiNaC::symbol>& z, co
 Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation& extra_f_z = {},
                                const Perturbation& extra_g_z = {});
 
-// Solve (dT/dx) v = w for the unit-triangular Jacobian of the chain above.
+// The model as .sym text (parseable by obsynth's front end).
+std::string to_sym(const Model& m);
+
+// Solve (dT/dx) v = w for the triangular Jacobian of the chain above.
 ExVec pull_back(const ExVec& T, const std::vector<GiNaC::symbol>& x, const ExVec& w);
 
 }  // namespace obsynth::testing
