@@ -119,12 +119,120 @@ std::optional<ex> integrate_factor(const ex& coeff, const ex& f, const GiNaC::sy
   return std::nullopt;
 }
 
+bool numeric_poly(const ex& p, const GiNaC::symbol& y) {
+  if (!p.is_polynomial(y)) return false;
+  const ex e = GiNaC::expand(p);
+  for (int k = 0; k <= e.degree(y); ++k)
+    if (!is_a<numeric>(e.coeff(y, k))) return false;
+  return true;
+}
+
+// ∫ 1/q^k for q = t^2 + w2 (w2 > 0) in t = y + p/2, by the reduction formula.
+ex quadratic_power_integral(const ex& t, const ex& w2, long k) {
+  const ex w = GiNaC::sqrt(w2);
+  ex I = GiNaC::atan(t / w) / w;
+  for (long j = 2; j <= k; ++j) {
+    const ex q = t * t + w2;
+    I = t / (2 * w2 * (j - 1) * GiNaC::pow(q, j - 1)) + numeric(2 * j - 3) / (2 * w2 * (j - 1)) * I;
+  }
+  return I;
+}
+
+// Rational functions with rational coefficients whose denominator factors over Q into linear
+// and irreducible quadratic factors: polynomial part + partial fractions (undetermined
+// coefficients, solved exactly) + log/atan/power terms. log|a y + b| is written
+// log((a y + b)^2)/2 to stay real.
+std::optional<ex> integrate_rational(const ex& e, const GiNaC::symbol& y) {
+  const ex nd = GiNaC::numer_denom(GiNaC::normal(e));
+  const ex P = GiNaC::expand(nd.op(0)), Q = GiNaC::expand(nd.op(1));
+  if (!numeric_poly(P, y) || !numeric_poly(Q, y) || Q.degree(y) == 0) return std::nullopt;
+  const ex poly = GiNaC::quo(P, Q, y), rem = GiNaC::rem(P, Q, y);
+  ex result = 0;
+  if (!poly.is_zero()) {
+    auto pi = integrate_sum(poly, y, 0);
+    if (!pi) return std::nullopt;
+    result += *pi;
+  }
+  if (rem.is_zero()) return result;
+  // Factor Q: c * prod q_j^e_j.
+  const ex fq = GiNaC::factor(Q);
+  std::vector<std::pair<ex, long>> factors;
+  ex lead = 1;
+  auto take = [&](const ex& f) {
+    ex base = f;
+    long mult = 1;
+    if (is_a<GiNaC::power>(f) && is_a<numeric>(f.op(1))) {
+      base = f.op(0);
+      mult = GiNaC::ex_to<numeric>(f.op(1)).to_long();
+    }
+    if (!base.has(y)) {
+      lead *= f;
+      return true;
+    }
+    const int deg = base.degree(y);
+    if (deg > 2) return false;
+    // Monic factor; the leading coefficient goes to `lead`.
+    const ex lc = base.lcoeff(y);
+    lead *= GiNaC::pow(lc, mult);
+    factors.push_back({GiNaC::expand(base / lc), mult});
+    return true;
+  };
+  if (is_a<GiNaC::mul>(fq)) {
+    for (std::size_t i = 0; i < fq.nops(); ++i)
+      if (!take(fq.op(i))) return std::nullopt;
+  } else if (!take(fq)) {
+    return std::nullopt;
+  }
+  // Ansatz: sum over factors and powers of (A y + B)/q^k (A = 0 for linear q).
+  GiNaC::lst unknowns;
+  ex ansatz = 0;
+  std::vector<std::tuple<ex, long, ex, ex>> terms;  // q, k, A, B
+  int counter = 0;
+  for (const auto& [q, mult] : factors)
+    for (long k = 1; k <= mult; ++k) {
+      GiNaC::symbol A("pfA" + std::to_string(counter)), B("pfB" + std::to_string(counter));
+      ++counter;
+      const bool quad = q.degree(y) == 2;
+      if (quad) unknowns.append(A);
+      unknowns.append(B);
+      const ex num = quad ? ex(A * y + B) : ex(B);
+      terms.push_back({q, k, quad ? ex(A) : ex(0), B});
+      ansatz += num * GiNaC::normal(Q / lead / GiNaC::pow(q, k));
+    }
+  const ex diff = GiNaC::expand(ansatz - rem / lead);
+  GiNaC::lst eqs;
+  for (int k = 0; k <= diff.degree(y); ++k) eqs.append(diff.coeff(y, k) == 0);
+  const ex sol = GiNaC::lsolve(eqs, unknowns);
+  if (sol.nops() != unknowns.nops()) return std::nullopt;
+  for (const auto& [q, k, A0, B0] : terms) {
+    const ex A = A0.subs(sol), B = B0.subs(sol);
+    if (q.degree(y) == 1) {
+      const ex root = q - y;  // q = y + root
+      if (B.is_zero()) continue;
+      if (k == 1)
+        result += B * GiNaC::log(GiNaC::pow(y + root, 2)) / 2;
+      else
+        result += B * GiNaC::pow(y + root, 1 - k) / (1 - k);
+      continue;
+    }
+    const ex p = q.coeff(y, 1), s = q.coeff(y, 0);
+    const ex w2 = GiNaC::normal(s - p * p / 4);
+    if (!is_a<numeric>(w2) || !GiNaC::ex_to<numeric>(w2).is_positive()) return std::nullopt;  // reducible over R
+    // (A y + B)/q^k = (A/2)(2y + p)/q^k + (B - A p/2)/q^k
+    if (!A.is_zero()) result += k == 1 ? A / 2 * GiNaC::log(q) : A / 2 * GiNaC::pow(q, 1 - k) / (1 - k);
+    const ex c = GiNaC::normal(B - A * p / 2);
+    if (!c.is_zero()) result += c * quadratic_power_integral(y + p / 2, w2, k);
+  }
+  return result;
+}
+
 }  // namespace
 
 std::optional<ex> antiderivative(const ex& e, const GiNaC::symbol& y) {
   std::optional<ex> r;
   try {
     r = integrate_sum(e, y, 0);
+    if (!r) r = integrate_rational(e, y);
   } catch (const std::exception&) {
     return std::nullopt;
   }

@@ -22,6 +22,7 @@ namespace {
 // Largest exact number (in bits) a model may produce when it is built or evaluated exactly at
 // a rational point; beyond this, exact arithmetic (gcds of huge integers) takes seconds to hours.
 constexpr long kMaxExactBits = 1L << 18;  // about 79,000 decimal digits
+constexpr long kMaxEvaluationBits = 1L << 24;  // exact evaluation of whole expressions
 
 const char* const kFunctions[] = {"sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "atan"};
 const char* const kKeywords[] = {"model", "states", "inputs", "params", "f",
@@ -595,6 +596,14 @@ class Parser {
       } else if (GiNaC::is_a<numeric>(b)) {
         if (saturating_mul(bit_size(GiNaC::ex_to<numeric>(b)), GiNaC::abs(q.numer()).to_long()) > kMaxExactBits)
           fail(at, fmt::format("number too large: this power has more than {} binary digits", kMaxExactBits));
+      } else if (GiNaC::is_a<GiNaC::add>(b)) {
+        // GiNaC also pulls the numeric content out of a sum raised to an integer power and
+        // raises it on the spot: (2*(1e400*x1 + 5e-400)^999 - 400)^999 hung here.
+        const long bits = bit_size(b.integer_content());
+        if (saturating_mul(bits, GiNaC::abs(q.numer()).to_long()) > kMaxExactBits)
+          fail(at, fmt::format("number too large: the numeric factor of this power has more than {} "
+                               "binary digits",
+                               kMaxExactBits));
       }
     };
     if (GiNaC::is_a<GiNaC::mul>(base)) {
@@ -700,10 +709,10 @@ class Parser {
     const auto check = [&](const ex& e, const SourceLoc& l) {
       long worst = 0;
       exact_size(e, point_bits, worst);
-      if (worst > kMaxExactBits)
+      if (worst > kMaxEvaluationBits)
         throw UserError(l, fmt::format("expression too large: evaluating it exactly at a point needs "
                                        "numbers of about {} binary digits (limit {})",
-                                       worst, kMaxExactBits));
+                                       worst, kMaxEvaluationBits));
     };
     const std::pair<const char*, const ExVec*> fields[] = {{F_ ? "F" : "f", &model_.f},
                                                            {F_ ? "F" : "g", &model_.g},

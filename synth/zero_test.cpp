@@ -246,7 +246,11 @@ bool proved_zero(const ex& e) {
 bool evaluate_real(const ex& e, const GiNaC::exmap& point, int digits, numeric& value) {
   DigitsGuard guard(digits);
   try {
-    const ex v = GiNaC::evalf(e.subs(point));
+    // Substitute floating values (at this precision), not the exact rationals: exact
+    // evaluation of a large rational expression builds numbers of millions of digits.
+    GiNaC::exmap fpoint;
+    for (const auto& [k, v] : point) fpoint[k] = GiNaC::evalf(v);
+    const ex v = GiNaC::evalf(e.subs(fpoint));
     if (!is_a<numeric>(v)) return false;
     const numeric& nv = ex_to<numeric>(v);
     if (!nv.is_real()) {

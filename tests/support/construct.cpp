@@ -54,7 +54,7 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
   const bool newton = flavor == Flavor::stable_newton;
   c.T.assign(n, 0);
   c.T[n - 1] = x[0];
-  for (std::size_t k = 1; k < n; ++k) c.T[n - 1 - k] = x[k] + (newton ? GiNaC::pow(x[k], 3) / 3 : ex(0)) + psi(k);
+  for (std::size_t k = 1; k < n; ++k) c.T[n - 1 - k] = x[k] + (newton && k == n - 1 ? GiNaC::pow(x[k], 3) / 3 : ex(0)) + psi(k);
   // Inverse: x1 = zn, x_{k+1} = z_{n-k} - psi_k(x_1..x_k) with the earlier x substituted.
   ExVec xs(n);
   xs[0] = c.z[n - 1];

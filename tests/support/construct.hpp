@@ -16,7 +16,7 @@ namespace obsynth::testing {
 // polynomial / transcendental: T from the lists below, l with polynomial or exp/sin/atan terms
 // (used for the analysis tests). stable / stable_newton: l(u, y) = -a y + bounded terms with
 // s^n + a_n s^(n-1) + ... Hurwitz, so trajectories stay bounded (closed-loop tests);
-// stable_newton adds x_{k+1}^3/3 to each T row, so T^-1 has no closed form (runtime Newton).
+// stable_newton adds x_n^3/3 to the row of x_n, so T^-1 has no closed form (runtime Newton).
 enum class Flavor { polynomial, transcendental, stable, stable_newton };
 
 struct Constructed {
