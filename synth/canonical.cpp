@@ -131,6 +131,12 @@ std::optional<ex> solve_for(const ex& eq, const GiNaC::symbol& xk) {
 
 }  // namespace
 
+ExVec frame_column_major(const CanonicalForm& cf) {
+  ExVec flat;
+  for (const auto& t : cf.frame) flat.insert(flat.end(), t.begin(), t.end());
+  return flat;
+}
+
 Completeness classify_completeness(const ExVec& v, const Symbols& x, std::string& reason) {
   const ExMatrix J = jacobian(v, x);
   bool affine = true, lipschitz = true, poles = false;

@@ -77,6 +77,9 @@ std::optional<GiNaC::ex> express_in_output(const GiNaC::ex& e, const GiNaC::ex& 
 std::optional<ExVec> invert_map(const ExVec& T, const Symbols& x, const std::vector<GiNaC::symbol>& z,
                                 const SampleBoxes& boxes);
 
+// The frame [tau_1 ... tau_n] as a flat column-major list (tau_1 first).
+ExVec frame_column_major(const CanonicalForm& cf);
+
 // Classifies completeness of a vector field: affine or globally Lipschitz => complete.
 Completeness classify_completeness(const ExVec& v, const Symbols& x, std::string& reason);
 

@@ -67,10 +67,8 @@ const char* kFunction = R"(
 {{body}}  }
 )";
 
-const char* kCanonicalZClass = R"(/// Canonical-form Luenberger observer, realised in z coordinates:
-///   zh' = A zh + l(u, y) + K (y - y0 - zh_n),  xh = T^-1(zh)
-/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles {{poles}}.
-template <class Scalar_ = {{scalar}}>
+// The public types every observer class declares (the obsynth::is_observer interface).
+const char* kClassPreamble = R"(template <class Scalar_ = {{scalar}}>
 class {{class_name}} {
  public:
   using Scalar = Scalar_;
@@ -81,7 +79,12 @@ class {{class_name}} {
   using Input = Eigen::Matrix<Scalar, m, 1>;
   using Output = Eigen::Matrix<Scalar, p, 1>;
   using F = {{functions_name}}<Scalar>;
+)";
 
+const char* kCanonicalZClass = R"(/// Canonical-form Luenberger observer, realised in z coordinates:
+///   zh' = A zh + l(u, y) + K (y - y0 - zh_n),  xh = T^-1(zh)
+/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles {{poles}}.
+{{preamble}}
   {{class_name}}() noexcept { reset(State::Zero()); }
 
   /// Starts from the estimate xh0 (zh = T(xh0)).
@@ -152,18 +155,7 @@ const char* kCanonicalXClass = R"(/// Canonical-form Luenberger observer, realis
 ///   xh' = f(xh) + g(xh, u) + [tau](xh) (l(u, y) - l(u, h(xh)) + K (y - h(xh)))
 /// needing neither T nor T^-1 at run time; in z = T(x) the error is exactly linear with
 /// poles {{poles}}.
-template <class Scalar_ = {{scalar}}>
-class {{class_name}} {
- public:
-  using Scalar = Scalar_;
-  static constexpr int n = {{n}};
-  static constexpr int m = {{m}};
-  static constexpr int p = {{p}};
-  using State = Eigen::Matrix<Scalar, n, 1>;
-  using Input = Eigen::Matrix<Scalar, m, 1>;
-  using Output = Eigen::Matrix<Scalar, p, 1>;
-  using F = {{functions_name}}<Scalar>;
-
+{{preamble}}
   {{class_name}}() noexcept { reset(State::Zero()); }
 
   void reset(const State& xh0) noexcept {
@@ -208,18 +200,7 @@ const char* kPerfectClass = R"(/// Perfect observer (seed 003, Theorem 1 and Pro
 /// obsynth::JetDifferentiator (a linear high-gain differentiator; its error is documented
 /// in obsynth/differentiator.hpp: O(epsilon^(K+1-k)) truncation, noise amplified by
 /// epsilon^-k for the k-th derivative).
-template <class Scalar_ = {{scalar}}>
-class {{class_name}} {
- public:
-  using Scalar = Scalar_;
-  static constexpr int n = {{n}};
-  static constexpr int m = {{m}};
-  static constexpr int p = {{p}};
-  using State = Eigen::Matrix<Scalar, n, 1>;
-  using Input = Eigen::Matrix<Scalar, m, 1>;
-  using Output = Eigen::Matrix<Scalar, p, 1>;
-  using F = {{functions_name}}<Scalar>;
-  using YDifferentiator = obsynth::JetDifferentiator<Scalar, {{y_jet_order}}>;
+{{preamble}}  using YDifferentiator = obsynth::JetDifferentiator<Scalar, {{y_jet_order}}>;
   using UDifferentiator = obsynth::JetDifferentiator<Scalar, {{u_jet_order}}>;
 
   {{class_name}}() noexcept { reset(State::Zero()); }
@@ -367,8 +348,7 @@ class HeaderBuilder {
     if (want_Tinv) s += function("T_inverse", "Closed-form inverse x = T^-1(z).", {{"const State& z", "z"}, {"State& out", "out"}}, bz, cf.T_inverse);
     s += function("l", "Output injection l(u, y) of the canonical form z' = A z + l(u, y).", {{"const Input& u", "u"}, {"const Output& y", "y"}, {"State& out", "out"}}, buy, cf.l);
     if (want_frame) {
-      ExVec flat;
-      for (const auto& t : cf.frame) flat.insert(flat.end(), t.begin(), t.end());
+      const ExVec flat = frame_column_major(cf);
       s += function("frame", "Frame [tau_1 ... tau_n](x) = (dT/dx)^-1, columns tau_k.", {{"const State& x", "x"}, {"Frame& out", "out"}}, bx, flat, cf.frame.size());
     }
     return s;
@@ -456,6 +436,15 @@ void check_emittable(const Analysis& a) {
     throw UserError(SourceLoc{a.model.file, 0, 0}, "code generation is single-output for now");
 }
 
+// Renders an observer class template: the shared preamble first, then the class body.
+std::string render_class(const char* tmpl, std::map<std::string, std::string> v) {
+  std::map<std::string, std::string> pv;
+  for (const char* key : {"scalar", "class_name", "n", "m", "p", "functions_name"}) pv[key] = v.at(key);
+  v["preamble"] = render_template(kClassPreamble, pv);
+  for (const char* key : {"scalar", "n", "m", "p", "functions_name"}) v.erase(key);
+  return render_template(tmpl, v);
+}
+
 std::string tolerance_literal(Precision p) {
   return p == Precision::single ? "Scalar(1e-6f)" : "Scalar(1e-13)";
 }
@@ -515,10 +504,10 @@ EmittedHeader emit_canonical_header(const Analysis& a, const CanonicalDesign& d,
     v["inverse"] = d.newton_inverse ? render_template(kInverseNewton, {{"iterations", std::to_string(opt.newton_iterations)},
                                                                       {"tolerance", tolerance_literal(opt.precision)}})
                                     : std::string(kInverseClosed);
-    h.text += render_template(kCanonicalZClass, v);
+    h.text += render_class(kCanonicalZClass, v);
   } else {
     auto v = common;
-    h.text += render_template(kCanonicalXClass, v);
+    h.text += render_class(kCanonicalXClass, v);
   }
   h.text += render_template(kFooter, {{"namespace", b.namespace_name()}});
   h.filename = b.namespace_name() + "_canonical.hpp";
@@ -572,7 +561,7 @@ EmittedHeader emit_perfect_header(const Analysis& a, const PerfectDesign& d, con
   v["reconstruct"] = d.newton_inverse ? render_template(kReconstructNewton, {{"iterations", std::to_string(opt.newton_iterations)},
                                                                             {"tolerance", tolerance_literal(opt.precision)}})
                                       : std::string(kReconstructClosed);
-  h.text += render_template(kPerfectClass, v);
+  h.text += render_class(kPerfectClass, v);
   h.text += render_template(kFooter, {{"namespace", b.namespace_name()}});
   h.filename = b.namespace_name() + "_perfect.hpp";
   h.summary = fmt::format("`{}`: perfect observer `obsynth_gen::{}::{}`; needs y up to y^({}){}; T^-1 {}.", h.filename,

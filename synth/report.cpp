@@ -42,6 +42,12 @@ std::string matrix_latex(const ExMatrix& M) {
   return "\\begin{bmatrix}" + fmt::format("{}", fmt::join(rows, " \\\\ ")) + "\\end{bmatrix}";
 }
 
+std::string timings_text(const Analysis& a) {
+  std::vector<std::string> t;
+  for (const auto& [stage, ms] : a.timings_ms) t.push_back(fmt::format("{} {:.1f} ms", stage, ms));
+  return fmt::format("{}", fmt::join(t, ", "));
+}
+
 const char* holds_word(bool h) { return h ? "holds" : "FAILS"; }
 
 std::string rank_method(const Observability& ob) {
@@ -208,9 +214,7 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
   }
   if (opt.timings) {
     line("");
-    std::vector<std::string> t;
-    for (const auto& [stage, ms] : a.timings_ms) t.push_back(fmt::format("{} {:.1f} ms", stage, ms));
-    line(fmt::format("timings: {}", fmt::join(t, ", ")));
+    line("timings: " + timings_text(a));
   }
   return s;
 }
@@ -278,9 +282,7 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
   }
   if (opt.timings) {
     line("");
-    std::vector<std::string> t;
-    for (const auto& [stage, ms] : a.timings_ms) t.push_back(fmt::format("{} {:.1f} ms", stage, ms));
-    line(fmt::format("_Timings: {}._", fmt::join(t, ", ")));
+    line("_Timings: " + timings_text(a) + "._");
   }
   return s;
 }

@@ -163,9 +163,7 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
       obs_rhs = NumericFunction(rhs, in);
       T_fn = NumericFunction(cf.T, xn);
       if (d.newton_inverse) {
-        ExVec flat;
-        for (const auto& t : cf.frame) flat.insert(flat.end(), t.begin(), t.end());
-        frame_fn = NumericFunction(flat, xn);
+        frame_fn = NumericFunction(frame_column_major(cf), xn);
       } else {
         from_state = NumericFunction(cf.T_inverse, names_of(cf.z));
       }
@@ -215,9 +213,7 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
     NumericFunction T_fn, frame_fn;
     if (d.newton_inverse) {
       T_fn = NumericFunction(cf.T, xn);
-      ExVec flat;
-      for (const auto& t : cf.frame) flat.insert(flat.end(), t.begin(), t.end());
-      frame_fn = NumericFunction(flat, xn);
+      frame_fn = NumericFunction(frame_column_major(cf), xn);
     }
     auto ydiff = make_jet(n - 1, opt.epsilon);
     std::vector<std::unique_ptr<Jet>> udiff;

@@ -103,9 +103,9 @@ using Obs = gen::OBSYNTH_CLASS<double>;
 static_assert(obsynth::is_observer_v<gen::OBSYNTH_CLASS<double>>, "observer interface (double)");
 static_assert(obsynth::is_observer_v<gen::OBSYNTH_CLASS<float>>, "observer interface (float)");
 
-double input(double t) { return OBSYNTH_INPUT_AMPLITUDE * std::sin(t); }
+[[maybe_unused]] double input(double t) { return OBSYNTH_INPUT_AMPLITUDE * std::sin(t); }
 
-void plant_rhs(const D::State& x, double u, D::State& dx) {
+[[maybe_unused]] void plant_rhs(const D::State& x, double u, D::State& dx) {
   D::State a, b;
   D::Input uu;
   if (gen::m > 0) uu(0) = u;
@@ -114,11 +114,11 @@ void plant_rhs(const D::State& x, double u, D::State& dx) {
   dx = a + b;
 }
 
-double max_error(const D::State& a, const D::State& b) { return (a - b).cwiseAbs().maxCoeff(); }
+[[maybe_unused]] double max_error(const D::State& a, const D::State& b) { return (a - b).cwiseAbs().maxCoeff(); }
 
 // Plant and observer as one ODE integrated by RK4 (y and u exact at every stage): the error
 // must decay as the designed linear error dynamics.
-void closed_loop_continuous() {
+[[maybe_unused]] void closed_loop_continuous() {
   D::State x, xh0;
   for (int i = 0; i < gen::n; ++i) {
     x(i) = 0.3 * ref::x[0][i];
@@ -168,7 +168,7 @@ void closed_loop_continuous() {
 
 // The firmware step(): u, y held over each step. The error settles at an O(dt) floor.
 template <class Scalar>
-double closed_loop_zoh(std::size_t* allocations) {
+[[maybe_unused]] double closed_loop_zoh(std::size_t* allocations) {
   using S = F<Scalar>;
   gen::OBSYNTH_CLASS<Scalar> obs;
   D::State x;
@@ -211,6 +211,7 @@ double closed_loop_zoh(std::size_t* allocations) {
 int main() {
   numeric_equivalence<double>(1e-12);
   numeric_equivalence<float>(1e-5);
+#if OBSYNTH_CLOSED_LOOP
   closed_loop_continuous();
   std::size_t allocs = 1;
   const double ed = closed_loop_zoh<double>(&allocs);
@@ -220,6 +221,9 @@ int main() {
   expect(ef < 2e-2, "zoh float: error at the O(dt) floor", ef, 2e-2);
   std::printf("zoh: double %.3e, float %.3e; %s allocations counted (malloc hooks %s)\n", ed, ef,
               allocs == 0 ? "no" : "some", obsynth::test::malloc_hooks_active() ? "on" : "off");
+#else
+  std::printf("closed loop skipped: the plant is not bounded under the test input\n");
+#endif
   std::printf("%s: %d passed, %d failed\n", OBSYNTH_NAME, passed, failed);
   return failed == 0 ? 0 : 1;
 }
