@@ -21,6 +21,7 @@ struct BracketCheck {
   std::size_t i = 0, j = 0;  // 1-based frame indices; i = 0 for [g, tau_j]
   ZeroVerdict verdict = ZeroVerdict::proved;
   ExVec residual;            // the bracket itself, simplified (zero when it holds)
+  std::string residual_note; // set when a failing residual is too large to print
   bool holds() const { return verdict != ZeroVerdict::nonzero; }
 };
 

@@ -95,9 +95,11 @@ namespace {
 ExVec denominators(const ExMatrix& O, const Symbols& x) {
   std::map<std::string, ex> unique;
   for (const auto& row : O)
-    for (const auto& e : row)
-      for (const auto& f : dependent_factors(GiNaC::denom(GiNaC::normal(e)), x))
+    for (const auto& e : row) {
+      if (!has_denominator_in(e, x)) continue;  // cheap structural test first
+      for (const auto& f : dependent_factors(GiNaC::denom(e), x))
         unique.emplace(to_string(f), f);
+    }
   ExVec out;
   for (auto& [s, f] : unique) out.push_back(f);
   return out;

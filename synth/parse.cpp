@@ -750,11 +750,27 @@ class Parser {
     for (const auto& [d, l] : divisors_) {
       std::vector<ex> factors;
       zero_candidates(d, factors);
-      for (const auto& f : factors)
+      for (const auto& f : factors) {
+        // With no real sample value, zero_test falls back on a symbolic proof, which took
+        // minutes on nested trigonometric divisors such as sin(...)^(201/10) found by fuzzing.
+        if (!real_somewhere(f, boxes))
+          throw UserError(l, fmt::format("division by an expression that is not real anywhere in "
+                                         "the domain box: {} (declare a 'domain' where it is real)",
+                                         to_string(f)));
         if (zero_test(f, boxes) != ZeroVerdict::nonzero)
           throw UserError(l, fmt::format("division by an expression that is identically zero: {}",
                                          to_string(f)));
+      }
     }
+  }
+
+  static bool real_somewhere(const ex& e, const SampleBoxes& boxes) {
+    const ZeroTestOptions opt;
+    for (const auto& pt : sample_points(symbols_in(e), boxes, opt.points, opt.seed)) {
+      numeric v;
+      if (evaluate_real(e, pt, opt.digits, v)) return true;
+    }
+    return false;
   }
 
   template <class OnPole>
@@ -853,7 +869,7 @@ class Parser {
     if (g_) {
       for (std::size_t i = 0; i < n; ++i) {
         const ex g0 = at_u_zero(model_.g[i], "g", i);
-        if (zero_test(g0, boxes) == ZeroVerdict::nonzero)
+        if (!real_somewhere(g0, boxes) || zero_test(g0, boxes) == ZeroVerdict::nonzero)
           throw UserError(where(fmt::format("g[{}]", i)),
                           fmt::format("g[{}] is not zero at u = 0 (it is {} there); move that part to 'f'",
                                       i + 1, to_string(g0)));

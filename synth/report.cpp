@@ -18,6 +18,15 @@ std::vector<std::string> names(const std::vector<GiNaC::symbol>& s) {
 
 ordered_json expr_list(const ExVec& v) { return ordered_json(to_strings(v)); }
 
+ordered_json residual_json(const BracketCheck& b) {
+  if (b.residual.empty()) return nullptr;  // too large to print: residual_note says why
+  return expr_list(b.residual);
+}
+
+std::string residual_text(const BracketCheck& b) {
+  return b.residual.empty() ? b.residual_note : "[" + fmt::format("{}", fmt::join(to_strings(b.residual), ", ")) + "]";
+}
+
 ordered_json matrix_json(const ExMatrix& M) {
   ordered_json out = ordered_json::array();
   for (const auto& row : M) out.push_back(expr_list(row));
@@ -108,12 +117,16 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   }
   ordered_json c;
   ordered_json drift = ordered_json::array(), input = ordered_json::array();
-  for (const auto& b : cf.drift)
+  for (const auto& b : cf.drift) {
     drift.push_back({{"i", b.i}, {"j", b.j}, {"holds", b.holds()}, {"verdict", verdict_name(b.verdict)},
-                     {"residual", expr_list(b.residual)}});
-  for (const auto& b : cf.input)
+                     {"residual", residual_json(b)}});
+    if (!b.residual_note.empty()) drift.back()["residual_note"] = b.residual_note;
+  }
+  for (const auto& b : cf.input) {
     input.push_back({{"j", b.j}, {"holds", b.holds()}, {"verdict", verdict_name(b.verdict)},
-                     {"residual", expr_list(b.residual)}});
+                     {"residual", residual_json(b)}});
+    if (!b.residual_note.empty()) input.back()["residual_note"] = b.residual_note;
+  }
   c["observable"] = ob.generic_rank == ob.n;
   c["drift"] = drift;
   c["input"] = input;
@@ -185,11 +198,11 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
     for (const auto& b : cf.drift)
       line(fmt::format("  C2 [tau_{}, tau_{}] = 0{:>{}}{} ({}){}", b.i, b.j, "", 9 - std::to_string(b.i).size() - std::to_string(b.j).size(),
                        holds_word(b.holds()), verdict_name(b.verdict),
-                       b.holds() ? "" : fmt::format(": residual {}", vec_text(b.residual))));
+                       b.holds() ? "" : fmt::format(": residual {}", residual_text(b))));
     for (const auto& b : cf.input)
       line(fmt::format("  C3 [g, tau_{}] = 0{:>{}}{} ({}){}", b.j, "", 14 - std::to_string(b.j).size(),
                        holds_word(b.holds()), verdict_name(b.verdict),
-                       b.holds() ? "" : fmt::format(": residual {}", vec_text(b.residual))));
+                       b.holds() ? "" : fmt::format(": residual {}", residual_text(b))));
     line(fmt::format("  C4 completeness               {}: {}", completeness_name(cf.complete), cf.complete_reason));
     line(cf.linearizable ? "  => linearizable by output injection"
                          : "  => NOT linearizable by output injection");
@@ -263,10 +276,10 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
     line("| C1: rank $O = n$ | holds | |");
     for (const auto& b : cf.drift)
       line(fmt::format("| C2: $[\\tau_{{{}}}, \\tau_{{{}}}] = 0$ | {} ({}) | {} |", b.i, b.j, holds_word(b.holds()),
-                       verdict_name(b.verdict), b.holds() ? "" : "$" + vec_latex(b.residual) + "$"));
+                       verdict_name(b.verdict), b.holds() ? "" : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
     for (const auto& b : cf.input)
       line(fmt::format("| C3: $[g, \\tau_{{{}}}] = 0$ | {} ({}) | {} |", b.j, holds_word(b.holds()),
-                       verdict_name(b.verdict), b.holds() ? "" : "$" + vec_latex(b.residual) + "$"));
+                       verdict_name(b.verdict), b.holds() ? "" : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
     line(fmt::format("| C4: completeness | {} | {} |", completeness_name(cf.complete), cf.complete_reason));
     line("");
     line(cf.linearizable ? "**Linearizable by output injection.**" : "**Not linearizable by output injection.**");
@@ -311,9 +324,9 @@ std::string render_latex(const Analysis& a) {
     line("\\end{align*}");
     line("\\begin{itemize}");
     for (const auto& b : cf.drift)
-      line(fmt::format("  \\item $[\\tau_{{{}}}, \\tau_{{{}}}] {}$ ({})", b.i, b.j, b.holds() ? "= 0" : "= " + vec_latex(b.residual) + " \\neq 0", verdict_name(b.verdict)));
+      line(fmt::format("  \\item $[\\tau_{{{}}}, \\tau_{{{}}}] {}$ ({})", b.i, b.j, b.holds() ? "= 0" : (b.residual.empty() ? std::string("\\neq 0") : "= " + vec_latex(b.residual) + " \\neq 0"), verdict_name(b.verdict)));
     for (const auto& b : cf.input)
-      line(fmt::format("  \\item $[g, \\tau_{{{}}}] {}$ ({})", b.j, b.holds() ? "= 0" : "= " + vec_latex(b.residual) + " \\neq 0", verdict_name(b.verdict)));
+      line(fmt::format("  \\item $[g, \\tau_{{{}}}] {}$ ({})", b.j, b.holds() ? "= 0" : (b.residual.empty() ? std::string("\\neq 0") : "= " + vec_latex(b.residual) + " \\neq 0"), verdict_name(b.verdict)));
     line(fmt::format("  \\item completeness: {}", completeness_name(cf.complete)));
     line("\\end{itemize}");
     if (cf.T_kind == Availability::symbolic && cf.l_kind == Availability::symbolic) {

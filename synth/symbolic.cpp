@@ -49,6 +49,17 @@ bool has_transcendental(const GiNaC::ex& e) {
   return false;
 }
 
+bool has_denominator_in(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& syms) {
+  if (GiNaC::is_a<GiNaC::power>(e) && GiNaC::is_a<GiNaC::numeric>(e.op(1)) &&
+      GiNaC::ex_to<GiNaC::numeric>(e.op(1)).is_negative() && depends_on(e.op(0), syms))
+    return true;
+  if (GiNaC::is_a<GiNaC::function>(e) && GiNaC::ex_to<GiNaC::function>(e).get_name() == "tan" && depends_on(e, syms))
+    return true;  // tan = sin/cos has poles
+  for (std::size_t i = 0; i < e.nops(); ++i)
+    if (has_denominator_in(e.op(i), syms)) return true;
+  return false;
+}
+
 std::vector<GiNaC::ex> gradient(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& vars) {
   std::vector<GiNaC::ex> out;
   out.reserve(vars.size());

@@ -15,6 +15,9 @@ bool depends_on(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& syms);
 std::size_t expression_size(const GiNaC::ex& e);
 // True if e contains a function call or a non-integer power.
 bool has_transcendental(const GiNaC::ex& e);
+// True if e divides by something that depends on syms (a negative power with such a base):
+// a tree walk, no normalisation.
+bool has_denominator_in(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& syms);
 // Row vector d(e)/d(vars).
 std::vector<GiNaC::ex> gradient(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& vars);
 // Simplify for storage: normal() for rational expressions, keeps transcendental atoms.

@@ -126,7 +126,9 @@ int main(int argc, char** argv) {
                      cf.T_inverse_kind == Availability::symbolic ? 1 : 0);
     s += fmt::format("#define OBSYNTH_Z_REALISATION {}\n#define OBSYNTH_HAS_FRAME {}\n", d.realisation == Realisation::z ? 1 : 0,
                      (d.realisation == Realisation::x || d.newton_inverse) ? 1 : 0);
-    s += "#define OBSYNTH_T_END 14.0\n#define OBSYNTH_INPUT_AMPLITUDE 0.5\n";
+    // Horizon: the slowest pole (-2) brings a unit error below 1e-8 in ~9 s; larger n has
+    // more nearby poles (polynomial factors), so allow one more second per state.
+    s += fmt::format("#define OBSYNTH_T_END {}.0\n#define OBSYNTH_INPUT_AMPLITUDE 0.5\n", 10 + n);
     s += fmt::format("namespace ref {{\ninline constexpr int kPoints = {};\n", kPoints);
     s += fmt::format("inline constexpr bool kHasT = {};\ninline constexpr bool kHasTinv = {};\n",
                      cf.T_kind == Availability::symbolic, cf.T_inverse_kind == Availability::symbolic);
