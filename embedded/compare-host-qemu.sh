@@ -5,7 +5,8 @@
 # Run the same closed-loop program natively (already built by CMake with the host compiler)
 # and on a Cortex-M4F under QEMU (built by run-qemu.sh), and compare the trajectories.
 #
-#   embedded/compare-host-qemu.sh <host-executable> <source.cpp> <rtol> [qemu extra cxxflags]
+#   embedded/compare-host-qemu.sh <host-executable> <source.cpp> <rtol> [qemu extra cxxflags
+#                                 [extra include dirs for the QEMU build...]]
 #
 # Only lines "traj t x1 x2 xh1 xh2 ..." are compared (columns 2-6). The test is normwise: at
 # every printed sample
@@ -22,13 +23,16 @@
 set -uo pipefail
 
 if [ $# -lt 3 ]; then
-  echo "usage: $0 <host-executable> <source.cpp> <rtol> [qemu extra cxxflags]" >&2
+  echo "usage: $0 <host-executable> <source.cpp> <rtol> [qemu extra cxxflags [include dirs...]]" >&2
   exit 2
 fi
 host_exe="$1"
 src="$2"
 rtol="$3"
 qemu_flags="${4:-}"
+shift 3
+[ $# -gt 0 ] && shift
+# the rest: include directories for run-qemu.sh (e.g. generated/)
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 work="$(mktemp -d "${TMPDIR:-/tmp}/obsynth-cmp.XXXXXX")"
 trap 'rm -rf "$work"' EXIT
@@ -43,7 +47,7 @@ if [ $host_rc -ne 0 ]; then
 fi
 
 echo "== target (QEMU), extra flags: ${qemu_flags:-none}"
-OBSYNTH_QEMU_CXXFLAGS="$qemu_flags" "$here/run-qemu.sh" "$src" >"$work/qemu.txt" 2>&1
+OBSYNTH_QEMU_CXXFLAGS="$qemu_flags" "$here/run-qemu.sh" "$src" "$@" >"$work/qemu.txt" 2>&1
 qemu_rc=$?
 cat "$work/qemu.txt"
 if [ $qemu_rc -eq 77 ]; then

@@ -92,7 +92,7 @@ extra=(${OBSYNTH_QEMU_CXXFLAGS:-})
 name="$(basename "${src%.*}")"
 elf="$work/$name.elf"
 
-echo "== build: $CXX ${arch[*]} -Os -fno-exceptions -fno-rtti -fstack-usage $src"
+echo "== build: $CXX ${arch[*]} -Os -fno-exceptions -fno-rtti -fstack-usage ${extra[*]:-} $src"
 if ! "$CXX" "${cxxflags[@]}" "${incs[@]}" "${extra[@]}" -c "$src" -o "$work/$name.o" ||
    ! "$CXX" "${arch[@]}" -Os -std=c++17 -fno-exceptions -fno-rtti -fstack-usage \
        -ffunction-sections -fdata-sections -Wall -Wextra -Werror \
@@ -196,6 +196,50 @@ if [ -e "$ci_file" ]; then
       if (n) printf "  not included (outside this unit): %s\n", lst
       if (recursive) print "  warning: recursion in the call graph; the figure is a lower bound"
     }' "$ci_file"
+fi
+
+# Code size of the observer including everything it calls in this unit: the functions matching
+# the regex (by their name in the call graph) plus the closure of their callees (outlined Eigen
+# kernels, lambdas, helpers such as obsynth::all_finite), summed over the ELF's symbol sizes
+# (after --gc-sections). Calls leaving the unit (libm, libgcc) are listed, not counted.
+if [ -e "$ci_file" ]; then
+  echo "== observer code including callees (-fcallgraph-info=su closure, symbol sizes from the ELF)"
+  "$NM" -S "$elf" | awk -v re="$regex" '
+    function hex(s,   i, v) {
+      v = 0; s = tolower(s)
+      for (i = 1; i <= length(s); i++) v = v * 16 + index("0123456789abcdef", substr(s, i, 1)) - 1
+      return v
+    }
+    function field(line, key,   i, rest) {
+      i = index(line, key ": \"")
+      if (i == 0) return ""
+      rest = substr(line, i + length(key) + 3)
+      return substr(rest, 1, index(rest, "\"") - 1)
+    }
+    function sym(t,   s) { s = t; sub(/^.*:/, "", s); return s }
+    function visit(t,   e) {
+      if (t in seen) return
+      seen[t] = 1
+      for (e = 1; e <= nedge[t]; e++) visit(edge[t, e])
+    }
+    FILENAME == "-" {
+      if (NF >= 4 && ($3 == "T" || $3 == "t" || $3 == "W" || $3 == "w")) size[$4] = hex($2)
+      next
+    }
+    /^node:/ { t = field($0, "title"); name[t] = field($0, "label"); sub(/\\n.*/, "", name[t]); node[t] = 1 }
+    /^edge:/ { s = field($0, "sourcename"); d = field($0, "targetname"); nedge[s]++; edge[s, nedge[s]] = d }
+    END {
+      re = tolower(re)
+      for (t in node) if (tolower(name[t]) ~ re) { visit(t); roots++ }
+      if (roots == 0) { print "  (no matching functions)"; exit }
+      for (t in seen) {
+        k = sym(t)
+        if (k in size) { total += size[k]; n++ }
+        else if (!(t in nedge) && index(t, ":") == 0) { ext = ext (m++ ? ", " : "") k }
+      }
+      printf "observer code incl. callees: %d bytes in %d functions (%d roots)\n", total, n, roots
+      if (m) printf "  not included (outside this unit): %s\n", ext
+    }' - "$ci_file"
 fi
 
 case $rc in

@@ -383,7 +383,7 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
         std::size_t size = 0;
         for (const auto& e : va) size += expression_size(e);
         for (const auto& e : vb) size += expression_size(e);
-        if (size <= 20000)
+        if (size <= 4000)
           out.residual = lie_bracket(va, Ja, vb, Jb);
         else
           out.residual_note = fmt::format("residual not printed (operands have {} nodes); nonzero at {}", size,

@@ -520,7 +520,6 @@ EmittedHeader emit_canonical_header(const Analysis& a, const CanonicalDesign& d,
 EmittedHeader emit_perfect_header(const Analysis& a, const PerfectDesign& d, const EmitOptions& opt) {
   check_emittable(a);
   const Model& m = a.model;
-  const CanonicalForm& cf = a.canonical;
   const std::size_t n = m.n();
   HeaderBuilder b(a, opt);
   b.functions_ += "  using YJet = Eigen::Matrix<Scalar, " + std::to_string(n) + ", 1>;  ///< y, y', ...\n";

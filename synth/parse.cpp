@@ -764,6 +764,41 @@ class Parser {
     }
   }
 
+  // Rounded evaluation of sin, cos, tan, exp and tanh goes wrong once the argument is huge:
+  // sin(-5^1000 + x2) evaluated to 0 at every point, and the zero test then spent seconds
+  // "proving" a divisor zero. Bound the arguments near the corners of the domain box.
+  void check_function_arguments(const SampleBoxes& boxes) const {
+    const std::vector<GiNaC::exmap> points = sample_points(model_.all_symbols(), boxes, 2, 1);
+    const std::pair<const char*, const ExVec*> fields[] = {{F_ ? "F" : "f", &model_.f},
+                                                           {F_ ? "F" : "g", &model_.g},
+                                                           {"h", &model_.h}};
+    const DigitsGuard digits(40);
+    for (const auto& pt : points) {
+      GiNaC::exmap fpt;
+      for (const auto& [sym, value] : pt) fpt[sym] = GiNaC::evalf(value);
+      for (const auto& [key, vec] : fields)
+        for (std::size_t i = 0; i < vec->size(); ++i)
+          check_function_arguments((*vec)[i], fpt, where(fmt::format("{}[{}]", key, i)));
+    }
+  }
+
+  static void check_function_arguments(const ex& e, const GiNaC::exmap& pt, const SourceLoc& l) {
+    for (std::size_t k = 0; k < e.nops(); ++k) check_function_arguments(e.op(k), pt, l);
+    if (!GiNaC::is_a<GiNaC::function>(e)) return;
+    const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
+    if (name == "log" || name == "atan") return;  // well behaved for any magnitude
+    ex a;
+    try {
+      a = GiNaC::evalf(e.op(0).subs(pt));
+    } catch (const std::exception&) {
+      return;  // undefined at this point: not a magnitude problem
+    }
+    if (GiNaC::is_a<numeric>(a) && GiNaC::abs(GiNaC::ex_to<numeric>(a)) > numeric(1000000))
+      throw UserError(l, fmt::format("the argument of {}() exceeds 10^6 in magnitude in the domain box, "
+                                     "where {}() cannot be evaluated reliably",
+                                     name, name));
+  }
+
   static bool real_somewhere(const ex& e, const SampleBoxes& boxes) {
     const ZeroTestOptions opt;
     for (const auto& pt : sample_points(symbols_in(e), boxes, opt.points, opt.seed)) {
@@ -866,6 +901,7 @@ class Parser {
                           fmt::format("h[{}] depends on the input '{}'; outputs must be h(x)", i + 1, u.get_name()));
     const SampleBoxes boxes = SampleBoxes::from_model(model_);
     check_exact_size(boxes);
+    check_function_arguments(boxes);
     if (g_) {
       for (std::size_t i = 0; i < n; ++i) {
         const ex g0 = at_u_zero(model_.g[i], "g", i);

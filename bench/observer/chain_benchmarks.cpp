@@ -1,0 +1,64 @@
+// Benchmarks of the generated canonical observers of the constructed chains n = 2..8, for one
+// header set (see CMakeLists.txt): compiled once per set, e.g. with the headers emitted by
+// `obsynth --precision double` and Scalar = double, or by `--precision float` and
+// Scalar = float (float headers carry float literals and a float-sized Newton tolerance, 1e-6
+// instead of 1e-13, which a float Newton iteration could never meet), or with
+// `--realisation z` (T^-1 by runtime Newton; benchmark names get the suffix "_z").
+// The sets declare the same namespaces and classes, so all but one are compiled with the
+// top-level namespace renamed (-Dobsynth_gen=obsynth_gen_<set>): no ODR clash between them.
+//
+// chains_list.hpp (written by CMake) includes the set's headers and defines
+//   OBSYNTH_CHAINS(X)  ->  X(chain2_stable, Chain2StableCanonical) X(chain2_newton, ...) ...
+#include <benchmark/benchmark.h>
+
+#include <cstring>
+
+#include "bench_loop.hpp"
+#include "chains_list.hpp"
+
+#define OBSYNTH_STR2(x) #x
+#define OBSYNTH_STR(x) OBSYNTH_STR2(x)
+
+namespace obsynth_bench {
+namespace {
+
+using Scalar = OBSYNTH_CHAIN_SCALAR;
+
+template <template <class> class Obs>
+const SampleArrays<Obs<Scalar>>& chain_arrays() {
+  // the plant is simulated in double through the header's own f, g, h
+  static const SampleArrays<Obs<Scalar>> a(chain_samples<Obs<double>>());
+  return a;
+}
+
+template <template <class> class Obs>
+void chain_benchmark(benchmark::State& st) {
+  step_benchmark<Obs<Scalar>>(st, chain_arrays<Obs>(), chain_samples<Obs<double>>(), [] { return Obs<Scalar>(); });
+}
+
+}  // namespace
+
+void OBSYNTH_CHAIN_REGISTER() {
+#define OBSYNTH_REGISTER_ONE(ns, cls) \
+  benchmark::RegisterBenchmark(#ns OBSYNTH_CHAIN_SUFFIX "/" OBSYNTH_STR(OBSYNTH_CHAIN_SCALAR), \
+                               chain_benchmark<obsynth_gen::ns::cls>);
+  OBSYNTH_CHAINS(OBSYNTH_REGISTER_ONE)
+#undef OBSYNTH_REGISTER_ONE
+}
+
+/// For count_steps: runs `steps` steps of the named chain observer (model name plus the set's
+/// suffix, e.g. chain5_newton_z); false if the name is unknown.
+bool OBSYNTH_CHAIN_COUNT(const char* name, std::size_t steps, long* failures, double* checksum) {
+#define OBSYNTH_COUNT_ONE(ns, cls)                                                                       \
+  if (std::strcmp(name, #ns OBSYNTH_CHAIN_SUFFIX) == 0) {                                                \
+    *failures = run_steps<obsynth_gen::ns::cls<Scalar>>(chain_arrays<obsynth_gen::ns::cls>(),           \
+                                                        [] { return obsynth_gen::ns::cls<Scalar>(); }, \
+                                                        steps, checksum);                                \
+    return true;                                                                                         \
+  }
+  OBSYNTH_CHAINS(OBSYNTH_COUNT_ONE)
+#undef OBSYNTH_COUNT_ONE
+  return false;
+}
+
+}  // namespace obsynth_bench
