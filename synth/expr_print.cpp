@@ -128,10 +128,25 @@ class Printer {
     numeric coeff = 1;
     std::vector<std::string> num, den;
     for (std::size_t i = 0; i < e.nops(); ++i) {
-      const ex f = e.op(i);
+      ex f = e.op(i);
       if (is_a<numeric>(f) && ex_to<numeric>(f).is_rational()) {
         coeff *= ex_to<numeric>(f);
         continue;
+      }
+      // Sign normal form: a sum factor whose first printed term is negative is negated and
+      // the sign moved to the coefficient, so -(a-b)/c and (b-a)/c print alike (GiNaC's
+      // normal() picks either, depending on run-dependent term order).
+      {
+        ex base = f;
+        numeric k = 1;
+        if (is_a<GiNaC::power>(f) && is_a<numeric>(f.op(1)) && ex_to<numeric>(f.op(1)).is_integer()) {
+          base = f.op(0);
+          k = ex_to<numeric>(f.op(1));
+        }
+        if (is_a<GiNaC::add>(base) && print(base).negative) {
+          if (k.is_odd()) coeff = -coeff;
+          f = GiNaC::pow(GiNaC::expand(-base), k);
+        }
       }
       if (is_a<GiNaC::power>(f) && is_a<numeric>(f.op(1)) && ex_to<numeric>(f.op(1)).is_negative()) {
         const ex inv = GiNaC::pow(f.op(0), -f.op(1));

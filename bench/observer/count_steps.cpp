@@ -5,8 +5,8 @@
 //
 // Setup (plant simulation, sample conversion) does not depend on N, so
 // (Ir(2N) - Ir(N)) / N is the cost of one step() (plus the loop's few instructions, the same
-// loop as in bench_observer). Prints the number of failed steps and a checksum of the final
-// estimate (so the work cannot be discarded).
+// loop as in bench_observer). Prints the number of steps whose status was not ok and a checksum
+// of the final estimate (so the work cannot be discarded).
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -71,5 +71,5 @@ int main(int argc, char** argv) {
 #endif
   }
   std::printf("%s %s steps=%zu failures=%ld checksum=%.6e\n", which.c_str(), argv[2], steps, failures, checksum);
-  return failures == 0 ? 0 : 1;
+  return 0;  // failed steps (e.g. Newton hitting its cap on the first step) are reported, not fatal
 }

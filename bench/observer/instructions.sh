@@ -55,9 +55,9 @@ observers=(generated handwritten)
 if (( chains )); then
   for n in 2 3 4 5 6 7 8; do observers+=("chain${n}_stable" "chain${n}_newton" "chain${n}_newton_z"); done
 fi
-ir() {  # ir OBSERVER SCALAR STEPS -> total instructions executed
+ir() {  # ir OBSERVER SCALAR STEPS -> total instructions executed (and STEPS, failed steps in .stdout)
   local f="${out}/callgrind.$1.$2.$3.out"
-  valgrind --tool=callgrind --callgrind-out-file="${f}" "${bin}/${count}" "$1" "$2" "$3" >/dev/null 2>"${f}.log" ||
+  valgrind --tool=callgrind --callgrind-out-file="${f}" "${bin}/${count}" "$1" "$2" "$3" >"${f}.stdout" 2>"${f}.log" ||
     { echo "count_steps $1 $2 $3 failed (see ${f}.log)" >&2; return 1; }
   awk '/^(summary|totals):/ { print $2; exit }' "${f}"
 }
@@ -66,8 +66,9 @@ for o in "${observers[@]}"; do
   for s in double float; do
     a=$(ir "${o}" "${s}" "${N}")
     b=$(ir "${o}" "${s}" $((2 * N)))
-    printf '%s\t%s\t%s\t%s\t%s\n' "${o}" "${s}" "${N}" "${a}" "${b}" >>"${out}/instructions.tsv"
-    echo "callgrind ${o} ${s}: Ir(N)=${a} Ir(2N)=${b}" >&2
+    fails=$(sed -n 's/.*failures=\([0-9]*\).*/\1/p' "${out}/callgrind.${o}.${s}.$((2 * N)).out.stdout")
+    printf '%s\t%s\t%s\t%s\t%s\t%s\n' "${o}" "${s}" "${N}" "${a}" "${b}" "${fails}" >>"${out}/instructions.tsv"
+    echo "callgrind ${o} ${s}: Ir(N)=${a} Ir(2N)=${b} failed steps in 2N: ${fails}" >&2
   done
 done
 
@@ -81,9 +82,12 @@ for b in bench["benchmarks"]:
         assert b["time_unit"] == "ns"
         ns[b["run_name"]] = b["cpu_time"]
 ins = {}
+fails = {}
 for line in open(sys.argv[2]):
-    o, s, n, a, b = line.split()
+    o, s, n, a, b, f = line.split()
     ins[(o, s)] = (int(b) - int(a)) / int(n)
+    if int(f):
+        fails[(o, s)] = (int(f), 2 * int(n))
 
 def key(o, s):
     return f"seed003/{o}/{s}" if o in ("generated", "handwritten") else f"{o}/{s}"
@@ -106,6 +110,9 @@ for o in ["generated", "handwritten"] + sorted({o for o, _ in ins if o.startswit
             r_in = f"{ins[(o, s)] / ins[('handwritten', s)]:.2f}"
         name = f"seed003 {o}" if o in ("generated", "handwritten") else f"{o} (generated)"
         print(f"| {name} | {s} | {t:.1f} | {ins[(o, s)]:.1f} | {r_ns} | {r_in} |")
+
+for (o, s), (f, steps) in sorted(fails.items()):
+    print(f"\n{o} {s}: {f} of {steps} steps returned a status other than ok")
 
 chains = sorted({int(o[5:].split("_")[0]) for o, _ in ins if o.startswith("chain")})
 if chains:
