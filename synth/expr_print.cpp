@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <sstream>
+#include <string_view>
 
 namespace obsynth {
 
@@ -100,28 +101,59 @@ class Printer {
     return st == Style::latex ? "\\left(" + p.text + "\\right)" : "(" + p.text + ")";
   }
 
-  Printed sum(const ex& e) {
+  // The terms of a sum, printed and in canonical order: by the text without sign so that x
+  // and -x sort together, constants last.
+  std::vector<Printed> sum_terms(const ex& e) {
     std::vector<Printed> terms;
+    terms.reserve(e.nops());
     for (std::size_t i = 0; i < e.nops(); ++i) terms.push_back(print(e.op(i)));
-    // Order by the text without sign so that x and -x sort together; constants last.
+    sort_terms(terms);
+    return terms;
+  }
+
+  static void sort_terms(std::vector<Printed>& terms) {
     auto key = [](const Printed& p) {
-      std::string t = p.negative ? p.text.substr(1) : p.text;
+      std::string_view t = p.text;
+      if (p.negative) t.remove_prefix(1);
       const bool constant = !t.empty() && (std::isdigit(static_cast<unsigned char>(t[0])) || t[0] == '\\');
       return std::make_tuple(constant, t, p.negative);
     };
     std::sort(terms.begin(), terms.end(), [&](const Printed& a, const Printed& b) { return key(a) < key(b); });
+  }
+
+  // -(t1 + t2 + ...) from the printed terms, without building -e: GiNaC would re-evaluate
+  // it (and printing it again would cost as much as the first time at every nesting level).
+  static std::vector<Printed> negated(std::vector<Printed> terms) {
+    for (Printed& t : terms) {
+      if (t.negative) {
+        t.text.erase(0, 1);
+        t.negative = false;
+      } else {
+        t.text.insert(0, 1, '-');
+        t.negative = true;
+      }
+    }
+    sort_terms(terms);
+    return terms;
+  }
+
+  static Printed join_terms(const std::vector<Printed>& terms) {
     std::string out;
     for (std::size_t i = 0; i < terms.size(); ++i) {
       const Printed& t = terms[i];
-      if (i == 0) {
-        out = t.text;
-      } else if (t.negative) {
-        out += "-" + (t.prec == p_unary ? t.text.substr(1) : t.text.substr(1));
-      } else {
-        out += "+" + t.text;
-      }
+      if (i > 0 && !t.negative) out += '+';
+      out += t.text;
     }
     return {out, p_add, !terms.empty() && terms[0].negative};
+  }
+
+  Printed sum(const ex& e) { return join_terms(sum_terms(e)); }
+
+  // base^k for an already printed base and an integer k >= 1.
+  Printed integer_power(const Printed& base, const numeric& k) const {
+    if (k == 1) return base;
+    if (style_ == Style::latex) return {fmt::format("{}^{{{}}}", wrap(base, p_atom, style_), int_text(k)), p_pow};
+    return {fmt::format("{}^{}", wrap(base, p_atom, style_), int_text(k)), p_pow};
   }
 
   Printed product(const ex& e) {
@@ -143,9 +175,16 @@ class Printer {
           base = f.op(0);
           k = ex_to<numeric>(f.op(1));
         }
-        if (is_a<GiNaC::add>(base) && print(base).negative) {
-          if (k.is_odd()) coeff = -coeff;
-          f = GiNaC::pow(GiNaC::expand(-base), k);
+        if (is_a<GiNaC::add>(base)) {
+          std::vector<Printed> terms = sum_terms(base);
+          if (!terms.empty() && terms[0].negative) {
+            terms = negated(std::move(terms));
+            if (k.is_odd()) coeff = -coeff;
+          }
+          const Printed b = join_terms(terms);
+          if (k.is_negative()) den.push_back(wrap(integer_power(b, -k), p_pow, style_));
+          else num.push_back(wrap(integer_power(b, k), p_mul + 1, style_));
+          continue;
         }
       }
       if (is_a<GiNaC::power>(f) && is_a<numeric>(f.op(1)) && ex_to<numeric>(f.op(1)).is_negative()) {
