@@ -6,6 +6,7 @@
 
 #include "expr_print.hpp"
 #include "integrate.hpp"
+#include "poly.hpp"
 #include "symbolic.hpp"
 
 namespace obsynth {
@@ -15,25 +16,33 @@ using GiNaC::numeric;
 
 const char* completeness_name(Completeness c) {
   switch (c) {
-    case Completeness::global: return "global";
-    case Completeness::local: return "local";
-    case Completeness::unknown: return "unknown";
+    case Completeness::global:
+      return "global";
+    case Completeness::local:
+      return "local";
+    case Completeness::unknown:
+      return "unknown";
   }
   return "unknown";
 }
 
 const char* availability_name(Availability a) {
   switch (a) {
-    case Availability::symbolic: return "symbolic";
-    case Availability::numeric: return "numeric";
-    case Availability::none: return "none";
+    case Availability::symbolic:
+      return "symbolic";
+    case Availability::numeric:
+      return "numeric";
+    case Availability::none:
+      return "none";
   }
   return "none";
 }
 
 namespace {
 
-ZeroVerdict worst(ZeroVerdict a, ZeroVerdict b) { return static_cast<int>(a) > static_cast<int>(b) ? a : b; }
+ZeroVerdict worst(ZeroVerdict a, ZeroVerdict b) {
+  return static_cast<int>(a) > static_cast<int>(b) ? a : b;
+}
 
 ZeroVerdict vector_verdict(const ExVec& v, const SampleBoxes& boxes, const ZeroTestOptions& opt) {
   ZeroVerdict w = ZeroVerdict::proved;
@@ -53,7 +62,8 @@ bool bounded(const ex& e, const Symbols& x) {
   }
   if (GiNaC::is_a<GiNaC::power>(e)) {
     const ex q = e.op(1);
-    return GiNaC::is_a<numeric>(q) && GiNaC::ex_to<numeric>(q).is_pos_integer() && bounded(e.op(0), x);
+    return GiNaC::is_a<numeric>(q) && GiNaC::ex_to<numeric>(q).is_pos_integer() &&
+           bounded(e.op(0), x);
   }
   if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
     for (std::size_t i = 0; i < e.nops(); ++i)
@@ -91,11 +101,16 @@ std::optional<ex> invert_atom(const ex& atom, const GiNaC::symbol& xk, const ex&
   if (a.has(xk) || a.is_zero()) return std::nullopt;
   const ex b = GiNaC::expand(arg - a * xk);
   ex inner;
-  if (n == "exp") inner = GiNaC::log(w);
-  else if (n == "log") inner = GiNaC::exp(w);
-  else if (n == "atan") inner = GiNaC::tan(w);
-  else if (n == "tanh") inner = GiNaC::atanh(w);
-  else return std::nullopt;
+  if (n == "exp")
+    inner = GiNaC::log(w);
+  else if (n == "log")
+    inner = GiNaC::exp(w);
+  else if (n == "atan")
+    inner = GiNaC::tan(w);
+  else if (n == "tanh")
+    inner = GiNaC::atanh(w);
+  else
+    return std::nullopt;
   return (inner - b) / a;
 }
 
@@ -132,7 +147,8 @@ std::optional<ex> solve_for(const ex& eq, const GiNaC::symbol& xk) {
 // Values of vector fields and their Jacobians at one sample point, to screen brackets.
 class BracketScreen {
  public:
-  BracketScreen(const Model& m, const SampleBoxes& boxes, int digits) : digits_(digits), x_(m.states) {
+  BracketScreen(const Model& m, const SampleBoxes& boxes, int digits)
+      : digits_(digits), x_(m.states) {
     std::vector<GiNaC::symbol> syms(m.states);
     for (const auto& u : m.inputs) syms.push_back(u);
     for (const auto& q : m.free_params()) syms.push_back(q);
@@ -149,6 +165,11 @@ class BracketScreen {
     }
     fields_.push_back(std::move(val));
   }
+  void add_values(std::vector<GiNaC::numeric> v, std::vector<std::vector<GiNaC::numeric>> J) {
+    fields_.push_back({true, std::move(v), std::move(J)});
+  }
+  void add_unknown() { fields_.push_back({false, {}, {}}); }
+  const GiNaC::exmap& point() const { return point_; }
   // [a, b] = Jb a - Ja b clearly nonzero at the point.
   bool nonzero(std::size_t a, std::size_t b) const {
     const Values& A = fields_[a];
@@ -198,48 +219,58 @@ ExVec frame_column_major(const CanonicalForm& cf) {
   return flat;
 }
 
-Completeness classify_completeness(const ExVec& v, const Symbols& x, std::string& reason) {
-  const ExMatrix J = jacobian(v, x);
-  bool affine = true, lipschitz = true, poles = false;
-  std::string culprit;
+namespace {
+
+// C4 from how the Jacobian entries of a field grow: all constant (affine field) or all
+// bounded (globally Lipschitz) proves completeness. Stops at the first unbounded entry.
+Completeness classify_growth(const ExVec& v, const Symbols& x,
+                             const std::function<Growth(std::size_t, std::size_t)>& entry,
+                             std::string& reason) {
+  auto text = [&](std::size_t i) {
+    std::string s = to_string(v[i]);
+    if (s.size() > 200) s = s.substr(0, 200) + "...";
+    return s;
+  };
   // Structural tests only (no normalisation): entries are already simplified.
-  std::size_t culprit_index = v.size();
-  for (std::size_t i = 0; i < v.size(); ++i) {
+  for (std::size_t i = 0; i < v.size(); ++i)
     if (has_denominator_in(v[i], x)) {
-      poles = true;
-      culprit_index = i;
-      break;
+      reason = fmt::format("has a pole ({}): defined only locally", text(i));
+      return Completeness::local;
     }
+  bool affine = true;
+  for (std::size_t i = 0; i < v.size(); ++i)
     for (std::size_t j = 0; j < x.size(); ++j) {
-      if (depends_on(J[i][j], x)) affine = false;
-      if (lipschitz && !bounded(J[i][j], x)) {
-        lipschitz = false;
-        culprit_index = i;
+      const Growth g = entry(i, j);
+      if (g == Growth::unbounded) {
+        reason = fmt::format("component {} grows faster than linearly; completeness not decided",
+                             text(i));
+        return Completeness::unknown;
       }
+      if (g == Growth::bounded) affine = false;
     }
-  }
-  if (culprit_index < v.size()) {
-    culprit = to_string(v[culprit_index]);
-    if (culprit.size() > 200) culprit = culprit.substr(0, 200) + "...";
-  }
-  if (poles) {
-    reason = fmt::format("has a pole ({}): defined only locally", culprit);
-    return Completeness::local;
-  }
-  if (affine) {
-    reason = "affine in x, hence complete";
-    return Completeness::global;
-  }
-  if (lipschitz) {
-    reason = "Jacobian bounded (sin, cos, tanh, atan of x only), globally Lipschitz, hence complete";
-    return Completeness::global;
-  }
-  reason = fmt::format("component {} grows faster than linearly; completeness not decided", culprit);
-  return Completeness::unknown;
+  reason =
+      affine
+          ? "affine in x, hence complete"
+          : "Jacobian bounded (sin, cos, tanh, atan of x only), globally Lipschitz, hence complete";
+  return Completeness::global;
 }
 
-std::optional<ex> express_in_output(const ex& e, const ex& h, const Symbols& x, const GiNaC::symbol& y,
-                                    const ExVec& base_point, const SampleBoxes& boxes) {
+}  // namespace
+
+Completeness classify_completeness(const ExVec& v, const Symbols& x, std::string& reason) {
+  return classify_growth(
+      v, x,
+      [&](std::size_t i, std::size_t j) {
+        const ex d = v[i].diff(x[j]);
+        if (!depends_on(d, x)) return Growth::constant;
+        return bounded(d, x) ? Growth::bounded : Growth::unbounded;
+      },
+      reason);
+}
+
+std::optional<ex> express_in_output(const ex& e, const ex& h, const Symbols& x,
+                                    const GiNaC::symbol& y, const ExVec& base_point,
+                                    const SampleBoxes& boxes) {
   // Choose a state in which h is linear with a coefficient free of that state.
   std::optional<std::size_t> k;
   for (std::size_t i = 0; i < x.size(); ++i)
@@ -271,8 +302,8 @@ std::optional<ex> express_in_output(const ex& e, const ex& h, const Symbols& x, 
   return simplify(r.subs(at));
 }
 
-std::optional<ExVec> invert_map(const ExVec& T, const Symbols& x, const std::vector<GiNaC::symbol>& z,
-                                const SampleBoxes& boxes) {
+std::optional<ExVec> invert_map(const ExVec& T, const Symbols& x,
+                                const std::vector<GiNaC::symbol>& z, const SampleBoxes& boxes) {
   const std::size_t n = x.size();
   std::vector<ex> eqs;
   for (std::size_t i = 0; i < n; ++i) eqs.push_back(T[i] - z[i]);
@@ -341,56 +372,150 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
     return cf;
   }
   if (ob.generic_rank < n) {
-    cf.not_applicable = fmt::format("C1 fails: the generic observability rank is {} < n = {}",
-                                    ob.generic_rank, n);
+    cf.not_applicable =
+        fmt::format("C1 fails: the generic observability rank is {} < n = {}", ob.generic_rank, n);
     return cf;
   }
   cf.applicable = true;
   const SampleBoxes boxes = SampleBoxes::from_model(m);
 
+  // The frame and g, with their Jacobians: in the polynomial ring when f, g and r live in it
+  // (brackets of polynomial fields are polynomial), else as GiNaC expressions.
+  std::optional<PolyRing> ring;
+  std::vector<std::vector<Poly>> field_polys;             // tau_1..tau_n, g
+  std::vector<std::vector<std::vector<Poly>>> jac_polys;  // their Jacobians
+  auto poly_jacobian = [&](const std::vector<Poly>& v) {
+    std::vector<std::vector<Poly>> J(v.size());
+    for (std::size_t i = 0; i < v.size(); ++i)
+      for (std::size_t j = 0; j < n; ++j) J[i].push_back(ring->derivative(v[i], j));
+    return J;
+  };
   {
     StageScope stage(budget, "frame");
     // r = adj(O) e_n / det O: the cofactors of O's last row.
     for (std::size_t i = 0; i < n; ++i) cf.r.push_back(simplify(ob.last_row_cofactors[i] / ob.det));
-    // tau_1 = r, tau_{k+1} = [-f, tau_k] = J_f tau_k - J_tau_k f
-    ExVec minus_f;
-    for (const auto& e : m.f) minus_f.push_back(-e);
-    const ExMatrix Jmf = jacobian(minus_f, x);
-    cf.frame.push_back(cf.r);
-    for (std::size_t k = 1; k < n; ++k) {
-      cf.frame.push_back(lie_bracket(minus_f, Jmf, cf.frame.back(), jacobian(cf.frame.back(), x)));
-      std::size_t sz = 0;
-      for (const auto& e : cf.frame.back()) sz = std::max(sz, expression_size(e));
-      budget.check(sz);
+    ExVec all(m.f);
+    all.insert(all.end(), m.g.begin(), m.g.end());
+    all.insert(all.end(), cf.r.begin(), cf.r.end());
+    ring = PolyRing::for_expressions(all, x);
+    try {
+      if (ring) {
+        // tau_{k+1} = [-f, tau_k] = J_f tau_k - J_tau_k f
+        std::vector<Poly> f, tau;
+        for (const auto& e : m.f) f.push_back(*ring->from_ex(e));
+        for (const auto& e : cf.r) tau.push_back(*ring->from_ex(e));
+        const auto Jf = poly_jacobian(f);
+        for (std::size_t k = 0; k < n; ++k) {
+          if (k > 0) {
+            const auto& prev = field_polys.back();
+            const auto& Jprev = jac_polys.back();
+            tau.assign(n, Poly{});
+            for (std::size_t i = 0; i < n; ++i) {
+              tau[i] = PolyRing::dot(Jf[i], prev);
+              PolyRing::add_to(tau[i], PolyRing::dot(Jprev[i], f), -1);
+            }
+          }
+          std::size_t estimate = 0;
+          for (const auto& p : tau) estimate = std::max(estimate, p.node_estimate());
+          budget.check(estimate);
+          field_polys.push_back(tau);
+          jac_polys.push_back(poly_jacobian(tau));
+          ExVec t;
+          std::size_t sz = 0;
+          for (const auto& p : tau) {
+            t.push_back(ring->to_ex(p));
+            sz = std::max(sz, expression_size(t.back()));
+          }
+          cf.frame.push_back(std::move(t));
+          budget.check(sz);
+        }
+      }
+    } catch (const PolyOverflow&) {
+      ring.reset();
+      cf.frame.clear();
+      field_polys.clear();
+      jac_polys.clear();
+    }
+    if (!ring) {
+      // tau_1 = r, tau_{k+1} = [-f, tau_k] = J_f tau_k - J_tau_k f
+      ExVec minus_f;
+      for (const auto& e : m.f) minus_f.push_back(-e);
+      const ExMatrix Jmf = jacobian(minus_f, x);
+      cf.frame.push_back(cf.r);
+      for (std::size_t k = 1; k < n; ++k) {
+        cf.frame.push_back(
+            lie_bracket(minus_f, Jmf, cf.frame.back(), jacobian(cf.frame.back(), x)));
+        std::size_t sz = 0;
+        for (const auto& e : cf.frame.back()) sz = std::max(sz, expression_size(e));
+        budget.check(sz);
+      }
     }
   }
   {
     StageScope stage(budget, "conditions");
-    std::vector<ExMatrix> J;
-    for (const auto& t : cf.frame) J.push_back(jacobian(t, x));
-    const ExMatrix Jg = jacobian(m.g, x);
     // Numeric screen: every bracket evaluated at one point of the domain from the values of
     // tau_k and their Jacobians. A clearly nonzero value proves failure without the symbolic
     // expansion (which dominates on large models); vanishing brackets get the full test.
     BracketScreen screen(m, boxes, opt.zero.digits);
-    for (std::size_t k = 0; k < n; ++k) screen.add(cf.frame[k], J[k]);
-    screen.add(m.g, Jg);
-    auto check_pair = [&](std::size_t a, std::size_t b, const ExVec& va, const ExMatrix& Ja, const ExVec& vb,
-                          const ExMatrix& Jb, BracketCheck& out) {
+    std::vector<ExMatrix> J;  // GiNaC path only
+    if (ring) {
+      std::vector<Poly> g;
+      for (const auto& e : m.g) g.push_back(*ring->from_ex(e));
+      jac_polys.push_back(poly_jacobian(g));
+      field_polys.push_back(std::move(g));
+      const auto values = ring->values_at(screen.point(), opt.zero.digits);
+      DigitsGuard guard(opt.zero.digits);
+      for (std::size_t k = 0; k <= n; ++k) {
+        if (!values) {
+          screen.add_unknown();
+          continue;
+        }
+        std::vector<numeric> v;
+        std::vector<std::vector<numeric>> Jv;
+        for (std::size_t i = 0; i < n; ++i) {
+          v.push_back(PolyRing::evaluate(field_polys[k][i], *values));
+          Jv.emplace_back();
+          for (std::size_t j = 0; j < n; ++j)
+            Jv.back().push_back(PolyRing::evaluate(jac_polys[k][i][j], *values));
+        }
+        screen.add_values(std::move(v), std::move(Jv));
+      }
+    } else {
+      for (const auto& t : cf.frame) J.push_back(jacobian(t, x));
+      J.push_back(jacobian(m.g, x));
+      for (std::size_t k = 0; k < n; ++k) screen.add(cf.frame[k], J[k]);
+      screen.add(m.g, J[n]);
+    }
+    auto bracket = [&](std::size_t a, std::size_t b) {
+      const ExVec& va = a < n ? cf.frame[a] : m.g;
+      const ExVec& vb = b < n ? cf.frame[b] : m.g;
+      if (!ring) return lie_bracket(va, J[a], vb, J[b]);
+      ExVec out;
+      for (std::size_t i = 0; i < n; ++i) {
+        Poly r = PolyRing::dot(jac_polys[b][i], field_polys[a]);
+        PolyRing::add_to(r, PolyRing::dot(jac_polys[a][i], field_polys[b]), -1);
+        out.push_back(ring->to_ex(r));
+      }
+      return out;
+    };
+    auto check_pair = [&](std::size_t a, std::size_t b, BracketCheck& out) {
       if (screen.nonzero(a, b)) {
         out.verdict = ZeroVerdict::nonzero;
         // The residual itself, unless its symbolic form would be unreasonably large.
+        const ExVec& va = a < n ? cf.frame[a] : m.g;
+        const ExVec& vb = b < n ? cf.frame[b] : m.g;
         std::size_t size = 0;
         for (const auto& e : va) size += expression_size(e);
         for (const auto& e : vb) size += expression_size(e);
         if (size <= 4000)
-          out.residual = lie_bracket(va, Ja, vb, Jb);
+          out.residual = bracket(a, b);
         else
-          out.residual_note = fmt::format("residual not printed (operands have {} nodes); nonzero at {}", size,
-                                          screen.point_text());
+          out.residual_note =
+              fmt::format("residual not printed (operands have {} nodes); nonzero at {}", size,
+                          screen.point_text());
         return;
       }
-      out.residual = lie_bracket(va, Ja, vb, Jb);
+      out.residual = bracket(a, b);
       out.verdict = vector_verdict(out.residual, boxes, opt.zero);
     };
     bool ok = true;
@@ -399,7 +524,7 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
         BracketCheck b;
         b.i = i + 1;
         b.j = j + 1;
-        check_pair(i, j, cf.frame[i], J[i], cf.frame[j], J[j], b);
+        check_pair(i, j, b);
         ok &= b.holds();
         cf.drift.push_back(std::move(b));
         budget.check();
@@ -408,7 +533,7 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
       BracketCheck b;
       b.i = 0;
       b.j = j + 1;
-      check_pair(n, j, m.g, Jg, cf.frame[j], J[j], b);
+      check_pair(n, j, b);
       ok &= b.holds();
       cf.input.push_back(std::move(b));
       budget.check();
@@ -419,9 +544,15 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
     std::vector<std::string> reasons;
     for (std::size_t k = 0; k < n; ++k) {
       std::string why;
-      const Completeness c = classify_completeness(cf.frame[k], x, why);
+      const Completeness c =
+          ring ? classify_growth(
+                     cf.frame[k], x,
+                     [&](std::size_t i, std::size_t j) { return ring->growth(jac_polys[k][i][j]); },
+                     why)
+               : classify_completeness(cf.frame[k], x, why);
       reasons.push_back(fmt::format("tau_{} {}", k + 1, why));
-      if (c == Completeness::local || (c == Completeness::unknown && cf.complete == Completeness::global))
+      if (c == Completeness::local ||
+          (c == Completeness::unknown && cf.complete == Completeness::global))
         cf.complete = c;
     }
     cf.complete_reason = fmt::format("{}", fmt::join(reasons, "; "));
@@ -449,8 +580,8 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
     const auto a_y = express_in_output(a_x, h, x, cf.y, cf.base_point, boxes);
     if (!a_y) {
       closed = false;
-      cf.T_note = fmt::format("L_tau_n L_f T_{} = {} could not be written as a function of y", i + 1,
-                              to_string(a_x));
+      cf.T_note = fmt::format("L_tau_n L_f T_{} = {} could not be written as a function of y",
+                              i + 1, to_string(a_x));
       break;
     }
     const auto A = antiderivative(*a_y, cf.y);
@@ -488,7 +619,8 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
   }
   cf.T = T;
   cf.T_kind = Availability::symbolic;
-  cf.T_note = fmt::format("dT/dx [tau] = I {}", v == ZeroVerdict::proved ? "proved" : "verified numerically");
+  cf.T_note = fmt::format("dT/dx [tau] = I {}",
+                          v == ZeroVerdict::proved ? "proved" : "verified numerically");
 
   // l_i = L_{f+g} T_i - T_{i-1}, as a function of (u, y).
   {
@@ -521,7 +653,8 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
       GiNaC::exmap zt;
       for (std::size_t i = 0; i < n; ++i) zt[cf.z[i]] = T[i];
       ZeroVerdict iv = ZeroVerdict::proved;
-      for (std::size_t k = 0; k < n; ++k) iv = worst(iv, zero_test(simplify((*inv)[k].subs(zt) - x[k]), boxes, opt.zero));
+      for (std::size_t k = 0; k < n; ++k)
+        iv = worst(iv, zero_test(simplify((*inv)[k].subs(zt) - x[k]), boxes, opt.zero));
       cf.T_inverse_verdict = iv;
       if (iv != ZeroVerdict::nonzero) {
         cf.T_inverse = *inv;

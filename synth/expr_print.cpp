@@ -22,7 +22,9 @@ std::string ginac_text(const ex& e) {
   os << e;
   return os.str();
 }
-std::string int_text(const numeric& v) { return ginac_text(v); }
+std::string int_text(const numeric& v) {
+  return ginac_text(v);
+}
 
 // Binding strength of the printed form, to decide parentheses.
 enum Prec { p_add = 1, p_mul = 2, p_unary = 3, p_pow = 4, p_atom = 5 };
@@ -64,8 +66,10 @@ class Printer {
     std::string base = n.substr(0, k), sub = n.substr(k);
     std::string out;
     for (char c : base) {
-      if (c == '_') out += "\\_";
-      else out += c;
+      if (c == '_')
+        out += "\\_";
+      else
+        out += c;
     }
     if (base.size() > 1) out = "\\mathit{" + out + "}";
     if (!sub.empty()) out += "_{" + sub + "}";
@@ -79,9 +83,10 @@ class Printer {
     }
     if (v.is_rational()) {
       const numeric a = GiNaC::abs(v);
-      std::string s = style_ == Style::latex
-                          ? fmt::format("\\frac{{{}}}{{{}}}", int_text(a.numer()), int_text(a.denom()))
-                          : fmt::format("{}/{}", int_text(a.numer()), int_text(a.denom()));
+      std::string s =
+          style_ == Style::latex
+              ? fmt::format("\\frac{{{}}}{{{}}}", int_text(a.numer()), int_text(a.denom()))
+              : fmt::format("{}/{}", int_text(a.numer()), int_text(a.denom()));
       if (v.is_negative()) return {"-" + s, p_unary, true};
       return {s, style_ == Style::latex ? p_atom : p_mul};
     }
@@ -115,10 +120,12 @@ class Printer {
     auto key = [](const Printed& p) {
       std::string_view t = p.text;
       if (p.negative) t.remove_prefix(1);
-      const bool constant = !t.empty() && (std::isdigit(static_cast<unsigned char>(t[0])) || t[0] == '\\');
+      const bool constant =
+          !t.empty() && (std::isdigit(static_cast<unsigned char>(t[0])) || t[0] == '\\');
       return std::make_tuple(constant, t, p.negative);
     };
-    std::sort(terms.begin(), terms.end(), [&](const Printed& a, const Printed& b) { return key(a) < key(b); });
+    std::sort(terms.begin(), terms.end(),
+              [&](const Printed& a, const Printed& b) { return key(a) < key(b); });
   }
 
   // -(t1 + t2 + ...) from the printed terms, without building -e: GiNaC would re-evaluate
@@ -152,7 +159,8 @@ class Printer {
   // base^k for an already printed base and an integer k >= 1.
   Printed integer_power(const Printed& base, const numeric& k) const {
     if (k == 1) return base;
-    if (style_ == Style::latex) return {fmt::format("{}^{{{}}}", wrap(base, p_atom, style_), int_text(k)), p_pow};
+    if (style_ == Style::latex)
+      return {fmt::format("{}^{{{}}}", wrap(base, p_atom, style_), int_text(k)), p_pow};
     return {fmt::format("{}^{}", wrap(base, p_atom, style_), int_text(k)), p_pow};
   }
 
@@ -171,7 +179,8 @@ class Printer {
       {
         ex base = f;
         numeric k = 1;
-        if (is_a<GiNaC::power>(f) && is_a<numeric>(f.op(1)) && ex_to<numeric>(f.op(1)).is_integer()) {
+        if (is_a<GiNaC::power>(f) && is_a<numeric>(f.op(1)) &&
+            ex_to<numeric>(f.op(1)).is_integer()) {
           base = f.op(0);
           k = ex_to<numeric>(f.op(1));
         }
@@ -182,12 +191,15 @@ class Printer {
             if (k.is_odd()) coeff = -coeff;
           }
           const Printed b = join_terms(terms);
-          if (k.is_negative()) den.push_back(wrap(integer_power(b, -k), p_pow, style_));
-          else num.push_back(wrap(integer_power(b, k), p_mul + 1, style_));
+          if (k.is_negative())
+            den.push_back(wrap(integer_power(b, -k), p_pow, style_));
+          else
+            num.push_back(wrap(integer_power(b, k), p_mul + 1, style_));
           continue;
         }
       }
-      if (is_a<GiNaC::power>(f) && is_a<numeric>(f.op(1)) && ex_to<numeric>(f.op(1)).is_negative()) {
+      if (is_a<GiNaC::power>(f) && is_a<numeric>(f.op(1)) &&
+          ex_to<numeric>(f.op(1)).is_negative()) {
         const ex inv = GiNaC::pow(f.op(0), -f.op(1));
         den.push_back(wrap(print(inv), p_pow, style_));
         continue;
@@ -240,7 +252,8 @@ class Printer {
       if (name == "sqrt") return {fmt::format("\\sqrt{{{}}}", a.text), p_atom};
       const bool known = name == "sin" || name == "cos" || name == "tan" || name == "exp" ||
                          name == "log" || name == "tanh";
-      const std::string fn = known ? "\\" + name : (name == "atan" ? "\\arctan" : "\\operatorname{" + name + "}");
+      const std::string fn =
+          known ? "\\" + name : (name == "atan" ? "\\arctan" : "\\operatorname{" + name + "}");
       return {fmt::format("{}\\left({}\\right)", fn, a.text), p_atom};
     }
     return {fmt::format("{}({})", name, a.text), p_atom};
@@ -257,8 +270,12 @@ class Printer {
 
 }  // namespace
 
-std::string to_string(const ex& e) { return Printer(Style::plain).print(e).text; }
-std::string to_latex(const ex& e) { return Printer(Style::latex).print(e).text; }
+std::string to_string(const ex& e) {
+  return Printer(Style::plain).print(e).text;
+}
+std::string to_latex(const ex& e) {
+  return Printer(Style::latex).print(e).text;
+}
 
 std::vector<std::string> to_strings(const std::vector<ex>& v) {
   std::vector<std::string> out;

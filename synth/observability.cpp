@@ -1,9 +1,11 @@
 #include "observability.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <set>
 
 #include "expr_print.hpp"
+#include "poly.hpp"
 #include "symbolic.hpp"
 #include "zero_test.hpp"
 
@@ -67,7 +69,8 @@ ExVec dependent_factors(const ex& e, const Symbols& x) {
     }
     g = g.subs(back);
     // exp(.) never vanishes on the reals: it cannot be where the rank drops.
-    if (GiNaC::is_a<GiNaC::function>(g) && GiNaC::ex_to<GiNaC::function>(g).get_name() == "exp") return;
+    if (GiNaC::is_a<GiNaC::function>(g) && GiNaC::ex_to<GiNaC::function>(g).get_name() == "exp")
+      return;
     parts.push_back(g);
   };
   if (GiNaC::is_a<GiNaC::mul>(fac)) {
@@ -97,12 +100,22 @@ ExVec denominators(const ExMatrix& O, const Symbols& x) {
   for (const auto& row : O)
     for (const auto& e : row) {
       if (!has_denominator_in(e, x)) continue;  // cheap structural test first
-      for (const auto& f : dependent_factors(GiNaC::denom(e), x))
-        unique.emplace(to_string(f), f);
+      for (const auto& f : dependent_factors(GiNaC::denom(e), x)) unique.emplace(to_string(f), f);
     }
   ExVec out;
   for (auto& [s, f] : unique) out.push_back(f);
   return out;
+}
+
+// Rank-drop set and the poles of det O.
+void finish_determinant(Observability& ob, const Symbols& x) {
+  ob.rank_drop = dependent_factors(ob.det, x);
+  for (const auto& f : dependent_factors(GiNaC::denom(GiNaC::normal(ob.det)), x)) {
+    const std::string s = to_string(f);
+    bool seen = false;
+    for (const auto& u : ob.undefined) seen |= to_string(u) == s;
+    if (!seen) ob.undefined.push_back(f);
+  }
 }
 
 struct PointMatrix {
@@ -128,9 +141,14 @@ PointMatrix evaluate_matrix(const ExMatrix& O, const GiNaC::exmap& pt, bool exac
           pm.valid = false;
           return pm;
         }
-      } else if (!evaluate_real(e, pt, digits, v)) {
-        pm.valid = false;
-        return pm;
+      } else {
+        numeric mag;
+        if (!evaluate_with_magnitude(e, pt, digits, v, mag)) {
+          pm.valid = false;
+          return pm;
+        }
+        // Zero within rounding: the row scaling below would otherwise blow noise up to 1.
+        if (GiNaC::abs(v) <= numeric(10).power(-(digits - 10)) * mag) v = 0;
       }
       r.push_back(v);
     }
@@ -141,36 +159,166 @@ PointMatrix evaluate_matrix(const ExMatrix& O, const GiNaC::exmap& pt, bool exac
 
 }  // namespace
 
-Observability analyse_observability(const Model& m, Budget& budget, const ObservabilityOptions& opt) {
+// Columns c_0, c_1, ... such that row k of a is zero beyond {c_0..c_k} and nonzero at c_k
+// (structurally, on simplified entries), if they exist. Greedy is exact: row k's nonzero
+// columns outside {c_0..c_{k-1}} must be the single column c_k.
+std::optional<std::vector<std::size_t>> triangular_columns(const ExMatrix& a) {
+  const std::size_t n = a.size();
+  std::vector<std::size_t> cols;
+  std::vector<bool> taken(n, false);
+  for (std::size_t k = 0; k < n; ++k) {
+    std::optional<std::size_t> fresh;
+    for (std::size_t c = 0; c < n; ++c) {
+      if (taken[c] || a[k][c].is_zero()) continue;
+      if (fresh) return std::nullopt;
+      fresh = c;
+    }
+    if (!fresh) return std::nullopt;
+    taken[*fresh] = true;
+    cols.push_back(*fresh);
+  }
+  return cols;
+}
+
+namespace {
+
+// The fused Lie chain and gradients in the polynomial ring, when f and h live in it: the same
+// (expanded) results as the GiNaC path below, an order of magnitude faster.
+bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
+                       std::vector<ExMatrix>& grads) {
+  ExVec all(m.f);
+  all.insert(all.end(), m.h.begin(), m.h.end());
+  const auto ring = PolyRing::for_expressions(all, m.states);
+  if (!ring) return false;
+  try {
+    std::vector<Poly> field;
+    for (const auto& e : m.f) field.push_back(*ring->from_ex(e));
+    const std::size_t n = m.n();
+    for (std::size_t i = 0; i < m.p(); ++i) {
+      Poly phi = *ring->from_ex(m.h[i]);
+      ExVec chain{ring->to_ex(phi)};
+      for (std::size_t k = 0; k < n; ++k) {
+        std::vector<Poly> grad;
+        ExVec row;
+        for (std::size_t j = 0; j < n; ++j) {
+          grad.push_back(ring->derivative(phi, j));
+          row.push_back(ring->to_ex(grad.back()));
+        }
+        grads[i].push_back(std::move(row));
+        if (k + 1 < n) {
+          phi = PolyRing::dot(grad, field);
+          budget.check(phi.node_estimate());
+          chain.push_back(ring->to_ex(phi));
+          budget.check(expression_size(chain.back()));
+        }
+      }
+      lie.push_back(std::move(chain));
+    }
+  } catch (const PolyOverflow&) {
+    return false;
+  }
+  return true;
+}
+
+// Generically nonzero: exactly for rational entries (simplified forms are canonical), by the
+// zero test otherwise.
+bool generically_nonzero(const ex& e, const SampleBoxes& boxes, bool& exact) {
+  if (!has_transcendental(e)) return !simplify(e).is_zero();
+  exact = false;
+  return zero_test(e, boxes) == ZeroVerdict::nonzero;
+}
+
+int permutation_sign(const std::vector<std::size_t>& perm) {
+  int sign = 1;
+  std::vector<bool> seen(perm.size(), false);
+  for (std::size_t i = 0; i < perm.size(); ++i) {
+    if (seen[i]) continue;
+    std::size_t len = 0;
+    for (std::size_t j = i; !seen[j]; j = perm[j], ++len) seen[j] = true;
+    if (len % 2 == 0) sign = -sign;
+  }
+  return sign;
+}
+
+}  // namespace
+
+Observability analyse_observability(const Model& m, Budget& budget,
+                                    const ObservabilityOptions& opt) {
   Observability ob;
   ob.n = m.n();
   ob.p = m.p();
   const Symbols& x = m.states;
+  // The gradient of L_f^k h is row k of O and, dotted with f, gives L_f^{k+1} h: one
+  // differentiation pass serves both.
+  std::vector<ExMatrix> grads(ob.p);
   {
     StageScope stage(budget, "lie");
-    for (const auto& h : m.h) ob.lie.push_back(lie_derivative_chain(h, m.f, x, ob.n, &budget));
+    if (!lie_chain_in_ring(m, budget, ob.lie, grads)) {
+      ob.lie.clear();
+      grads.assign(ob.p, {});
+      for (std::size_t i = 0; i < ob.p; ++i) {
+        ExVec chain{m.h[i]};
+        for (std::size_t k = 0; k < ob.n; ++k) {
+          ExVec row = gradient(chain[k], x);
+          for (auto& e : row) e = simplify(e);
+          if (k + 1 < ob.n) {
+            ex next = 0;
+            for (std::size_t j = 0; j < x.size(); ++j)
+              if (!row[j].is_zero() && !m.f[j].is_zero()) next += row[j] * m.f[j];
+            chain.push_back(simplify(next));
+            budget.check(expression_size(chain.back()));
+          }
+          grads[i].push_back(std::move(row));
+        }
+        ob.lie.push_back(std::move(chain));
+      }
+    }
   }
   StageScope stage(budget, "observability");
   for (std::size_t k = 0; k < ob.n; ++k)
     for (std::size_t i = 0; i < ob.p; ++i) {
-      ExVec row = gradient(ob.lie[i][k], x);
-      for (auto& e : row) e = simplify(e);
-      ob.O.push_back(std::move(row));
+      ob.O.push_back(std::move(grads[i][k]));
       ob.rows.push_back({i, k});
-      budget.check();
     }
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  ob.undefined = denominators(ob.O, x);
+
+  if (ob.p == 1) {
+    if (const auto cols = triangular_columns(ob.O)) {
+      bool exact = true, regular = true;
+      for (std::size_t k = 0; k < ob.n && regular; ++k)
+        regular = generically_nonzero(ob.O[k][(*cols)[k]], boxes, exact);
+      if (regular) {
+        ob.triangular = true;
+        ob.diag_columns = *cols;
+        ob.rank_exact = exact;
+        ob.generic_rank = ob.n;
+        ob.indices = {ob.n};
+        for (std::size_t k = 0; k < ob.n; ++k) ob.selected.push_back(k);
+        // det = sign(perm) prod_k O[k][c_k]; adj(O) e_n = det O^-1 e_n = det e_{c_n} / O[n][c_n].
+        ex det = permutation_sign(*cols), head = det;
+        for (std::size_t k = 0; k < ob.n; ++k) {
+          det *= ob.O[k][(*cols)[k]];
+          if (k + 1 < ob.n) head *= ob.O[k][(*cols)[k]];
+        }
+        ob.det = det;
+        ob.last_row_cofactors.assign(ob.n, 0);
+        ob.last_row_cofactors[cols->back()] = head;
+        finish_determinant(ob, x);
+        return ob;
+      }
+    }
+  }
 
   bool exact = true;
   for (const auto& row : ob.O)
     for (const auto& e : row)
       if (has_transcendental(e)) exact = false;
-  for (const auto& s : m.free_params()) (void)s;  // free parameters are sampled like states
   ob.rank_exact = exact;
 
   // Symbols to sample: states and free parameters (O does not depend on u).
   std::vector<GiNaC::symbol> syms(x);
   for (const auto& s : m.free_params()) syms.push_back(s);
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
   // Several points; some may be invalid (poles, log of negatives): take up to 4x as many.
   const auto points = sample_points(syms, boxes, opt.rank_points * 4, opt.seed);
   int used = 0;
@@ -186,6 +334,7 @@ Observability analyse_observability(const Model& m, Budget& budget, const Observ
       best_matrix = pm.a;
     }
     budget.check();
+    if (ob.generic_rank == ob.n) break;  // full column rank: no point can show more
   }
   if (used == 0)
     throw UserError(SourceLoc{m.file, 0, 0},
@@ -209,7 +358,6 @@ Observability analyse_observability(const Model& m, Budget& budget, const Observ
     }
   }
 
-  ob.undefined = denominators(ob.O, x);
   if (ob.generic_rank == ob.n && ob.selected.size() == ob.n) {
     // det by cofactor expansion along the last selected row; the cofactors are adj(O) e_n.
     const std::size_t n = ob.n;
@@ -229,13 +377,7 @@ Observability analyse_observability(const Model& m, Budget& budget, const Observ
       budget.check(expression_size(ob.last_row_cofactors[c]));
     }
     ob.det = simplify(det);
-    ob.rank_drop = dependent_factors(ob.det, x);
-    for (const auto& f : dependent_factors(GiNaC::denom(GiNaC::normal(ob.det)), x)) {
-      const std::string s = to_string(f);
-      bool seen = false;
-      for (const auto& u : ob.undefined) seen |= to_string(u) == s;
-      if (!seen) ob.undefined.push_back(f);
-    }
+    finish_determinant(ob, x);
   }
   return ob;
 }

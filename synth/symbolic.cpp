@@ -20,8 +20,9 @@ std::vector<GiNaC::symbol> symbols_in(const GiNaC::ex& e) {
   std::vector<GiNaC::symbol> out;
   std::set<std::string> seen;
   collect(e, out, seen);
-  std::sort(out.begin(), out.end(),
-            [](const GiNaC::symbol& a, const GiNaC::symbol& b) { return a.get_name() < b.get_name(); });
+  std::sort(out.begin(), out.end(), [](const GiNaC::symbol& a, const GiNaC::symbol& b) {
+    return a.get_name() < b.get_name();
+  });
   return out;
 }
 
@@ -53,7 +54,8 @@ bool has_denominator_in(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& sy
   if (GiNaC::is_a<GiNaC::power>(e) && GiNaC::is_a<GiNaC::numeric>(e.op(1)) &&
       GiNaC::ex_to<GiNaC::numeric>(e.op(1)).is_negative() && depends_on(e.op(0), syms))
     return true;
-  if (GiNaC::is_a<GiNaC::function>(e) && GiNaC::ex_to<GiNaC::function>(e).get_name() == "tan" && depends_on(e, syms))
+  if (GiNaC::is_a<GiNaC::function>(e) && GiNaC::ex_to<GiNaC::function>(e).get_name() == "tan" &&
+      depends_on(e, syms))
     return true;  // tan = sin/cos has poles
   for (std::size_t i = 0; i < e.nops(); ++i)
     if (has_denominator_in(e.op(i), syms)) return true;
@@ -67,6 +69,27 @@ std::vector<GiNaC::ex> gradient(const GiNaC::ex& e, const std::vector<GiNaC::sym
   return out;
 }
 
-GiNaC::ex simplify(const GiNaC::ex& e) { return GiNaC::normal(e); }
+bool has_symbolic_denominator(const GiNaC::ex& e) {
+  if (GiNaC::is_a<GiNaC::symbol>(e) || GiNaC::is_a<GiNaC::numeric>(e) ||
+      GiNaC::is_a<GiNaC::constant>(e))
+    return false;
+  if (GiNaC::is_a<GiNaC::power>(e) && GiNaC::is_a<GiNaC::numeric>(e.op(1)) &&
+      GiNaC::ex_to<GiNaC::numeric>(e.op(1)).is_negative() && !GiNaC::is_a<GiNaC::numeric>(e.op(0)))
+    return true;
+  if (GiNaC::is_a<GiNaC::function>(e) && GiNaC::ex_to<GiNaC::function>(e).get_name() == "tan")
+    return true;
+  for (std::size_t i = 0; i < e.nops(); ++i)
+    if (has_symbolic_denominator(e.op(i))) return true;
+  return false;
+}
+
+// normal() cancels common factors of fractions but costs gcds; an expression without a
+// symbolic denominator is a polynomial in its symbols and function atoms, for which the
+// expanded form is canonical (zero exactly when normal() would give zero) and much cheaper
+// to reach on large Lie derivatives and brackets.
+GiNaC::ex simplify(const GiNaC::ex& e) {
+  if (!has_symbolic_denominator(e)) return GiNaC::expand(e);
+  return GiNaC::normal(e);
+}
 
 }  // namespace obsynth

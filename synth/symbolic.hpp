@@ -20,7 +20,10 @@ bool has_transcendental(const GiNaC::ex& e);
 bool has_denominator_in(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& syms);
 // Row vector d(e)/d(vars).
 std::vector<GiNaC::ex> gradient(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& vars);
-// Simplify for storage: normal() for rational expressions, keeps transcendental atoms.
+// True when e has a negative power of a non-numeric base (or tan) anywhere.
+bool has_symbolic_denominator(const GiNaC::ex& e);
+// Simplify for storage: expand() for polynomials (in symbols and function atoms), normal()
+// for rational expressions; keeps transcendental atoms.
 GiNaC::ex simplify(const GiNaC::ex& e);
 
 }  // namespace obsynth

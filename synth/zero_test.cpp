@@ -14,15 +14,22 @@ using GiNaC::numeric;
 
 const char* verdict_name(ZeroVerdict v) {
   switch (v) {
-    case ZeroVerdict::proved: return "proved";
-    case ZeroVerdict::numeric: return "numeric";
-    case ZeroVerdict::nonzero: return "nonzero";
+    case ZeroVerdict::proved:
+      return "proved";
+    case ZeroVerdict::numeric:
+      return "numeric";
+    case ZeroVerdict::nonzero:
+      return "nonzero";
   }
   return "nonzero";
 }
 
-DigitsGuard::DigitsGuard(long digits) : saved_(GiNaC::Digits) { GiNaC::Digits = digits; }
-DigitsGuard::~DigitsGuard() { GiNaC::Digits = saved_; }
+DigitsGuard::DigitsGuard(long digits) : saved_(GiNaC::Digits) {
+  GiNaC::Digits = digits;
+}
+DigitsGuard::~DigitsGuard() {
+  GiNaC::Digits = saved_;
+}
 
 SampleBoxes SampleBoxes::from_model(const Model& m) {
   SampleBoxes b;
@@ -84,7 +91,9 @@ numeric rational_gcd(const numeric& a, const numeric& b) {
 struct Pair {  // cos and sin of an angle, as rational functions
   ex c, s;
 };
-Pair mul(const Pair& a, const Pair& b) { return {a.c * b.c - a.s * b.s, a.s * b.c + a.c * b.s}; }
+Pair mul(const Pair& a, const Pair& b) {
+  return {a.c * b.c - a.s * b.s, a.s * b.c + a.c * b.s};
+}
 
 constexpr long kMaxMultiple = 24;
 
@@ -183,7 +192,8 @@ class Rewriter {
       }
       if (name == "exp" || name == "tanh") {
         ex v;
-        if (exponential(name == "exp" ? arg : 2 * arg, v)) return name == "exp" ? v : (v - 1) / (v + 1);
+        if (exponential(name == "exp" ? arg : 2 * arg, v))
+          return name == "exp" ? v : (v - 1) / (v + 1);
         return atom(e);
       }
       // log, atan, ...: opaque atom keyed by the function with rewritten arguments.
@@ -230,7 +240,9 @@ std::uint64_t splitmix(std::uint64_t& s) {
 
 }  // namespace
 
-ex rational_rewrite(const ex& e) { return Rewriter().run(e); }
+ex rational_rewrite(const ex& e) {
+  return Rewriter().run(e);
+}
 
 bool proved_zero(const ex& e) {
   if (e.is_zero()) return true;
@@ -255,7 +267,8 @@ bool evaluate_real(const ex& e, const GiNaC::exmap& point, int digits, numeric& 
     const numeric& nv = ex_to<numeric>(v);
     if (!nv.is_real()) {
       const numeric im = GiNaC::abs(nv.imag());
-      if (im > numeric(10).power(numeric(-(digits / 2))) * (1 + GiNaC::abs(nv.real()))) return false;
+      if (im > numeric(10).power(numeric(-(digits / 2))) * (1 + GiNaC::abs(nv.real())))
+        return false;
       value = nv.real();
       return true;
     }
@@ -266,9 +279,76 @@ bool evaluate_real(const ex& e, const GiNaC::exmap& point, int digits, numeric& 
   }
 }
 
+namespace {
+
+// Value and magnitude bound of e at a floating point (already evalf'd), or false.
+bool eval_mag(const ex& e, const GiNaC::exmap& fpoint, numeric& value, numeric& mag) {
+  if (is_a<numeric>(e)) {
+    value = ex_to<numeric>(GiNaC::evalf(e));
+    mag = GiNaC::abs(value);
+    return value.is_real();
+  }
+  if (is_a<GiNaC::add>(e) || is_a<GiNaC::mul>(e)) {
+    const bool sum = is_a<GiNaC::add>(e);
+    value = sum ? 0 : 1;
+    mag = sum ? 0 : 1;
+    for (std::size_t i = 0; i < e.nops(); ++i) {
+      numeric v, m;
+      if (!eval_mag(e.op(i), fpoint, v, m)) return false;
+      if (sum) {
+        value += v;
+        mag += m;
+      } else {
+        value *= v;
+        mag *= m;
+      }
+    }
+    return true;
+  }
+  if (is_a<GiNaC::power>(e) && is_a<numeric>(e.op(1)) && ex_to<numeric>(e.op(1)).is_integer()) {
+    numeric v, m;
+    if (!eval_mag(e.op(0), fpoint, v, m)) return false;
+    const numeric k = ex_to<numeric>(e.op(1));
+    if (v.is_zero() && k.is_negative()) return false;
+    value = v.power(k);
+    mag = k.is_negative() ? GiNaC::abs(value) : m.power(k);
+    return true;
+  }
+  if (is_a<GiNaC::symbol>(e)) {
+    const auto it = fpoint.find(e);
+    if (it != fpoint.end() && is_a<numeric>(it->second)) {
+      value = ex_to<numeric>(it->second);
+      mag = GiNaC::abs(value);
+      return value.is_real();
+    }
+  }
+  // Constants, functions, fractional powers: evaluate as a whole.
+  const ex v = GiNaC::evalf(e.subs(fpoint));
+  if (!is_a<numeric>(v) || !ex_to<numeric>(v).is_real()) return false;
+  value = ex_to<numeric>(v);
+  mag = GiNaC::abs(value);
+  return true;
+}
+
+}  // namespace
+
+bool evaluate_with_magnitude(const ex& e, const GiNaC::exmap& point, int digits, numeric& value,
+                             numeric& magnitude) {
+  DigitsGuard guard(digits);
+  try {
+    GiNaC::exmap fpoint;
+    for (const auto& [k, v] : point) fpoint[k] = GiNaC::evalf(v);
+    if (eval_mag(e, fpoint, value, magnitude)) return true;
+  } catch (const std::exception&) {
+  }
+  // Complex intermediates (which cancel) and the like: the plain evaluation.
+  if (!evaluate_real(e, point, digits, value)) return false;
+  magnitude = GiNaC::abs(value);
+  return true;
+}
+
 std::vector<GiNaC::exmap> sample_points(const std::vector<GiNaC::symbol>& symbols,
-                                        const SampleBoxes& boxes, int count,
-                                        std::uint64_t seed) {
+                                        const SampleBoxes& boxes, int count, std::uint64_t seed) {
   // Large primes as denominators: exact rank / zero decisions at such points fail only on a
   // set of tiny measure.
   static const long primes[] = {1000003, 1000033, 1000037, 1000039, 1000081, 1000099};
@@ -280,7 +360,8 @@ std::vector<GiNaC::exmap> sample_points(const std::vector<GiNaC::symbol>& symbol
     GiNaC::exmap pt;
     for (std::size_t j = 0; j < symbols.size(); ++j) {
       const Interval b = boxes.box(symbols[j]);
-      const numeric frac = numeric(static_cast<long>(3 + 2 * (j % 16)), 101 + 2 * static_cast<long>(j / 16));
+      const numeric frac =
+          numeric(static_cast<long>(3 + 2 * (j % 16)), 101 + 2 * static_cast<long>(j / 16));
       pt[symbols[j]] = edge == 0 ? b.lo + (b.hi - b.lo) * frac : b.hi - (b.hi - b.lo) * frac;
     }
     out.push_back(pt);

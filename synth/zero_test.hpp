@@ -18,11 +18,13 @@ namespace obsynth {
 
 enum class ZeroVerdict { proved, numeric, nonzero };
 const char* verdict_name(ZeroVerdict v);
-inline bool is_zero_verdict(ZeroVerdict v) { return v != ZeroVerdict::nonzero; }
+inline bool is_zero_verdict(ZeroVerdict v) {
+  return v != ZeroVerdict::nonzero;
+}
 
 struct ZeroTestOptions {
-  int points = 8;  // sample points: 2 near opposite box corners, the rest random
-  int digits = 40;        // decimal digits for numeric evaluation
+  int points = 8;   // sample points: 2 near opposite box corners, the rest random
+  int digits = 40;  // decimal digits for numeric evaluation
   std::uint64_t seed = 0x5eed0b5;
 };
 
@@ -51,9 +53,15 @@ bool evaluate_real(const GiNaC::ex& e, const GiNaC::exmap& point, int digits,
 
 // Deterministic random points (exact rationals with large prime denominators) in the boxes of
 // the given symbols.
+// Like evaluate_real, also returning a magnitude bound: the value the expression would have
+// with every sum replaced by the sum of its terms' magnitudes. Rounding errors are relative to
+// it, so |value| <= 10^-(digits-10) * magnitude means "zero within rounding": a cancellation
+// such as sin^2 + cos^2 - 1 evaluates to noise whose size says nothing by itself.
+bool evaluate_with_magnitude(const GiNaC::ex& e, const GiNaC::exmap& point, int digits,
+                             GiNaC::numeric& value, GiNaC::numeric& magnitude);
+
 std::vector<GiNaC::exmap> sample_points(const std::vector<GiNaC::symbol>& symbols,
-                                        const SampleBoxes& boxes, int count,
-                                        std::uint64_t seed);
+                                        const SampleBoxes& boxes, int count, std::uint64_t seed);
 
 // RAII save/restore of GiNaC's global Digits.
 class DigitsGuard {

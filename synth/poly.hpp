@@ -1,0 +1,96 @@
+// Sparse polynomials over Q for the differentiation-heavy stages (Lie chains, gradients,
+// brackets of polynomial fields). GiNaC's generic add/mul trees spend most of their time on
+// allocation and canonical reordering; a Lie derivative of a polynomial model is a sum of
+// products of terms, which a hash map of packed exponent vectors does an order of magnitude
+// faster. The "variables" are the states, other symbols (parameters) and function atoms
+// whose derivatives stay in the ring: sin/cos of a ring element (each other's companion),
+// exp and tanh. Anything else (denominators, sqrt, log, atan, tan) is outside the ring and
+// the caller keeps GiNaC's path.
+#pragma once
+
+#include <ginac/ginac.h>
+
+#include <cln/rational.h>
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+namespace obsynth {
+
+inline constexpr std::size_t kMaxPolyVariables = 64;
+
+struct Monomial {
+  std::array<std::uint8_t, kMaxPolyVariables> e{};  // exponents
+  bool operator==(const Monomial& o) const { return e == o.e; }
+};
+
+struct MonomialHash {
+  std::size_t operator()(const Monomial& m) const noexcept;
+};
+
+struct Poly {
+  std::unordered_map<Monomial, cln::cl_RA, MonomialHash> terms;
+  bool is_zero() const { return terms.empty(); }
+  // Nodes of the GiNaC tree to_ex would build (for budgets, before building it).
+  std::size_t node_estimate() const;
+};
+
+// How a function grows in x: constant, bounded (with bounded derivatives' arguments aside),
+// or possibly unbounded.
+enum class Growth { constant, bounded, unbounded };
+
+// Thrown when an exponent would leave the packed range; callers fall back to GiNaC.
+struct PolyOverflow {};
+
+class PolyRing {
+ public:
+  // A ring holding every expression of `exprs` with the states x as the first variables, or
+  // nullopt when some expression is not a polynomial in states, symbols and closed atoms.
+  static std::optional<PolyRing> for_expressions(const std::vector<GiNaC::ex>& exprs,
+                                                 const std::vector<GiNaC::symbol>& x);
+
+  // e (any expression in the ring's variables) as a polynomial; nullopt outside the ring.
+  std::optional<Poly> from_ex(const GiNaC::ex& e) const;
+  // The expanded GiNaC expression of p.
+  GiNaC::ex to_ex(const Poly& p) const;
+
+  Poly derivative(const Poly& p, std::size_t state) const;  // d/dx_state
+  static Poly product(const Poly& a, const Poly& b);
+  static void add_to(Poly& acc, const Poly& p, const cln::cl_RA& scale = 1);
+  // The Lie derivative sum_j grad[j] * field[j].
+  static Poly dot(const std::vector<Poly>& grad, const std::vector<Poly>& field);
+
+  // Values of the ring's variables at a point (exact symbol values rounded to `digits`, atoms
+  // evaluated there); nullopt when some variable has no real value at the point.
+  std::optional<std::vector<GiNaC::numeric>> values_at(const GiNaC::exmap& point, int digits) const;
+  // p at those values (callers hold the GiNaC::Digits setting used for them).
+  static GiNaC::numeric evaluate(const Poly& p, const std::vector<GiNaC::numeric>& values);
+
+  // constant: free of x; bounded: a polynomial in sin/cos/tanh of x and x-free symbols;
+  // unbounded otherwise (a state or exp of x occurs).
+  Growth growth(const Poly& p) const;
+
+  std::size_t states() const { return states_; }
+
+ private:
+  enum class Kind { state, symbol, sin, cos, exp, tanh };
+  struct Variable {
+    GiNaC::ex value;  // the symbol or the atom
+    Kind kind;
+    GiNaC::ex arg;  // atom argument
+  };
+  std::size_t states_ = 0;
+  std::vector<Variable> vars_;
+  // d var / d x_j for atoms: derivs_[v][j], empty poly when independent of x_j.
+  std::vector<std::vector<Poly>> derivs_;
+  std::vector<Growth> var_growth_;
+
+  std::optional<std::size_t> find(const GiNaC::ex& v) const;
+  bool register_atoms(const GiNaC::ex& e);
+  bool build_derivatives();
+  std::optional<Poly> convert(const GiNaC::ex& e) const;
+};
+
+}  // namespace obsynth
