@@ -412,7 +412,7 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
             tau.assign(n, Poly{});
             for (std::size_t i = 0; i < n; ++i) {
               tau[i] = PolyRing::dot(Jf[i], prev);
-              PolyRing::add_to(tau[i], PolyRing::dot(Jprev[i], f), -1);
+              PolyRing::subtract_from(tau[i], PolyRing::dot(Jprev[i], f));
             }
           }
           std::size_t estimate = 0;
@@ -493,7 +493,7 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
       ExVec out;
       for (std::size_t i = 0; i < n; ++i) {
         Poly r = PolyRing::dot(jac_polys[b][i], field_polys[a]);
-        PolyRing::add_to(r, PolyRing::dot(jac_polys[a][i], field_polys[b]), -1);
+        PolyRing::subtract_from(r, PolyRing::dot(jac_polys[a][i], field_polys[b]));
         out.push_back(ring->to_ex(r));
       }
       return out;

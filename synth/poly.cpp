@@ -158,7 +158,7 @@ bool PolyRing::build_derivatives() {
         outer = constant(1);
         Monomial sq;
         sq.e[v] = 2;
-        add_term(outer, sq, -1);
+        add_term(outer, sq, minus_one());
         break;
       }
       default:

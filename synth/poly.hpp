@@ -59,6 +59,10 @@ class PolyRing {
   Poly derivative(const Poly& p, std::size_t state) const;  // d/dx_state
   static Poly product(const Poly& a, const Poly& b);
   static void add_to(Poly& acc, const Poly& p, const cln::cl_RA& scale = 1);
+  static void subtract_from(Poly& acc, const Poly& p) { add_to(acc, p, minus_one()); }
+  // -1 built by negation: CLN's inline cl_RA(int) left-shifts negative values (undefined
+  // behaviour that UBSan reports in our translation units).
+  static cln::cl_RA minus_one() { return -cln::cl_RA(1); }
   // The Lie derivative sum_j grad[j] * field[j].
   static Poly dot(const std::vector<Poly>& grad, const std::vector<Poly>& field);
 
