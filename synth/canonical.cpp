@@ -498,15 +498,18 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
       }
       return out;
     };
+    // Node counts of tau_1..tau_n and g, each counted once (pairs reuse them).
+    std::vector<std::size_t> field_size;
+    for (std::size_t k = 0; k <= n; ++k) {
+      std::size_t size = 0;
+      for (const auto& e : k < n ? cf.frame[k] : m.g) size += expression_size(e);
+      field_size.push_back(size);
+    }
     auto check_pair = [&](std::size_t a, std::size_t b, BracketCheck& out) {
       if (screen.nonzero(a, b)) {
         out.verdict = ZeroVerdict::nonzero;
         // The residual itself, unless its symbolic form would be unreasonably large.
-        const ExVec& va = a < n ? cf.frame[a] : m.g;
-        const ExVec& vb = b < n ? cf.frame[b] : m.g;
-        std::size_t size = 0;
-        for (const auto& e : va) size += expression_size(e);
-        for (const auto& e : vb) size += expression_size(e);
+        const std::size_t size = field_size[a] + field_size[b];
         if (size <= 4000)
           out.residual = bracket(a, b);
         else

@@ -39,14 +39,22 @@ ExVec lie_bracket(const ExVec& a, const ExVec& b, const Symbols& x) {
   return lie_bracket(a, jacobian(a, x), b, jacobian(b, x));
 }
 
-ExVec lie_derivative_chain(const GiNaC::ex& h, const ExVec& f, const Symbols& x, std::size_t count,
-                           const Budget* budget) {
-  ExVec out;
+LieChain lie_chain_with_gradients(const GiNaC::ex& h, const ExVec& f, const Symbols& x,
+                                  std::size_t count, const Budget* budget) {
+  LieChain out;
   if (count == 0) return out;
-  out.push_back(h);
-  for (std::size_t k = 1; k < count; ++k) {
-    out.push_back(lie_derivative(out.back(), f, x));
-    if (budget) budget->check(expression_size(out.back()));
+  out.derivatives.push_back(h);
+  for (std::size_t k = 0; k < count; ++k) {
+    ExVec row = gradient(out.derivatives[k], x);
+    for (auto& e : row) e = simplify(e);
+    if (k + 1 < count) {
+      GiNaC::ex next = 0;
+      for (std::size_t j = 0; j < x.size(); ++j)
+        if (!row[j].is_zero() && !f[j].is_zero()) next += row[j] * f[j];
+      out.derivatives.push_back(simplify(next));
+      if (budget) budget->check(expression_size(out.derivatives.back()));
+    }
+    out.gradients.push_back(std::move(row));
   }
   return out;
 }

@@ -125,6 +125,7 @@ struct PointMatrix {
 
 PointMatrix evaluate_matrix(const ExMatrix& O, const GiNaC::exmap& pt, bool exact, int digits) {
   PointMatrix pm;
+  const numeric rounding = numeric(10).power(-(digits - 10));
   for (const auto& row : O) {
     std::vector<numeric> r;
     for (const auto& e : row) {
@@ -148,7 +149,7 @@ PointMatrix evaluate_matrix(const ExMatrix& O, const GiNaC::exmap& pt, bool exac
           return pm;
         }
         // Zero within rounding: the row scaling below would otherwise blow noise up to 1.
-        if (GiNaC::abs(v) <= numeric(10).power(-(digits - 10)) * mag) v = 0;
+        if (GiNaC::abs(v) <= rounding * mag) v = 0;
       }
       r.push_back(v);
     }
@@ -182,8 +183,8 @@ std::optional<std::vector<std::size_t>> triangular_columns(const ExMatrix& a) {
 
 namespace {
 
-// The fused Lie chain and gradients in the polynomial ring, when f and h live in it: the same
-// (expanded) results as the GiNaC path below, an order of magnitude faster.
+// lie_chain_with_gradients in the polynomial ring, when f and h live in it: the same
+// (expanded) results, an order of magnitude faster.
 bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
                        std::vector<ExMatrix>& grads) {
   ExVec all(m.f);
@@ -209,7 +210,6 @@ bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
           phi = PolyRing::dot(grad, field);
           budget.check(phi.node_estimate());
           chain.push_back(ring->to_ex(phi));
-          budget.check(expression_size(chain.back()));
         }
       }
       lie.push_back(std::move(chain));
@@ -248,29 +248,16 @@ Observability analyse_observability(const Model& m, Budget& budget,
   ob.n = m.n();
   ob.p = m.p();
   const Symbols& x = m.states;
-  // The gradient of L_f^k h is row k of O and, dotted with f, gives L_f^{k+1} h: one
-  // differentiation pass serves both.
+  // Rows of O per output: the Lie chain's gradients (lie.hpp), in the ring when possible.
   std::vector<ExMatrix> grads(ob.p);
   {
     StageScope stage(budget, "lie");
     if (!lie_chain_in_ring(m, budget, ob.lie, grads)) {
       ob.lie.clear();
-      grads.assign(ob.p, {});
       for (std::size_t i = 0; i < ob.p; ++i) {
-        ExVec chain{m.h[i]};
-        for (std::size_t k = 0; k < ob.n; ++k) {
-          ExVec row = gradient(chain[k], x);
-          for (auto& e : row) e = simplify(e);
-          if (k + 1 < ob.n) {
-            ex next = 0;
-            for (std::size_t j = 0; j < x.size(); ++j)
-              if (!row[j].is_zero() && !m.f[j].is_zero()) next += row[j] * m.f[j];
-            chain.push_back(simplify(next));
-            budget.check(expression_size(chain.back()));
-          }
-          grads[i].push_back(std::move(row));
-        }
-        ob.lie.push_back(std::move(chain));
+        LieChain chain = lie_chain_with_gradients(m.h[i], m.f, x, ob.n, &budget);
+        ob.lie.push_back(std::move(chain.derivatives));
+        grads[i] = std::move(chain.gradients);
       }
     }
   }

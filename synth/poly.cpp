@@ -32,6 +32,13 @@ void accumulate(Poly& acc, const Monomial& m, const cln::cl_RA& c, const Poly& q
   }
 }
 
+// acc += a * b, iterating over the shorter operand (field components are usually short).
+void accumulate_product(Poly& acc, const Poly& a, const Poly& b) {
+  const Poly& small = a.terms.size() <= b.terms.size() ? a : b;
+  const Poly& large = &small == &a ? b : a;
+  for (const auto& [m, c] : small.terms) accumulate(acc, m, c, large);
+}
+
 void add_term(Poly& acc, const Monomial& m, const cln::cl_RA& c) {
   if (cln::zerop(c)) return;
   auto [it, inserted] = acc.terms.try_emplace(m, c);
@@ -332,9 +339,7 @@ Growth PolyRing::growth(const Poly& p) const {
 
 Poly PolyRing::product(const Poly& a, const Poly& b) {
   Poly out;
-  const Poly& small = a.terms.size() <= b.terms.size() ? a : b;
-  const Poly& large = &small == &a ? b : a;
-  for (const auto& [m, c] : small.terms) accumulate(out, m, c, large);
+  accumulate_product(out, a, b);
   return out;
 }
 
@@ -344,13 +349,8 @@ void PolyRing::add_to(Poly& acc, const Poly& p, const cln::cl_RA& scale) {
 
 Poly PolyRing::dot(const std::vector<Poly>& grad, const std::vector<Poly>& field) {
   Poly out;
-  for (std::size_t j = 0; j < grad.size() && j < field.size(); ++j) {
-    if (grad[j].is_zero() || field[j].is_zero()) continue;
-    // Iterate over the smaller operand's terms: the field component is usually short.
-    const Poly& small = grad[j].terms.size() <= field[j].terms.size() ? grad[j] : field[j];
-    const Poly& large = &small == &grad[j] ? field[j] : grad[j];
-    for (const auto& [m, c] : small.terms) accumulate(out, m, c, large);
-  }
+  for (std::size_t j = 0; j < grad.size() && j < field.size(); ++j)
+    accumulate_product(out, grad[j], field[j]);
   return out;
 }
 

@@ -50,16 +50,29 @@ bool has_transcendental(const GiNaC::ex& e) {
   return false;
 }
 
-bool has_denominator_in(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& syms) {
+namespace {
+// A negative power (or tan = sin/cos) whose base `matters`, anywhere in e.
+template <class Matters>
+bool has_denominator(const GiNaC::ex& e, const Matters& matters) {
   if (GiNaC::is_a<GiNaC::power>(e) && GiNaC::is_a<GiNaC::numeric>(e.op(1)) &&
-      GiNaC::ex_to<GiNaC::numeric>(e.op(1)).is_negative() && depends_on(e.op(0), syms))
+      GiNaC::ex_to<GiNaC::numeric>(e.op(1)).is_negative() && matters(e.op(0)))
     return true;
   if (GiNaC::is_a<GiNaC::function>(e) && GiNaC::ex_to<GiNaC::function>(e).get_name() == "tan" &&
-      depends_on(e, syms))
-    return true;  // tan = sin/cos has poles
+      matters(e))
+    return true;
   for (std::size_t i = 0; i < e.nops(); ++i)
-    if (has_denominator_in(e.op(i), syms)) return true;
+    if (has_denominator(e.op(i), matters)) return true;
   return false;
+}
+}  // namespace
+
+bool has_denominator_in(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& syms) {
+  return has_denominator(e, [&](const GiNaC::ex& base) { return depends_on(base, syms); });
+}
+
+bool has_symbolic_denominator(const GiNaC::ex& e) {
+  return has_denominator(e,
+                         [](const GiNaC::ex& base) { return !GiNaC::is_a<GiNaC::numeric>(base); });
 }
 
 std::vector<GiNaC::ex> gradient(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& vars) {
@@ -67,20 +80,6 @@ std::vector<GiNaC::ex> gradient(const GiNaC::ex& e, const std::vector<GiNaC::sym
   out.reserve(vars.size());
   for (const auto& v : vars) out.push_back(e.diff(v));
   return out;
-}
-
-bool has_symbolic_denominator(const GiNaC::ex& e) {
-  if (GiNaC::is_a<GiNaC::symbol>(e) || GiNaC::is_a<GiNaC::numeric>(e) ||
-      GiNaC::is_a<GiNaC::constant>(e))
-    return false;
-  if (GiNaC::is_a<GiNaC::power>(e) && GiNaC::is_a<GiNaC::numeric>(e.op(1)) &&
-      GiNaC::ex_to<GiNaC::numeric>(e.op(1)).is_negative() && !GiNaC::is_a<GiNaC::numeric>(e.op(0)))
-    return true;
-  if (GiNaC::is_a<GiNaC::function>(e) && GiNaC::ex_to<GiNaC::function>(e).get_name() == "tan")
-    return true;
-  for (std::size_t i = 0; i < e.nops(); ++i)
-    if (has_symbolic_denominator(e.op(i))) return true;
-  return false;
 }
 
 // normal() cancels common factors of fractions but costs gcds; an expression without a
