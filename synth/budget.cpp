@@ -29,10 +29,11 @@ void Budget::check(std::size_t expression_size) const {
                                 "--stage-seconds)",
                                 stage_, limits_.stage_seconds));
   if (expression_size > limits_.max_expression_size)
-    throw UserError(SourceLoc{},
-                    fmt::format("stage '{}' exceeded its expression-size budget: an expression "
-                                "has {} nodes, the limit is {} (raise it with --max-expression-size)",
-                                stage_, expression_size, limits_.max_expression_size));
+    throw UserError(
+        SourceLoc{},
+        fmt::format("stage '{}' exceeded its expression-size budget: an expression "
+                    "has {} nodes, the limit is {} (raise it with --max-expression-size)",
+                    stage_, expression_size, limits_.max_expression_size));
 }
 
 }  // namespace obsynth

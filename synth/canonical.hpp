@@ -20,8 +20,8 @@ namespace obsynth {
 struct BracketCheck {
   std::size_t i = 0, j = 0;  // 1-based frame indices; i = 0 for [g, tau_j]
   ZeroVerdict verdict = ZeroVerdict::proved;
-  ExVec residual;            // the bracket itself, simplified (zero when it holds)
-  std::string residual_note; // set when a failing residual is too large to print
+  ExVec residual;             // the bracket itself, simplified (zero when it holds)
+  std::string residual_note;  // set when a failing residual is too large to print
   bool holds() const { return verdict != ZeroVerdict::nonzero; }
 };
 
@@ -33,29 +33,29 @@ enum class Availability { symbolic, numeric, none };
 const char* availability_name(Availability a);
 
 struct CanonicalForm {
-  bool applicable = false;         // single output and generic rank n
-  std::string not_applicable;      // why not, when !applicable
+  bool applicable = false;     // single output and generic rank n
+  std::string not_applicable;  // why not, when !applicable
   ExVec r;
-  std::vector<ExVec> frame;        // tau_1 .. tau_n
-  std::vector<BracketCheck> drift; // [tau_i, tau_j], 1 <= i < j <= n   (C2)
-  std::vector<BracketCheck> input; // [g, tau_j], j = 1..n-1            (C3)
+  std::vector<ExVec> frame;                       // tau_1 .. tau_n
+  std::vector<BracketCheck> drift;                // [tau_i, tau_j], 1 <= i < j <= n   (C2)
+  std::vector<BracketCheck> input;                // [g, tau_j], j = 1..n-1            (C3)
   Completeness complete = Completeness::unknown;  // C4
   std::string complete_reason;
-  bool linearizable = false;       // C1, C2, C3 hold
+  bool linearizable = false;  // C1, C2, C3 hold
 
-  GiNaC::symbol y{"y"};            // output symbol of l(u, y)
-  std::vector<GiNaC::symbol> z;    // canonical coordinates z1..zn
-  ExVec base_point;                // x0 with T(x0) = 0
+  GiNaC::symbol y{"y"};          // output symbol of l(u, y)
+  std::vector<GiNaC::symbol> z;  // canonical coordinates z1..zn
+  ExVec base_point;              // x0 with T(x0) = 0
   Availability T_kind = Availability::none;
   ExVec T;
   std::string T_note;
   ZeroVerdict T_verdict = ZeroVerdict::nonzero;  // dT/dx * [tau] == I
   Availability T_inverse_kind = Availability::none;
-  ExVec T_inverse;                 // in z1..zn
+  ExVec T_inverse;  // in z1..zn
   std::string T_inverse_note;
   ZeroVerdict T_inverse_verdict = ZeroVerdict::nonzero;  // T^-1(T(x)) == x
   Availability l_kind = Availability::none;
-  ExVec l;                         // in inputs and y
+  ExVec l;  // in inputs and y
   std::string l_note;
   ZeroVerdict l_verdict = ZeroVerdict::nonzero;  // l free of x
 };
@@ -75,8 +75,8 @@ std::optional<GiNaC::ex> express_in_output(const GiNaC::ex& e, const GiNaC::ex& 
 
 // Solves T(x) = z for x by successive elimination of equations that are linear in one state
 // (or in exp/log/atan of it); nullopt when the structure does not allow it.
-std::optional<ExVec> invert_map(const ExVec& T, const Symbols& x, const std::vector<GiNaC::symbol>& z,
-                                const SampleBoxes& boxes);
+std::optional<ExVec> invert_map(const ExVec& T, const Symbols& x,
+                                const std::vector<GiNaC::symbol>& z, const SampleBoxes& boxes);
 
 // The frame [tau_1 ... tau_n] as a flat column-major list (tau_1 first).
 ExVec frame_column_major(const CanonicalForm& cf);

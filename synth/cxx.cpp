@@ -10,28 +10,51 @@
 
 namespace obsynth {
 
-const char* precision_name(Precision p) { return p == Precision::single ? "float" : "double"; }
+const char* precision_name(Precision p) {
+  return p == Precision::single ? "float" : "double";
+}
 
 namespace {
 
-const char* const kCxxKeywords[] = {
-    "alignas", "alignof", "and", "and_eq", "asm", "auto", "bitand", "bitor", "bool", "break", "case",
-    "catch", "char", "char8_t", "char16_t", "char32_t", "class", "compl", "concept", "const",
-    "consteval", "constexpr", "constinit", "const_cast", "continue", "co_await", "co_return",
-    "co_yield", "decltype", "default", "delete", "do", "double", "dynamic_cast", "else", "enum",
-    "explicit", "export", "extern", "false", "float", "for", "friend", "goto", "if", "inline", "int",
-    "long", "mutable", "namespace", "new", "noexcept", "not", "not_eq", "nullptr", "operator", "or",
-    "or_eq", "private", "protected", "public", "register", "reinterpret_cast", "requires", "return",
-    "short", "signed", "sizeof", "static", "static_assert", "static_cast", "struct", "switch",
-    "template", "this", "thread_local", "throw", "true", "try", "typedef", "typeid", "typename",
-    "union", "unsigned", "using", "virtual", "void", "volatile", "wchar_t", "while", "xor", "xor_eq",
-    "final", "override", "import", "module"};
+const char* const kCxxKeywords[] = {"alignas",       "alignof",     "and",
+                                    "and_eq",        "asm",         "auto",
+                                    "bitand",        "bitor",       "bool",
+                                    "break",         "case",        "catch",
+                                    "char",          "char8_t",     "char16_t",
+                                    "char32_t",      "class",       "compl",
+                                    "concept",       "const",       "consteval",
+                                    "constexpr",     "constinit",   "const_cast",
+                                    "continue",      "co_await",    "co_return",
+                                    "co_yield",      "decltype",    "default",
+                                    "delete",        "do",          "double",
+                                    "dynamic_cast",  "else",        "enum",
+                                    "explicit",      "export",      "extern",
+                                    "false",         "float",       "for",
+                                    "friend",        "goto",        "if",
+                                    "inline",        "int",         "long",
+                                    "mutable",       "namespace",   "new",
+                                    "noexcept",      "not",         "not_eq",
+                                    "nullptr",       "operator",    "or",
+                                    "or_eq",         "private",     "protected",
+                                    "public",        "register",    "reinterpret_cast",
+                                    "requires",      "return",      "short",
+                                    "signed",        "sizeof",      "static",
+                                    "static_assert", "static_cast", "struct",
+                                    "switch",        "template",    "this",
+                                    "thread_local",  "throw",       "true",
+                                    "try",           "typedef",     "typeid",
+                                    "typename",      "union",       "unsigned",
+                                    "using",         "virtual",     "void",
+                                    "volatile",      "wchar_t",     "while",
+                                    "xor",           "xor_eq",      "final",
+                                    "override",      "import",      "module"};
 // Names the generated code itself uses in observer classes and functions.
 const char* const kGeneratedNames[] = {
-    "Scalar", "Eigen", "std", "obsynth", "State", "Input", "Output", "Matrix", "Status", "dt", "n",
-    "m", "p", "x", "u", "y", "z", "out", "tau", "xh", "zh", "dz", "dx", "K", "y0", "jet", "ujet",
-    "main", "assert", "errno", "NAN", "INFINITY", "sin", "cos", "tan", "exp", "log", "sqrt", "tanh",
-    "atan", "atanh", "pow", "abs", "fabs", "isfinite"};
+    "Scalar", "Eigen",  "std",   "obsynth", "State",    "Input", "Output", "Matrix", "Status",
+    "dt",     "n",      "m",     "p",       "x",        "u",     "y",      "z",      "out",
+    "tau",    "xh",     "zh",    "dz",      "dx",       "K",     "y0",     "jet",    "ujet",
+    "main",   "assert", "errno", "NAN",     "INFINITY", "sin",   "cos",    "tan",    "exp",
+    "log",    "sqrt",   "tanh",  "atan",    "atanh",    "pow",   "abs",    "fabs",   "isfinite"};
 
 bool is_temporary_name(const std::string& s) {
   if (s.size() < 2 || s[0] != 't') return false;
@@ -71,7 +94,8 @@ std::string cxx_identifier(const std::string& name) {
 }
 
 std::string scalar_literal(const GiNaC::numeric& v, Precision p) {
-  if (v.is_integer() && GiNaC::abs(v) < GiNaC::numeric(1L << 24)) return fmt::format("Scalar({})", v.to_long());
+  if (v.is_integer() && GiNaC::abs(v) < GiNaC::numeric(1L << 24))
+    return fmt::format("Scalar({})", v.to_long());
   const double d = v.to_double();
   if (p == Precision::single) {
     std::string s = fmt::format("{:.9g}", static_cast<float>(d));
@@ -94,8 +118,8 @@ struct Text {
 
 class StatementEmitter {
  public:
-  StatementEmitter(const Dag& dag, const std::map<std::string, Binding>& bindings, Precision precision,
-                   const std::string& indent)
+  StatementEmitter(const Dag& dag, const std::map<std::string, Binding>& bindings,
+                   Precision precision, const std::string& indent)
       : dag_(dag), bindings_(bindings), precision_(precision), indent_(indent) {}
 
   EmittedCode run(const std::vector<Assignment>& outputs) {
@@ -106,7 +130,8 @@ class StatementEmitter {
       assign_.push_back(fmt::format("{}{} = {};\n", indent_, a.target, t.s));
     }
     EmittedCode code;
-    for (const auto& [name, b] : used_vars_) code.text += fmt::format("{}const Scalar {} = {};\n", indent_, b.local, b.source);
+    for (const auto& [name, b] : used_vars_)
+      code.text += fmt::format("{}const Scalar {} = {};\n", indent_, b.local, b.source);
     for (const auto& s : temps_) code.text += s;
     for (const auto& s : assign_) code.text += s;
     code.temporaries = temp_count_;
@@ -126,7 +151,9 @@ class StatementEmitter {
   std::size_t temp_count_ = 0, operations_ = 0;
 
   const Node& node(int id) const { return dag_.node(id); }
-  static bool is_leaf(const Node& n) { return n.op == NodeOp::constant || n.op == NodeOp::variable; }
+  static bool is_leaf(const Node& n) {
+    return n.op == NodeOp::constant || n.op == NodeOp::variable;
+  }
 
   void count_uses(const std::vector<Assignment>& outputs) {
     std::set<int> seen;
@@ -138,7 +165,9 @@ class StatementEmitter {
     for (const auto& a : outputs) visit(a.node);
   }
 
-  static std::string wrap(const Text& t, int min_prec) { return t.prec >= min_prec ? t.s : "(" + t.s + ")"; }
+  static std::string wrap(const Text& t, int min_prec) {
+    return t.prec >= min_prec ? t.s : "(" + t.s + ")";
+  }
 
   Text materialise(int id, Text t) {
     const Node& n = node(id);
@@ -239,7 +268,9 @@ class StatementEmitter {
         return materialise(id, {"std::sqrt(" + expr(n.args[0]).s + ")", p_atom});
       case NodeOp::pow_real:
         ++operations_;
-        return materialise(id, {fmt::format("std::pow({}, {})", expr(n.args[0]).s, scalar_literal(n.value, precision_)), p_atom});
+        return materialise(id, {fmt::format("std::pow({}, {})", expr(n.args[0]).s,
+                                            scalar_literal(n.value, precision_)),
+                                p_atom});
       case NodeOp::call:
         ++operations_;
         return materialise(id, {fmt::format("std::{}({})", n.name, expr(n.args[0]).s), p_atom});
@@ -256,7 +287,8 @@ EmittedCode emit_statements(const Dag& dag, const std::vector<Assignment>& outpu
   return StatementEmitter(dag, bindings, precision, indent).run(outputs);
 }
 
-std::string render_template(const std::string& tmpl, const std::map<std::string, std::string>& values) {
+std::string render_template(const std::string& tmpl,
+                            const std::map<std::string, std::string>& values) {
   std::string out;
   std::set<std::string> used;
   std::size_t pos = 0;
@@ -276,7 +308,8 @@ std::string render_template(const std::string& tmpl, const std::map<std::string,
     used.insert(key);
     pos = close + 2;
   }
-  for (const auto& [k, v] : values) OBSYNTH_ASSERT(used.count(k), "template value never used: " + k);
+  for (const auto& [k, v] : values)
+    OBSYNTH_ASSERT(used.count(k), "template value never used: " + k);
   return out;
 }
 

@@ -45,7 +45,7 @@ struct Binding {
 };
 
 struct EmittedCode {
-  std::string text;    // statements, one per line, with the given indent
+  std::string text;  // statements, one per line, with the given indent
   std::size_t temporaries = 0;
   std::size_t operations = 0;  // arithmetic operations and calls (a size measure)
 };
@@ -59,6 +59,7 @@ EmittedCode emit_statements(const Dag& dag, const std::vector<Assignment>& outpu
 
 // Replaces {{key}} in a template. Every placeholder must be provided and every provided
 // key must be used; anything else is an internal error (a bug in a template).
-std::string render_template(const std::string& tmpl, const std::map<std::string, std::string>& values);
+std::string render_template(const std::string& tmpl,
+                            const std::map<std::string, std::string>& values);
 
 }  // namespace obsynth

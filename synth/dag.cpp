@@ -37,14 +37,16 @@ std::string numeric_text(const numeric& v) {
 }  // namespace
 
 int Dag::intern(Node n) {
-  std::string key = fmt::format("{}|{}|{}|{}|", static_cast<int>(n.op), n.name, n.exponent,
-                                n.op == NodeOp::constant || n.op == NodeOp::pow_real ? numeric_text(n.value) : "");
+  std::string key = fmt::format(
+      "{}|{}|{}|{}|", static_cast<int>(n.op), n.name, n.exponent,
+      n.op == NodeOp::constant || n.op == NodeOp::pow_real ? numeric_text(n.value) : "");
   for (int a : n.args) key += std::to_string(a) + ",";
   auto it = index_.find(key);
   if (it != index_.end()) return it->second;
   std::uint64_t h = mix(static_cast<std::uint64_t>(n.op) + 1, hash_string(n.name));
   h = mix(h, static_cast<std::uint64_t>(n.exponent));
-  if (n.op == NodeOp::constant || n.op == NodeOp::pow_real) h = mix(h, hash_string(numeric_text(n.value)));
+  if (n.op == NodeOp::constant || n.op == NodeOp::pow_real)
+    h = mix(h, hash_string(numeric_text(n.value)));
   for (int a : n.args) h = mix(h, nodes_[static_cast<std::size_t>(a)].hash);
   n.hash = h;
   const int id = static_cast<int>(nodes_.size());
@@ -72,7 +74,8 @@ int Dag::make(NodeOp op, std::vector<int> args, bool commutative) {
     // Content order: by structural hash (ties impossible in practice; id as last resort
     // only matters for identical nodes, which are the same id anyway).
     std::sort(args.begin(), args.end(), [&](int a, int b) {
-      const auto ha = nodes_[static_cast<std::size_t>(a)].hash, hb = nodes_[static_cast<std::size_t>(b)].hash;
+      const auto ha = nodes_[static_cast<std::size_t>(a)].hash,
+                 hb = nodes_[static_cast<std::size_t>(b)].hash;
       return ha != hb ? ha < hb : a < b;
     });
   }
@@ -112,7 +115,8 @@ int Dag::convert(const ex& e) {
       const ex f = e.op(i);
       if (is_a<numeric>(f)) {
         coeff *= GiNaC::ex_to<numeric>(f);
-      } else if (is_a<GiNaC::power>(f) && is_a<numeric>(f.op(1)) && GiNaC::ex_to<numeric>(f.op(1)).is_negative()) {
+      } else if (is_a<GiNaC::power>(f) && is_a<numeric>(f.op(1)) &&
+                 GiNaC::ex_to<numeric>(f.op(1)).is_negative()) {
         den.push_back(convert_owned(GiNaC::pow(f.op(0), -f.op(1))));
       } else {
         num.push_back(convert(f));
@@ -144,7 +148,10 @@ int Dag::convert(const ex& e) {
       id = make(NodeOp::sqrt, {convert(b)}, false);
     } else if (q.denom() == 2) {
       // b^(k/2) = b^((k-1)/2) * sqrt(b)
-      id = make(NodeOp::mul, {convert_owned(GiNaC::pow(b, (q - numeric(1, 2)))), make(NodeOp::sqrt, {convert(b)}, false)}, true);
+      id = make(NodeOp::mul,
+                {convert_owned(GiNaC::pow(b, (q - numeric(1, 2)))),
+                 make(NodeOp::sqrt, {convert(b)}, false)},
+                true);
     } else {
       Node n;
       n.op = NodeOp::pow_real;
@@ -171,7 +178,8 @@ int Dag::convert(const ex& e) {
   return id;
 }
 
-NumericFunction::NumericFunction(const std::vector<ex>& outputs, const std::vector<std::string>& inputs) {
+NumericFunction::NumericFunction(const std::vector<ex>& outputs,
+                                 const std::vector<std::string>& inputs) {
   for (const auto& e : outputs) out_ids_.push_back(dag_.add(e));
   std::vector<bool> needed(dag_.size(), false);
   std::vector<int> stack(out_ids_.begin(), out_ids_.end());
@@ -202,8 +210,12 @@ std::vector<double> NumericFunction::operator()(const std::vector<double>& in) c
     auto arg = [&](std::size_t i) { return values_[static_cast<std::size_t>(n.args[i])]; };
     double v = 0;
     switch (n.op) {
-      case NodeOp::constant: v = n.value.to_double(); break;
-      case NodeOp::variable: v = in[static_cast<std::size_t>(input_of_node_[static_cast<std::size_t>(id)])]; break;
+      case NodeOp::constant:
+        v = n.value.to_double();
+        break;
+      case NodeOp::variable:
+        v = in[static_cast<std::size_t>(input_of_node_[static_cast<std::size_t>(id)])];
+        break;
       case NodeOp::add:
         v = arg(0);
         for (std::size_t i = 1; i < n.args.size(); ++i) v += arg(i);
@@ -212,27 +224,44 @@ std::vector<double> NumericFunction::operator()(const std::vector<double>& in) c
         v = arg(0);
         for (std::size_t i = 1; i < n.args.size(); ++i) v *= arg(i);
         break;
-      case NodeOp::div: v = arg(0) / arg(1); break;
-      case NodeOp::neg: v = -arg(0); break;
+      case NodeOp::div:
+        v = arg(0) / arg(1);
+        break;
+      case NodeOp::neg:
+        v = -arg(0);
+        break;
       case NodeOp::pow_int: {
         const double b = arg(0);
         v = b;
         for (long k = 1; k < n.exponent; ++k) v *= b;
         break;
       }
-      case NodeOp::sqrt: v = std::sqrt(arg(0)); break;
-      case NodeOp::pow_real: v = std::pow(arg(0), n.value.to_double()); break;
+      case NodeOp::sqrt:
+        v = std::sqrt(arg(0));
+        break;
+      case NodeOp::pow_real:
+        v = std::pow(arg(0), n.value.to_double());
+        break;
       case NodeOp::call: {
         const double a = arg(0);
-        if (n.name == "sin") v = std::sin(a);
-        else if (n.name == "cos") v = std::cos(a);
-        else if (n.name == "tan") v = std::tan(a);
-        else if (n.name == "exp") v = std::exp(a);
-        else if (n.name == "log") v = std::log(a);
-        else if (n.name == "tanh") v = std::tanh(a);
-        else if (n.name == "atan") v = std::atan(a);
-        else if (n.name == "atanh") v = std::atanh(a);
-        else OBSYNTH_ASSERT(false, "unsupported function " + n.name);
+        if (n.name == "sin")
+          v = std::sin(a);
+        else if (n.name == "cos")
+          v = std::cos(a);
+        else if (n.name == "tan")
+          v = std::tan(a);
+        else if (n.name == "exp")
+          v = std::exp(a);
+        else if (n.name == "log")
+          v = std::log(a);
+        else if (n.name == "tanh")
+          v = std::tanh(a);
+        else if (n.name == "atan")
+          v = std::atan(a);
+        else if (n.name == "atanh")
+          v = std::atanh(a);
+        else
+          OBSYNTH_ASSERT(false, "unsupported function " + n.name);
         break;
       }
     }

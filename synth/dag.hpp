@@ -73,8 +73,8 @@ class NumericFunction {
  private:
   Dag dag_;
   std::vector<int> out_ids_;
-  std::vector<int> order_;                 // needed nodes, children first
-  std::vector<int> input_of_node_;         // node id -> argument index (variables)
+  std::vector<int> order_;          // needed nodes, children first
+  std::vector<int> input_of_node_;  // node id -> argument index (variables)
   mutable std::vector<double> values_;
 };
 

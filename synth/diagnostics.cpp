@@ -7,9 +7,12 @@ namespace obsynth {
 namespace {
 const char* severity_name(Severity s) {
   switch (s) {
-    case Severity::error: return "error";
-    case Severity::warning: return "warning";
-    case Severity::note: return "note";
+    case Severity::error:
+      return "error";
+    case Severity::warning:
+      return "warning";
+    case Severity::note:
+      return "note";
   }
   return "error";
 }
@@ -39,8 +42,8 @@ UserError::UserError(SourceLoc loc, const std::string& message)
     : UserError(std::vector<Diagnostic>{Diagnostic{Severity::error, std::move(loc), message}}) {}
 
 void internal_assert_failed(const char* cond, const char* file, int line, const std::string& msg) {
-  throw InternalError(fmt::format("internal error: {} ({}:{}: assertion '{}' failed)", msg, file,
-                                  line, cond));
+  throw InternalError(
+      fmt::format("internal error: {} ({}:{}: assertion '{}' failed)", msg, file, line, cond));
 }
 
 }  // namespace obsynth

@@ -47,7 +47,7 @@ class InternalError : public std::logic_error {
 
 }  // namespace obsynth
 
-#define OBSYNTH_ASSERT(cond, msg)                                              \
-  do {                                                                         \
+#define OBSYNTH_ASSERT(cond, msg)                                                     \
+  do {                                                                                \
     if (!(cond)) ::obsynth::internal_assert_failed(#cond, __FILE__, __LINE__, (msg)); \
   } while (0)

@@ -142,7 +142,8 @@ const char* kInverseClosed = R"(    State x;
     return obsynth::Status::ok;
 )";
 
-const char* kInverseNewton = R"(    // T^-1 has no closed form: Newton on T(x) = zh seeded from the previous estimate, with the
+const char* kInverseNewton =
+    R"(    // T^-1 has no closed form: Newton on T(x) = zh seeded from the previous estimate, with the
     // frame [tau](x) = (dT/dx)^-1 as inverse Jacobian.
     const auto r = obsynth::newton_solve_inverse_jacobian<Scalar, n>(
         [](const State& x, State& Tx) noexcept { F::T(x, Tx); },
@@ -151,7 +152,8 @@ const char* kInverseNewton = R"(    // T^-1 has no closed form: Newton on T(x) =
     return r.status;
 )";
 
-const char* kCanonicalXClass = R"(/// Canonical-form Luenberger observer, realised in the original coordinates:
+const char* kCanonicalXClass =
+    R"(/// Canonical-form Luenberger observer, realised in the original coordinates:
 ///   xh' = f(xh) + g(xh, u) + [tau](xh) (l(u, y) - l(u, h(xh)) + K (y - h(xh)))
 /// needing neither T nor T^-1 at run time; in z = T(x) the error is exactly linear with
 /// poles {{poles}}.
@@ -195,7 +197,8 @@ const char* kCanonicalXClass = R"(/// Canonical-form Luenberger observer, realis
 };
 )";
 
-const char* kPerfectClass = R"(/// Perfect observer (seed 003, Theorem 1 and Procedure 1): the state as an explicit function
+const char* kPerfectClass =
+    R"(/// Perfect observer (seed 003, Theorem 1 and Procedure 1): the state as an explicit function
 /// of the jets of y (up to y^({{y_order}})) and of u{{u_orders}}, estimated by
 /// obsynth::JetDifferentiator (a linear high-gain differentiator; its error is documented
 /// in obsynth/differentiator.hpp: O(epsilon^(K+1-k)) truncation, noise amplified by
@@ -284,19 +287,23 @@ class HeaderBuilder {
   }
 
   // Binds x(i) for the states, u(j) for the inputs, etc.
-  void bind_vector(std::map<std::string, Binding>& b, const std::vector<GiNaC::symbol>& syms, const std::string& arg) {
+  void bind_vector(std::map<std::string, Binding>& b, const std::vector<GiNaC::symbol>& syms,
+                   const std::string& arg) {
     for (std::size_t i = 0; i < syms.size(); ++i)
       b[syms[i].get_name()] = Binding{local(syms[i].get_name()), fmt::format("{}({})", arg, i)};
   }
 
   // Emits a static function computing outputs into `out`; matrix outputs are column-major
   // (cols given) into out(r, c).
-  std::string function(const std::string& name, const std::string& doc, const std::vector<FnParam>& params,
-                       const std::map<std::string, Binding>& bindings, const ExVec& outputs, std::size_t cols = 0) {
+  std::string function(const std::string& name, const std::string& doc,
+                       const std::vector<FnParam>& params,
+                       const std::map<std::string, Binding>& bindings, const ExVec& outputs,
+                       std::size_t cols = 0) {
     Dag dag;
     std::vector<Assignment> assigns;
     if (cols == 0) {
-      for (std::size_t i = 0; i < outputs.size(); ++i) assigns.push_back({fmt::format("out({})", i), dag.add(outputs[i])});
+      for (std::size_t i = 0; i < outputs.size(); ++i)
+        assigns.push_back({fmt::format("out({})", i), dag.add(outputs[i])});
     } else {
       const std::size_t rows = outputs.size() / cols;
       for (std::size_t c = 0; c < cols; ++c)
@@ -307,14 +314,18 @@ class HeaderBuilder {
     std::string body;
     for (const auto& p : params) {
       if (p.name == "out") continue;
-      if (code.text.find(" = " + p.name + "(") == std::string::npos && code.text.find(" = " + p.name + ".") == std::string::npos)
+      if (code.text.find(" = " + p.name + "(") == std::string::npos &&
+          code.text.find(" = " + p.name + ".") == std::string::npos)
         body += fmt::format("    static_cast<void>({});\n", p.name);
     }
     body += code.text;
     std::vector<std::string> decls;
     for (const auto& p : params) decls.push_back(p.decl);
     operations_ += code.operations;
-    return render_template(kFunction, {{"doc", doc}, {"name", name}, {"params", fmt::format("{}", fmt::join(decls, ", "))}, {"body", body}});
+    return render_template(kFunction, {{"doc", doc},
+                                       {"name", name},
+                                       {"params", fmt::format("{}", fmt::join(decls, ", "))},
+                                       {"body", body}});
   }
 
   std::string model_functions() {
@@ -326,8 +337,11 @@ class HeaderBuilder {
     bind_vector(bxu, m.inputs, "u");
     std::string s;
     s += function("f", "Drift f(x).", {{"const State& x", "x"}, {"State& out", "out"}}, bx, m.f);
-    s += function("g", "Input part g(x, u), zero at u = 0.", {{"const State& x", "x"}, {"const Input& u", "u"}, {"State& out", "out"}}, bxu, m.g);
-    s += function("h", "Output map h(x).", {{"const State& x", "x"}, {"Output& out", "out"}}, bx, m.h);
+    s += function("g", "Input part g(x, u), zero at u = 0.",
+                  {{"const State& x", "x"}, {"const Input& u", "u"}, {"State& out", "out"}}, bxu,
+                  m.g);
+    s += function("h", "Output map h(x).", {{"const State& x", "x"}, {"Output& out", "out"}}, bx,
+                  m.h);
     return s;
   }
 
@@ -344,17 +358,25 @@ class HeaderBuilder {
     bind_vector(bz, cf.z, "z");
     bind_vector(buy, m.inputs, "u");
     buy[cf.y.get_name()] = Binding{local(cf.y.get_name()), "y(0)"};
-    if (want_T) s += function("T", "Diffeomorphism z = T(x) to observer canonical form, T(x0) = 0.", {{"const State& x", "x"}, {"State& out", "out"}}, bx, cf.T);
-    if (want_Tinv) s += function("T_inverse", "Closed-form inverse x = T^-1(z).", {{"const State& z", "z"}, {"State& out", "out"}}, bz, cf.T_inverse);
-    s += function("l", "Output injection l(u, y) of the canonical form z' = A z + l(u, y).", {{"const Input& u", "u"}, {"const Output& y", "y"}, {"State& out", "out"}}, buy, cf.l);
+    if (want_T)
+      s += function("T", "Diffeomorphism z = T(x) to observer canonical form, T(x0) = 0.",
+                    {{"const State& x", "x"}, {"State& out", "out"}}, bx, cf.T);
+    if (want_Tinv)
+      s += function("T_inverse", "Closed-form inverse x = T^-1(z).",
+                    {{"const State& z", "z"}, {"State& out", "out"}}, bz, cf.T_inverse);
+    s += function("l", "Output injection l(u, y) of the canonical form z' = A z + l(u, y).",
+                  {{"const Input& u", "u"}, {"const Output& y", "y"}, {"State& out", "out"}}, buy,
+                  cf.l);
     if (want_frame) {
       const ExVec flat = frame_column_major(cf);
-      s += function("frame", "Frame [tau_1 ... tau_n](x) = (dT/dx)^-1, columns tau_k.", {{"const State& x", "x"}, {"Frame& out", "out"}}, bx, flat, cf.frame.size());
+      s += function("frame", "Frame [tau_1 ... tau_n](x) = (dT/dx)^-1, columns tau_k.",
+                    {{"const State& x", "x"}, {"Frame& out", "out"}}, bx, flat, cf.frame.size());
     }
     return s;
   }
 
-  std::string banner(const std::string& description, const std::string& includes, const std::string& functions_name) {
+  std::string banner(const std::string& description, const std::string& includes,
+                     const std::string& functions_name) {
     const Model& m = a_.model;
     std::string guard = "OBSYNTH_GEN_" + namespace_name() + "_SHARED";
     for (auto& ch : guard) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
@@ -439,7 +461,8 @@ void check_emittable(const Analysis& a) {
 // Renders an observer class template: the shared preamble first, then the class body.
 std::string render_class(const char* tmpl, std::map<std::string, std::string> v) {
   std::map<std::string, std::string> pv;
-  for (const char* key : {"scalar", "class_name", "n", "m", "p", "functions_name"}) pv[key] = v.at(key);
+  for (const char* key : {"scalar", "class_name", "n", "m", "p", "functions_name"})
+    pv[key] = v.at(key);
   v["preamble"] = render_template(kClassPreamble, pv);
   for (const char* key : {"scalar", "n", "m", "p", "functions_name"}) v.erase(key);
   return render_template(tmpl, v);
@@ -451,16 +474,17 @@ std::string tolerance_literal(Precision p) {
 
 }  // namespace
 
-EmittedHeader emit_canonical_header(const Analysis& a, const CanonicalDesign& d, const EmitOptions& opt) {
+EmittedHeader emit_canonical_header(const Analysis& a, const CanonicalDesign& d,
+                                    const EmitOptions& opt) {
   check_emittable(a);
   const Model& m = a.model;
   const CanonicalForm& cf = a.canonical;
   HeaderBuilder b(a, opt);
   const bool zreal = d.realisation == Realisation::z;
   b.functions_ += b.model_functions();
-  b.functions_ += b.canonical_maps(cf.T_kind == Availability::symbolic,
-                                   cf.T_inverse_kind == Availability::symbolic,
-                                   !zreal || d.newton_inverse);
+  b.functions_ +=
+      b.canonical_maps(cf.T_kind == Availability::symbolic,
+                       cf.T_inverse_kind == Availability::symbolic, !zreal || d.newton_inverse);
   const std::size_t n = m.n();
   if (zreal) {
     std::map<std::string, Binding> buy, bzc;
@@ -468,19 +492,26 @@ EmittedHeader emit_canonical_header(const Analysis& a, const CanonicalDesign& d,
     buy[cf.y.get_name()] = Binding{b.local(cf.y.get_name()), "y(0)"};
     ExVec c;
     for (std::size_t i = 0; i < n; ++i) c.push_back(cf.l[i] + d.K[i] * (cf.y - d.y0));
-    b.functions_ += b.function("step_constant", "c = l(u, y) + K (y - y0), constant over a step.",
-                               {{"const Input& u", "u"}, {"const Output& y", "y"}, {"State& out", "out"}}, buy, c);
+    b.functions_ += b.function(
+        "step_constant", "c = l(u, y) + K (y - y0), constant over a step.",
+        {{"const Input& u", "u"}, {"const Output& y", "y"}, {"State& out", "out"}}, buy, c);
     b.bind_vector(bzc, d.zh, "z");
     b.bind_vector(bzc, d.c, "c");
-    b.functions_ += b.function("z_rhs", "zh' = A zh - K zh_n + c (the z-realisation right-hand side).",
-                               {{"const State& z", "z"}, {"const State& c", "c"}, {"State& out", "out"}}, bzc, d.z_rhs);
+    b.functions_ += b.function(
+        "z_rhs", "zh' = A zh - K zh_n + c (the z-realisation right-hand side).",
+        {{"const State& z", "z"}, {"const State& c", "c"}, {"State& out", "out"}}, bzc, d.z_rhs);
   } else {
     std::map<std::string, Binding> bxuy;
     b.bind_vector(bxuy, m.states, "x");
     b.bind_vector(bxuy, m.inputs, "u");
     bxuy[cf.y.get_name()] = Binding{b.local(cf.y.get_name()), "y(0)"};
-    b.functions_ += b.function("x_rhs", "xh' = f + g + [tau](xh) (l(u,y) - l(u,h(xh)) + K (y - h(xh))).",
-                               {{"const State& x", "x"}, {"const Input& u", "u"}, {"const Output& y", "y"}, {"State& out", "out"}}, bxuy, d.x_rhs);
+    b.functions_ +=
+        b.function("x_rhs", "xh' = f + g + [tau](xh) (l(u,y) - l(u,h(xh)) + K (y - h(xh))).",
+                   {{"const State& x", "x"},
+                    {"const Input& u", "u"},
+                    {"const Output& y", "y"},
+                    {"State& out", "out"}},
+                   bxuy, d.x_rhs);
   }
   EmittedHeader h;
   h.class_name = pascal_case(b.namespace_name()) + "Canonical";
@@ -488,22 +519,35 @@ EmittedHeader emit_canonical_header(const Analysis& a, const CanonicalDesign& d,
   for (const auto& k : d.K) ks.push_back(to_string(k));
   std::string desc = describe_model(m);
   desc += "// Observer: canonical-form Luenberger observer (Krener-Isidori; seeds 001 §7, 003)\n";
-  desc += fmt::format("// Realisation: {} ({})\n", zreal ? "z coordinates" : "original coordinates", d.realisation_reason);
-  if (zreal) desc += fmt::format("// T^-1: {}\n", d.newton_inverse ? "runtime Newton with [tau] as inverse Jacobian" : "closed form");
-  desc += fmt::format("// Error poles: {}; K = [{}]; integrator RK4 with u, y held over a step\n", poles_text(d.poles), fmt::join(ks, ", "));
+  desc += fmt::format("// Realisation: {} ({})\n", zreal ? "z coordinates" : "original coordinates",
+                      d.realisation_reason);
+  if (zreal)
+    desc += fmt::format("// T^-1: {}\n", d.newton_inverse
+                                             ? "runtime Newton with [tau] as inverse Jacobian"
+                                             : "closed form");
+  desc += fmt::format("// Error poles: {}; K = [{}]; integrator RK4 with u, y held over a step\n",
+                      poles_text(d.poles), fmt::join(ks, ", "));
   desc += fmt::format("// Precision of literals: {}", precision_name(opt.precision));
   std::string includes = "#include \"obsynth/eigen.hpp\"\n#include \"obsynth/integrators.hpp\"\n";
   if (d.newton_inverse) includes += "#include \"obsynth/newton.hpp\"\n";
-  includes += "#include \"obsynth/numeric.hpp\"\n#include \"obsynth/observer.hpp\"\n#include \"obsynth/status.hpp\"\n";
+  includes +=
+      "#include \"obsynth/numeric.hpp\"\n#include \"obsynth/observer.hpp\"\n#include "
+      "\"obsynth/status.hpp\"\n";
   h.text = b.banner(desc, includes, "CanonicalFunctions");
   const std::map<std::string, std::string> common = {{"functions_name", "CanonicalFunctions"},
-      {"class_name", h.class_name}, {"scalar", precision_name(opt.precision)}, {"n", std::to_string(n)},
-      {"m", std::to_string(m.m())}, {"p", std::to_string(m.p())}, {"poles", poles_text(d.poles)}};
+                                                     {"class_name", h.class_name},
+                                                     {"scalar", precision_name(opt.precision)},
+                                                     {"n", std::to_string(n)},
+                                                     {"m", std::to_string(m.m())},
+                                                     {"p", std::to_string(m.p())},
+                                                     {"poles", poles_text(d.poles)}};
   if (zreal) {
     auto v = common;
-    v["inverse"] = d.newton_inverse ? render_template(kInverseNewton, {{"iterations", std::to_string(opt.newton_iterations)},
-                                                                      {"tolerance", tolerance_literal(opt.precision)}})
-                                    : std::string(kInverseClosed);
+    v["inverse"] = d.newton_inverse
+                       ? render_template(kInverseNewton,
+                                         {{"iterations", std::to_string(opt.newton_iterations)},
+                                          {"tolerance", tolerance_literal(opt.precision)}})
+                       : std::string(kInverseClosed);
     h.text += render_class(kCanonicalZClass, v);
   } else {
     auto v = common;
@@ -511,20 +555,25 @@ EmittedHeader emit_canonical_header(const Analysis& a, const CanonicalDesign& d,
   }
   h.text += render_template(kFooter, {{"namespace", b.namespace_name()}});
   h.filename = b.namespace_name() + "_canonical.hpp";
-  h.summary = fmt::format("`{}`: canonical-form observer `obsynth_gen::{}::{}`, {} realisation ({}), poles {}, K = [{}], {} arithmetic operations in its functions.",
-                          h.filename, b.namespace_name(), h.class_name, realisation_name(d.realisation), d.realisation_reason,
-                          poles_text(d.poles), fmt::join(ks, ", "), b.operations_);
+  h.summary = fmt::format(
+      "`{}`: canonical-form observer `obsynth_gen::{}::{}`, {} realisation ({}), poles {}, K = "
+      "[{}], {} arithmetic operations in its functions.",
+      h.filename, b.namespace_name(), h.class_name, realisation_name(d.realisation),
+      d.realisation_reason, poles_text(d.poles), fmt::join(ks, ", "), b.operations_);
   return h;
 }
 
-EmittedHeader emit_perfect_header(const Analysis& a, const PerfectDesign& d, const EmitOptions& opt) {
+EmittedHeader emit_perfect_header(const Analysis& a, const PerfectDesign& d,
+                                  const EmitOptions& opt) {
   check_emittable(a);
   const Model& m = a.model;
   const std::size_t n = m.n();
   HeaderBuilder b(a, opt);
-  b.functions_ += "  using YJet = Eigen::Matrix<Scalar, " + std::to_string(n) + ", 1>;  ///< y, y', ...\n";
+  b.functions_ +=
+      "  using YJet = Eigen::Matrix<Scalar, " + std::to_string(n) + ", 1>;  ///< y, y', ...\n";
   const std::size_t uk = std::max<std::size_t>(n, 2) - 1;
-  b.functions_ += "  using UJet = Eigen::Matrix<Scalar, m, " + std::to_string(uk) + ">;  ///< row j: u_j, u_j', ...\n";
+  b.functions_ += "  using UJet = Eigen::Matrix<Scalar, m, " + std::to_string(uk) +
+                  ">;  ///< row j: u_j, u_j', ...\n";
   b.functions_ += b.model_functions();
   b.functions_ += b.canonical_maps(true, !d.newton_inverse, d.newton_inverse);
   std::map<std::string, Binding> bj;
@@ -532,40 +581,61 @@ EmittedHeader emit_perfect_header(const Analysis& a, const PerfectDesign& d, con
     bj[d.y_jet[k].get_name()] = Binding{b.local(d.y_jet[k].get_name()), fmt::format("yj({})", k)};
   for (std::size_t j = 0; j < d.u_jet.size(); ++j)
     for (std::size_t k = 0; k < d.u_jet[j].size(); ++k)
-      bj[d.u_jet[j][k].get_name()] = Binding{b.local(d.u_jet[j][k].get_name()), fmt::format("uj({}, {})", j, k)};
-  const std::vector<FnParam> params = {{"const YJet& yj", "yj"}, {"const UJet& uj", "uj"}, {"State& out", "out"}};
+      bj[d.u_jet[j][k].get_name()] =
+          Binding{b.local(d.u_jet[j][k].get_name()), fmt::format("uj({}, {})", j, k)};
+  const std::vector<FnParam> params = {
+      {"const YJet& yj", "yj"}, {"const UJet& uj", "uj"}, {"State& out", "out"}};
   if (d.newton_inverse)
-    b.functions_ += b.function("z_of_jets", "Canonical coordinates z from the jets (Procedure 1).", params, bj, d.z);
+    b.functions_ += b.function("z_of_jets", "Canonical coordinates z from the jets (Procedure 1).",
+                               params, bj, d.z);
   else
-    b.functions_ += b.function("reconstruct", "The state x = T^-1(z(jets)) from the jets (Procedure 1).", params, bj, d.x);
+    b.functions_ += b.function(
+        "reconstruct", "The state x = T^-1(z(jets)) from the jets (Procedure 1).", params, bj, d.x);
   EmittedHeader h;
   h.class_name = pascal_case(b.namespace_name()) + "Perfect";
   std::string u_orders;
   for (std::size_t j = 0; j < m.m(); ++j)
-    u_orders += fmt::format("{} (up to {}^({}))", j ? "," : "", m.inputs[j].get_name(), d.input_orders[j]);
+    u_orders +=
+        fmt::format("{} (up to {}^({}))", j ? "," : "", m.inputs[j].get_name(), d.input_orders[j]);
   std::string desc = describe_model(m);
   desc += "// Observer: perfect observer (Slawinski, seed 003 Theorem 1, Procedure 1)\n";
-  desc += fmt::format("// Needs y up to y^({}){}\n", d.y_order, u_orders.empty() ? "" : " and the input jets" + u_orders);
-  desc += fmt::format("// T^-1: {}\n", d.newton_inverse ? "runtime Newton with [tau] as inverse Jacobian" : "closed form");
+  desc += fmt::format("// Needs y up to y^({}){}\n", d.y_order,
+                      u_orders.empty() ? "" : " and the input jets" + u_orders);
+  desc += fmt::format("// T^-1: {}\n", d.newton_inverse
+                                           ? "runtime Newton with [tau] as inverse Jacobian"
+                                           : "closed form");
   desc += fmt::format("// Precision of literals: {}", precision_name(opt.precision));
-  std::string includes = "#include \"obsynth/differentiator.hpp\"\n#include \"obsynth/eigen.hpp\"\n";
+  std::string includes =
+      "#include \"obsynth/differentiator.hpp\"\n#include \"obsynth/eigen.hpp\"\n";
   if (d.newton_inverse) includes += "#include \"obsynth/newton.hpp\"\n";
-  includes += "#include \"obsynth/numeric.hpp\"\n#include \"obsynth/observer.hpp\"\n#include \"obsynth/status.hpp\"\n";
+  includes +=
+      "#include \"obsynth/numeric.hpp\"\n#include \"obsynth/observer.hpp\"\n#include "
+      "\"obsynth/status.hpp\"\n";
   h.text = b.banner(desc, includes, "PerfectFunctions");
-  std::map<std::string, std::string> v = {{"functions_name", "PerfectFunctions"},
-      {"class_name", h.class_name}, {"scalar", precision_name(opt.precision)}, {"n", std::to_string(n)},
-      {"m", std::to_string(m.m())}, {"p", std::to_string(m.p())}, {"y_order", std::to_string(d.y_order)},
+  std::map<std::string, std::string> v = {
+      {"functions_name", "PerfectFunctions"},
+      {"class_name", h.class_name},
+      {"scalar", precision_name(opt.precision)},
+      {"n", std::to_string(n)},
+      {"m", std::to_string(m.m())},
+      {"p", std::to_string(m.p())},
+      {"y_order", std::to_string(d.y_order)},
       {"u_orders", u_orders.empty() ? std::string() : fmt::format(" ({})", u_orders)},
-      {"y_jet_order", std::to_string(n - 1)}, {"u_jet_order", std::to_string(uk - 1)}};
-  v["reconstruct"] = d.newton_inverse ? render_template(kReconstructNewton, {{"iterations", std::to_string(opt.newton_iterations)},
-                                                                            {"tolerance", tolerance_literal(opt.precision)}})
-                                      : std::string(kReconstructClosed);
+      {"y_jet_order", std::to_string(n - 1)},
+      {"u_jet_order", std::to_string(uk - 1)}};
+  v["reconstruct"] = d.newton_inverse
+                         ? render_template(kReconstructNewton,
+                                           {{"iterations", std::to_string(opt.newton_iterations)},
+                                            {"tolerance", tolerance_literal(opt.precision)}})
+                         : std::string(kReconstructClosed);
   h.text += render_class(kPerfectClass, v);
   h.text += render_template(kFooter, {{"namespace", b.namespace_name()}});
   h.filename = b.namespace_name() + "_perfect.hpp";
-  h.summary = fmt::format("`{}`: perfect observer `obsynth_gen::{}::{}`; needs y up to y^({}){}; T^-1 {}.", h.filename,
-                          b.namespace_name(), h.class_name, d.y_order, u_orders.empty() ? "" : fmt::format(" and{}", u_orders),
-                          d.newton_inverse ? "by runtime Newton" : "in closed form");
+  h.summary =
+      fmt::format("`{}`: perfect observer `obsynth_gen::{}::{}`; needs y up to y^({}){}; T^-1 {}.",
+                  h.filename, b.namespace_name(), h.class_name, d.y_order,
+                  u_orders.empty() ? "" : fmt::format(" and{}", u_orders),
+                  d.newton_inverse ? "by runtime Newton" : "in closed form");
   return h;
 }
 

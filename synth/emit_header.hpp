@@ -21,10 +21,12 @@ struct EmittedHeader {
   std::string filename;  // <model>_<method>.hpp
   std::string text;
   std::string class_name;
-  std::string summary;   // one paragraph for the report
+  std::string summary;  // one paragraph for the report
 };
 
-EmittedHeader emit_canonical_header(const Analysis& a, const CanonicalDesign& d, const EmitOptions& opt);
-EmittedHeader emit_perfect_header(const Analysis& a, const PerfectDesign& d, const EmitOptions& opt);
+EmittedHeader emit_canonical_header(const Analysis& a, const CanonicalDesign& d,
+                                    const EmitOptions& opt);
+EmittedHeader emit_perfect_header(const Analysis& a, const PerfectDesign& d,
+                                  const EmitOptions& opt);
 
 }  // namespace obsynth

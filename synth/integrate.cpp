@@ -63,15 +63,20 @@ std::optional<ex> integrate_sum(const ex& e, const GiNaC::symbol& y, int depth) 
 }
 
 // y^k (k >= 0 integer) times an exponential/trigonometric factor of a linear argument.
-std::optional<ex> by_parts(const ex& coeff, long k, const ex& fn, const GiNaC::symbol& y, int depth) {
+std::optional<ex> by_parts(const ex& coeff, long k, const ex& fn, const GiNaC::symbol& y,
+                           int depth) {
   const std::string name = GiNaC::ex_to<GiNaC::function>(fn).get_name();
   ex a, b;
   if (!linear_in(fn.op(0), y, a, b)) return std::nullopt;
   ex F;  // antiderivative of fn
-  if (name == "exp") F = fn / a;
-  else if (name == "sin") F = -GiNaC::cos(fn.op(0)) / a;
-  else if (name == "cos") F = GiNaC::sin(fn.op(0)) / a;
-  else return std::nullopt;
+  if (name == "exp")
+    F = fn / a;
+  else if (name == "sin")
+    F = -GiNaC::cos(fn.op(0)) / a;
+  else if (name == "cos")
+    F = GiNaC::sin(fn.op(0)) / a;
+  else
+    return std::nullopt;
   if (k == 0) return coeff * F;
   // ∫ y^k fn = y^k F - k ∫ y^(k-1) F
   auto rest = integrate_sum(GiNaC::pow(y, k - 1) * F, y, depth + 1);
@@ -79,7 +84,8 @@ std::optional<ex> by_parts(const ex& coeff, long k, const ex& fn, const GiNaC::s
   return coeff * (GiNaC::pow(y, k) * F - k * *rest);
 }
 
-std::optional<ex> integrate_factor(const ex& coeff, const ex& f, const GiNaC::symbol& y, int depth) {
+std::optional<ex> integrate_factor(const ex& coeff, const ex& f, const GiNaC::symbol& y,
+                                   int depth) {
   // Collect y^k and at most one other factor.
   long k = 0;
   ex other = 1;
@@ -105,7 +111,8 @@ std::optional<ex> integrate_factor(const ex& coeff, const ex& f, const GiNaC::sy
     if (k == -1) return std::nullopt;  // log|y| is outside the function set's real branch
     return coeff * GiNaC::pow(y, k + 1) / (k + 1);
   }
-  if (others == 1 && k >= 0 && is_a<GiNaC::function>(other)) return by_parts(coeff, k, other, y, depth);
+  if (others == 1 && k >= 0 && is_a<GiNaC::function>(other))
+    return by_parts(coeff, k, other, y, depth);
   // 1/(a y^2 + c) with a, c > 0 numbers
   if (others == 1 && k == 0 && is_a<GiNaC::power>(other) && other.op(1) == -1) {
     const ex q = GiNaC::expand(other.op(0));
@@ -217,9 +224,11 @@ std::optional<ex> integrate_rational(const ex& e, const GiNaC::symbol& y) {
     }
     const ex p = q.coeff(y, 1), s = q.coeff(y, 0);
     const ex w2 = GiNaC::normal(s - p * p / 4);
-    if (!is_a<numeric>(w2) || !GiNaC::ex_to<numeric>(w2).is_positive()) return std::nullopt;  // reducible over R
+    if (!is_a<numeric>(w2) || !GiNaC::ex_to<numeric>(w2).is_positive())
+      return std::nullopt;  // reducible over R
     // (A y + B)/q^k = (A/2)(2y + p)/q^k + (B - A p/2)/q^k
-    if (!A.is_zero()) result += k == 1 ? A / 2 * GiNaC::log(q) : A / 2 * GiNaC::pow(q, 1 - k) / (1 - k);
+    if (!A.is_zero())
+      result += k == 1 ? A / 2 * GiNaC::log(q) : A / 2 * GiNaC::pow(q, 1 - k) / (1 - k);
     const ex c = GiNaC::normal(B - A * p / 2);
     if (!c.is_zero()) result += c * quadratic_power_integral(y + p / 2, w2, k);
   }

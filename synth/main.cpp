@@ -1,15 +1,15 @@
 // obsynth command line. The only place that touches argv, files and the process.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <cstdio>
 #include <iostream>
 
 #include "analysis.hpp"
-#include "diagnostics.hpp"
-#include "parse.hpp"
 #include "cxx.hpp"
+#include "diagnostics.hpp"
 #include "output_dir.hpp"
+#include "parse.hpp"
 #include "report.hpp"
 #include "simulate.hpp"
 #include "synthesize.hpp"
@@ -52,7 +52,8 @@ int guarded(const CommonOptions& c, const std::function<int()>& job) {
     try {
       return job();
     } catch (const UserError& e) {
-      for (const auto& d : e.diagnostics()) std::fprintf(stderr, "%s\n", format_diagnostic(d).c_str());
+      for (const auto& d : e.diagnostics())
+        std::fprintf(stderr, "%s\n", format_diagnostic(d).c_str());
       return 1;
     } catch (const InternalError& e) {
       std::fprintf(stderr, "obsynth: %s\n", e.what());
@@ -92,7 +93,8 @@ std::vector<std::string> split_list(const std::string& s) {
 // A real number given on the command line, as an exact rational (decimals are exact).
 GiNaC::numeric parse_real(const std::string& text, const char* option) {
   try {
-    const Model m = parse_model("model q\nstates q\nf = [0]\nh = [q]\nparams v = " + text + "\n", option);
+    const Model m =
+        parse_model("model q\nstates q\nf = [0]\nh = [q]\nparams v = " + text + "\n", option);
     return *m.params[0].value;
   } catch (const UserError&) {
     throw UserError(SourceLoc{}, fmt::format("{}: '{}' is not a real number", option, text));
@@ -114,28 +116,34 @@ int main(int argc, char** argv) {
   check->add_option("--format", format, "report format")
       ->check(CLI::IsMember({"text", "json", "markdown", "latex"}))
       ->capture_default_str();
-  check->add_flag("--no-timings", no_timings, "omit stage timings (byte-identical output between runs)");
+  check->add_flag("--no-timings", no_timings,
+                  "omit stage timings (byte-identical output between runs)");
   add_common(check, common);
 
-  std::string sim_model, sim_method = "canonical", sim_u = "0", sim_x0, sim_xhat0, sim_out, sim_poles,
-      sim_realisation, sim_sampling = "continuous";
+  std::string sim_model, sim_method = "canonical", sim_u = "0", sim_x0, sim_xhat0, sim_out,
+                         sim_poles, sim_realisation, sim_sampling = "continuous";
   double sim_t_end = 10, sim_dt = 1e-3, sim_epsilon = 0.01;
-  auto* sim = app.add_subcommand("simulate", "simulate plant and observer side by side; writes CSV and SVG");
+  auto* sim = app.add_subcommand("simulate",
+                                 "simulate plant and observer side by side; writes CSV and SVG");
   sim->add_option("model", sim_model, "the .sym model file")->required();
   sim->add_option("--method", sim_method, "canonical or perfect")->capture_default_str();
-  sim->add_option("--u", sim_u, "input(s) as expressions in t, comma-separated")->capture_default_str();
+  sim->add_option("--u", sim_u, "input(s) as expressions in t, comma-separated")
+      ->capture_default_str();
   sim->add_option("--x0", sim_x0, "initial plant state, comma-separated")->required();
   sim->add_option("--xhat0", sim_xhat0, "initial estimate, comma-separated")->required();
   sim->add_option("--t-end", sim_t_end, "horizon")->capture_default_str();
   sim->add_option("--dt", sim_dt, "step")->capture_default_str();
   sim->add_option("--poles", sim_poles, "canonical observer poles");
   sim->add_option("--realisation", sim_realisation, "z or x")->check(CLI::IsMember({"z", "x"}));
-  sim->add_option("--sampling", sim_sampling,
-                  "continuous: plant and observer as one ODE; zoh: the firmware step() with u, y held")
+  sim->add_option(
+         "--sampling", sim_sampling,
+         "continuous: plant and observer as one ODE; zoh: the firmware step() with u, y held")
       ->check(CLI::IsMember({"continuous", "zoh"}))
       ->capture_default_str();
-  sim->add_option("--epsilon", sim_epsilon, "perfect observer: differentiator time constant")->capture_default_str();
-  sim->add_option("-o,--output", sim_out, "output directory for <model>_<method>.csv and .svg")->required();
+  sim->add_option("--epsilon", sim_epsilon, "perfect observer: differentiator time constant")
+      ->capture_default_str();
+  sim->add_option("-o,--output", sim_out, "output directory for <model>_<method>.csv and .svg")
+      ->required();
   CommonOptions sim_common;
   add_common(sim, sim_common);
 
@@ -147,12 +155,15 @@ int main(int argc, char** argv) {
                  "auto, or a comma-separated list of: canonical, perfect (riccati, high-gain, "
                  "kalman-theta, thau, kou, extended-linearization, finite-time: planned)")
       ->capture_default_str();
-  app.add_option("--precision", precision, "literal precision and default scalar of the generated code")
+  app.add_option("--precision", precision,
+                 "literal precision and default scalar of the generated code")
       ->check(CLI::IsMember({"float", "double"}))
       ->capture_default_str();
-  app.add_option("--poles", poles, "canonical observer error poles, comma-separated negative reals "
-                                   "(default -2, -2.5, -3, ...)");
-  app.add_option("--realisation", realisation, "canonical observer realisation: z or x (default: z when T^-1 is closed-form)")
+  app.add_option("--poles", poles,
+                 "canonical observer error poles, comma-separated negative reals "
+                 "(default -2, -2.5, -3, ...)");
+  app.add_option("--realisation", realisation,
+                 "canonical observer realisation: z or x (default: z when T^-1 is closed-form)")
       ->check(CLI::IsMember({"z", "x"}));
   CommonOptions main_common;
   add_common(&app, main_common);
@@ -183,25 +194,30 @@ int main(int argc, char** argv) {
       so.method = sim_method;
       so.u_text = sim_u;
       for (const auto& v : split_list(sim_x0)) so.x0.push_back(parse_real(v, "--x0").to_double());
-      for (const auto& v : split_list(sim_xhat0)) so.xhat0.push_back(parse_real(v, "--xhat0").to_double());
+      for (const auto& v : split_list(sim_xhat0))
+        so.xhat0.push_back(parse_real(v, "--xhat0").to_double());
       so.t_end = sim_t_end;
       so.dt = sim_dt;
       so.epsilon = sim_epsilon;
       so.sampling = sim_sampling == "zoh" ? Sampling::zoh : Sampling::continuous;
-      for (const auto& p : split_list(sim_poles)) so.canonical.poles.push_back(parse_real(p, "--poles"));
-      if (!sim_realisation.empty()) so.canonical.realisation = sim_realisation == "z" ? Realisation::z : Realisation::x;
+      for (const auto& p : split_list(sim_poles))
+        so.canonical.poles.push_back(parse_real(p, "--poles"));
+      if (!sim_realisation.empty())
+        so.canonical.realisation = sim_realisation == "z" ? Realisation::z : Realisation::x;
       const Model m = load_model(sim_model);
       const Analysis a = analyse(m, analysis_options(sim_common));
       const SimulationResult r = simulate(a, so);
       const std::string stem = cxx_identifier(m.name) + "_" + sim_method;
       write_output_dir(sim_out, {{stem + ".csv", r.csv}, {stem + ".svg", r.svg}});
-      std::printf("wrote %s/%s.csv and %s.svg\n%s\n", sim_out.c_str(), stem.c_str(), stem.c_str(), r.summary.c_str());
+      std::printf("wrote %s/%s.csv and %s.svg\n%s\n", sim_out.c_str(), stem.c_str(), stem.c_str(),
+                  r.summary.c_str());
       return 0;
     });
   }
   if (!model_path.empty()) {
     if (out_dir.empty()) {
-      std::fprintf(stderr, "obsynth: error: the main job needs an output directory: obsynth %s -o out/\n",
+      std::fprintf(stderr,
+                   "obsynth: error: the main job needs an output directory: obsynth %s -o out/\n",
                    model_path.c_str());
       return 1;
     }
@@ -210,8 +226,10 @@ int main(int argc, char** argv) {
       so.methods = split_list(methods);
       so.emit.precision = precision == "float" ? Precision::single : Precision::double_precision;
       so.emit.source_name = model_path;
-      for (const auto& p : split_list(poles)) so.canonical.poles.push_back(parse_real(p, "--poles"));
-      if (!realisation.empty()) so.canonical.realisation = realisation == "z" ? Realisation::z : Realisation::x;
+      for (const auto& p : split_list(poles))
+        so.canonical.poles.push_back(parse_real(p, "--poles"));
+      if (!realisation.empty())
+        so.canonical.realisation = realisation == "z" ? Realisation::z : Realisation::x;
       const Model m = load_model(model_path);
       const Analysis a = analyse(m, analysis_options(main_common));
       const Synthesis s = synthesize(a, so);

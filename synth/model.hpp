@@ -32,10 +32,10 @@ struct Model {
   std::vector<GiNaC::symbol> states;
   std::vector<GiNaC::symbol> inputs;
   std::vector<Param> params;
-  ExVec f;  // drift, g(x,0) = 0 split off
-  ExVec g;  // input part, zero at u = 0
-  ExVec h;  // outputs
-  std::map<std::string, Interval> domain;  // states, inputs and free parameters
+  ExVec f;                                     // drift, g(x,0) = 0 split off
+  ExVec g;                                     // input part, zero at u = 0
+  ExVec h;                                     // outputs
+  std::map<std::string, Interval> domain;      // states, inputs and free parameters
   std::map<std::string, SourceLoc> locations;  // where f, g, h, ... were given
 
   std::size_t n() const { return states.size(); }

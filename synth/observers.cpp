@@ -11,7 +11,9 @@ namespace obsynth {
 using GiNaC::ex;
 using GiNaC::numeric;
 
-const char* realisation_name(Realisation r) { return r == Realisation::z ? "z" : "x"; }
+const char* realisation_name(Realisation r) {
+  return r == Realisation::z ? "z" : "x";
+}
 
 std::vector<numeric> default_poles(std::size_t n) {
   std::vector<numeric> p;
@@ -34,15 +36,19 @@ CanonicalDesign design_canonical(const Analysis& a, const CanonicalDesignOptions
   const Model& m = a.model;
   const CanonicalForm& cf = a.canonical;
   const std::size_t n = m.n();
-  if (!cf.applicable) throw UserError(SourceLoc{m.file, 0, 0}, "method 'canonical' does not apply: " + cf.not_applicable);
+  if (!cf.applicable)
+    throw UserError(SourceLoc{m.file, 0, 0},
+                    "method 'canonical' does not apply: " + cf.not_applicable);
   if (!cf.linearizable) {
     std::string failing;
     for (const auto& b : cf.drift)
       if (!b.holds()) failing += fmt::format(" [tau_{}, tau_{}] != 0;", b.i, b.j);
     for (const auto& b : cf.input)
       if (!b.holds()) failing += fmt::format(" [g, tau_{}] != 0;", b.j);
-    throw UserError(SourceLoc{m.file, 0, 0},
-                    "method 'canonical' does not apply: the model is not linearizable by output injection:" + failing);
+    throw UserError(
+        SourceLoc{m.file, 0, 0},
+        "method 'canonical' does not apply: the model is not linearizable by output injection:" +
+            failing);
   }
   if (cf.l_kind != Availability::symbolic)
     throw UserError(SourceLoc{m.file, 0, 0},
@@ -50,10 +56,13 @@ CanonicalDesign design_canonical(const Analysis& a, const CanonicalDesignOptions
   CanonicalDesign d;
   d.poles = opt.poles.empty() ? default_poles(n) : opt.poles;
   if (d.poles.size() != n)
-    throw UserError(SourceLoc{}, fmt::format("--poles: {} poles given, the model has n = {} states", d.poles.size(), n));
+    throw UserError(SourceLoc{}, fmt::format("--poles: {} poles given, the model has n = {} states",
+                                             d.poles.size(), n));
   for (const auto& q : d.poles)
     if (!q.is_negative())
-      throw UserError(SourceLoc{}, fmt::format("--poles: pole {} is not in the open left half-plane", to_string(q)));
+      throw UserError(
+          SourceLoc{},
+          fmt::format("--poles: pole {} is not in the open left half-plane", to_string(q)));
   d.K = gains_from_poles(d.poles);
   const bool T_closed = cf.T_kind == Availability::symbolic;
   const bool Tinv_closed = cf.T_inverse_kind == Availability::symbolic;
@@ -64,11 +73,13 @@ CanonicalDesign design_canonical(const Analysis& a, const CanonicalDesignOptions
       throw UserError(SourceLoc{}, "--realisation z needs T in closed form: " + cf.T_note);
   } else if (T_closed && Tinv_closed) {
     d.realisation = Realisation::z;
-    d.realisation_reason = "T and T^-1 are closed-form: the z realisation integrates a linear system";
+    d.realisation_reason =
+        "T and T^-1 are closed-form: the z realisation integrates a linear system";
   } else {
     d.realisation = Realisation::x;
-    d.realisation_reason = T_closed ? "T^-1 has no closed form: the x realisation needs no inverse"
-                                    : "T has no closed form: the x realisation needs neither T nor T^-1";
+    d.realisation_reason = T_closed
+                               ? "T^-1 has no closed form: the x realisation needs no inverse"
+                               : "T has no closed form: the x realisation needs neither T nor T^-1";
   }
   d.newton_inverse = d.realisation == Realisation::z && !Tinv_closed;
   GiNaC::exmap at_x0;
@@ -91,7 +102,8 @@ CanonicalDesign design_canonical(const Analysis& a, const CanonicalDesignOptions
     const ExVec F = m.field();
     std::vector<ex> v(n);
     GiNaC::exmap y_to_yhat{{cf.y, yhat}};
-    for (std::size_t i = 0; i < n; ++i) v[i] = cf.l[i] - cf.l[i].subs(y_to_yhat) + d.K[i] * (cf.y - yhat);
+    for (std::size_t i = 0; i < n; ++i)
+      v[i] = cf.l[i] - cf.l[i].subs(y_to_yhat) + d.K[i] * (cf.y - yhat);
     for (std::size_t r = 0; r < n; ++r) {
       ex acc = F[r];
       for (std::size_t k = 0; k < n; ++k) acc += cf.frame[k][r] * v[k];
@@ -106,12 +118,14 @@ PerfectDesign design_perfect(const Analysis& a) {
   const CanonicalForm& cf = a.canonical;
   const std::size_t n = m.n();
   if (!cf.applicable || !cf.linearizable)
-    throw UserError(SourceLoc{m.file, 0, 0},
-                    "method 'perfect' needs the observer canonical form (seed 003 Lemma 1): " +
-                        (cf.applicable ? std::string("the bracket conditions fail") : cf.not_applicable));
+    throw UserError(
+        SourceLoc{m.file, 0, 0},
+        "method 'perfect' needs the observer canonical form (seed 003 Lemma 1): " +
+            (cf.applicable ? std::string("the bracket conditions fail") : cf.not_applicable));
   if (cf.l_kind != Availability::symbolic || cf.T_kind != Availability::symbolic)
-    throw UserError(SourceLoc{m.file, 0, 0}, "method 'perfect' needs T and l in closed form: " +
-                                                 (cf.T_kind != Availability::symbolic ? cf.T_note : cf.l_note));
+    throw UserError(SourceLoc{m.file, 0, 0},
+                    "method 'perfect' needs T and l in closed form: " +
+                        (cf.T_kind != Availability::symbolic ? cf.T_note : cf.l_note));
   PerfectDesign d;
   for (std::size_t k = 0; k < n; ++k) d.y_jet.push_back(GiNaC::symbol(fmt::format("y_d{}", k)));
   for (const auto& u : m.inputs) {
@@ -123,7 +137,8 @@ PerfectDesign design_perfect(const Analysis& a) {
   // Total time derivative on functions of the jets.
   auto D = [&](const ex& phi) {
     ex acc = 0;
-    for (std::size_t k = 0; k + 1 < d.y_jet.size(); ++k) acc += phi.diff(d.y_jet[k]) * d.y_jet[k + 1];
+    for (std::size_t k = 0; k + 1 < d.y_jet.size(); ++k)
+      acc += phi.diff(d.y_jet[k]) * d.y_jet[k + 1];
     for (const auto& jet : d.u_jet)
       for (std::size_t k = 0; k + 1 < jet.size(); ++k) acc += phi.diff(jet[k]) * jet[k + 1];
     return simplify(acc);

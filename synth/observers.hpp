@@ -20,7 +20,7 @@ enum class Realisation { z, x };
 const char* realisation_name(Realisation r);
 
 struct CanonicalDesignOptions {
-  std::vector<GiNaC::numeric> poles;  // empty: default -2, -2.5, -3, ...
+  std::vector<GiNaC::numeric> poles;       // empty: default -2, -2.5, -3, ...
   std::optional<Realisation> realisation;  // empty: z when T^-1 is closed-form, else x
 };
 

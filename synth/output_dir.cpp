@@ -19,21 +19,29 @@ std::string staging_dir(const std::string& dir, long pid) {
 void write_output_dir(const std::string& dir, const std::vector<OutputFile>& files) {
   std::error_code ec;
   fs::create_directories(dir, ec);
-  if (ec) throw UserError(SourceLoc{dir, 0, 0}, fmt::format("cannot create the output directory: {}", ec.message()));
+  if (ec)
+    throw UserError(SourceLoc{dir, 0, 0},
+                    fmt::format("cannot create the output directory: {}", ec.message()));
   const fs::path stage = staging_dir(dir, static_cast<long>(getpid()));
   fs::remove_all(stage, ec);
   fs::create_directory(stage, ec);
-  if (ec) throw UserError(SourceLoc{dir, 0, 0}, fmt::format("cannot write into the output directory: {}", ec.message()));
+  if (ec)
+    throw UserError(SourceLoc{dir, 0, 0},
+                    fmt::format("cannot write into the output directory: {}", ec.message()));
   try {
     for (const auto& f : files) {
       std::ofstream out(stage / f.name, std::ios::binary);
       out << f.content;
       out.close();
-      if (!out) throw UserError(SourceLoc{(fs::path(dir) / f.name).string(), 0, 0}, "cannot write the file");
+      if (!out)
+        throw UserError(SourceLoc{(fs::path(dir) / f.name).string(), 0, 0},
+                        "cannot write the file");
     }
     for (const auto& f : files) {
       fs::rename(stage / f.name, fs::path(dir) / f.name, ec);
-      if (ec) throw UserError(SourceLoc{(fs::path(dir) / f.name).string(), 0, 0}, fmt::format("cannot move the file into place: {}", ec.message()));
+      if (ec)
+        throw UserError(SourceLoc{(fs::path(dir) / f.name).string(), 0, 0},
+                        fmt::format("cannot move the file into place: {}", ec.message()));
     }
   } catch (...) {
     fs::remove_all(stage, ec);

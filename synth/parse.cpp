@@ -21,7 +21,7 @@ namespace {
 
 // Largest exact number (in bits) a model may produce when it is built or evaluated exactly at
 // a rational point; beyond this, exact arithmetic (gcds of huge integers) takes seconds to hours.
-constexpr long kMaxExactBits = 1L << 18;  // about 79,000 decimal digits
+constexpr long kMaxExactBits = 1L << 18;       // about 79,000 decimal digits
 constexpr long kMaxEvaluationBits = 1L << 24;  // exact evaluation of whole expressions
 
 const char* const kFunctions[] = {"sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "atan"};
@@ -31,7 +31,8 @@ const char* const kKeywords[] = {"model", "states", "inputs", "params", "f",
 bool is_reserved_name(const std::string& s) {
   if (s == "y" || s == "t") return true;
   if (s.size() > 1 && (s[0] == 'z' || s[0] == 'y') &&
-      std::all_of(s.begin() + 1, s.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); }))
+      std::all_of(s.begin() + 1, s.end(),
+                  [](char c) { return std::isdigit(static_cast<unsigned char>(c)); }))
     return true;
   return false;
 }
@@ -104,7 +105,8 @@ class Lexer {
         continue;
       }
       if (std::isdigit(static_cast<unsigned char>(c)) ||
-          (c == '.' && pos_ + 1 < src_.size() && std::isdigit(static_cast<unsigned char>(src_[pos_ + 1])))) {
+          (c == '.' && pos_ + 1 < src_.size() &&
+           std::isdigit(static_cast<unsigned char>(src_[pos_ + 1])))) {
         std::string s;
         while (pos_ < src_.size() &&
                (std::isdigit(static_cast<unsigned char>(src_[pos_])) || src_[pos_] == '.'))
@@ -132,7 +134,8 @@ class Lexer {
         } else if (c == ')' || c == ']') {
           const char want = c == ')' ? '(' : '[';
           if (open.empty())
-            throw UserError({file_, l, k}, fmt::format("unbalanced '{}': no matching '{}'", c, want));
+            throw UserError({file_, l, k},
+                            fmt::format("unbalanced '{}': no matching '{}'", c, want));
           if (open.back().text[0] != want)
             throw UserError({file_, l, k},
                             fmt::format("'{}' closes the '{}' opened at {}:{}", c, open.back().text,
@@ -151,7 +154,8 @@ class Lexer {
     if (!open.empty())
       throw UserError({file_, open.back().line, open.back().col},
                       fmt::format("unbalanced '{}': never closed", open.back().text));
-    if (!out.empty() && out.back().kind != Tok::newline) out.push_back({Tok::newline, "\\n", line_, col_});
+    if (!out.empty() && out.back().kind != Tok::newline)
+      out.push_back({Tok::newline, "\\n", line_, col_});
     out.push_back({Tok::end, "", line_, col_});
     return out;
   }
@@ -201,7 +205,8 @@ numeric parse_number(const std::string& s, const SourceLoc& loc) {
     if (expo.size() > 5) throw UserError(loc, fmt::format("exponent of '{}' is out of range", s));
     e10 += std::stol(expo);
   }
-  if (std::labs(e10) > 400) throw UserError(loc, fmt::format("exponent of '{}' is out of range", s));
+  if (std::labs(e10) > 400)
+    throw UserError(loc, fmt::format("exponent of '{}' is out of range", s));
   numeric v(digits.c_str());
   return v * numeric(10).power(numeric(e10));
 }
@@ -214,9 +219,12 @@ struct Declared {
 
 const char* kind_name(Declared::Kind k) {
   switch (k) {
-    case Declared::state: return "state";
-    case Declared::input: return "input";
-    case Declared::param: return "parameter";
+    case Declared::state:
+      return "state";
+    case Declared::input:
+      return "input";
+    case Declared::param:
+      return "parameter";
   }
   return "symbol";
 }
@@ -228,14 +236,16 @@ class Parser {
 
   // A comma-separated list of expressions over the given symbols (e.g. --u "sin(t)").
   ExVec standalone_list(const std::vector<GiNaC::symbol>& symbols) {
-    for (const auto& sym : symbols) names_.emplace(sym.get_name(), Declared{Declared::state, sym, SourceLoc{file_, 0, 0}});
+    for (const auto& sym : symbols)
+      names_.emplace(sym.get_name(), Declared{Declared::state, sym, SourceLoc{file_, 0, 0}});
     ExVec out;
     if (peek().kind == Tok::end) fail(peek(), "expected an expression");
     do {
       out.push_back(expression());
     } while (accept_op(','));
     if (peek().kind == Tok::newline) ++i_;
-    if (peek().kind != Tok::end) fail(peek(), fmt::format("unexpected {} after the expression", describe(peek())));
+    if (peek().kind != Tok::end)
+      fail(peek(), fmt::format("unexpected {} after the expression", describe(peek())));
     const SampleBoxes boxes;
     check_divisors(boxes);
     return out;
@@ -263,13 +273,18 @@ class Parser {
   const Token& peek() const { return toks_[i_]; }
   const Token& next() { return toks_[i_++]; }
   SourceLoc loc(const Token& t) const { return {file_, t.line, t.col}; }
-  [[noreturn]] void fail(const Token& t, const std::string& msg) const { throw UserError(loc(t), msg); }
+  [[noreturn]] void fail(const Token& t, const std::string& msg) const {
+    throw UserError(loc(t), msg);
+  }
 
   static std::string describe(const Token& t) {
     switch (t.kind) {
-      case Tok::newline: return "end of line";
-      case Tok::end: return "end of file";
-      default: return "'" + t.text + "'";
+      case Tok::newline:
+        return "end of line";
+      case Tok::end:
+        return "end of file";
+      default:
+        return "'" + t.text + "'";
     }
   }
 
@@ -316,7 +331,8 @@ class Parser {
   void model_statement(const Token& kw) {
     if (!model_.name.empty()) fail(kw, "duplicate 'model' statement");
     const Token& name = next();
-    if (name.kind != Tok::ident) fail(name, fmt::format("expected the model name after 'model', found {}", describe(name)));
+    if (name.kind != Tok::ident)
+      fail(name, fmt::format("expected the model name after 'model', found {}", describe(name)));
     model_.name = name.text;
     expect_end_of_statement("model");
   }
@@ -325,8 +341,8 @@ class Parser {
     const std::string& s = t.text;
     if (is_supported_function(s) || s == "pow" || s == "abs")
       fail(t, fmt::format("'{}' is a function name and cannot name a symbol", s));
-    if (std::find(std::begin(kKeywords), std::end(kKeywords), s) != std::end(kKeywords) && s != "F" &&
-        s != "f" && s != "g" && s != "h")
+    if (std::find(std::begin(kKeywords), std::end(kKeywords), s) != std::end(kKeywords) &&
+        s != "F" && s != "f" && s != "g" && s != "h")
       fail(t, fmt::format("'{}' is a keyword and cannot name a symbol", s));
     if (s == "f" || s == "g" || s == "h" || s == "F")
       fail(t, fmt::format("'{}' names a vector field and cannot name a symbol", s));
@@ -349,7 +365,8 @@ class Parser {
     while (peek().kind != Tok::newline && peek().kind != Tok::end) {
       const Token& t = next();
       if (t.kind == Tok::op && t.text == "," && any) continue;
-      if (t.kind != Tok::ident) fail(t, fmt::format("expected a name in '{}', found {}", kw.text, describe(t)));
+      if (t.kind != Tok::ident)
+        fail(t, fmt::format("expected a name in '{}', found {}", kw.text, describe(t)));
       check_new_name(t);
       GiNaC::symbol s(t.text);
       names_.emplace(t.text, Declared{kind, s, loc(t)});
@@ -364,7 +381,8 @@ class Parser {
     if (!model_.params.empty()) fail(kw, "duplicate 'params' statement");
     do {
       const Token& t = next();
-      if (t.kind != Tok::ident) fail(t, fmt::format("expected a parameter name, found {}", describe(t)));
+      if (t.kind != Tok::ident)
+        fail(t, fmt::format("expected a parameter name, found {}", describe(t)));
       check_new_name(t);
       Param p{t.text, GiNaC::symbol(t.text), std::nullopt, loc(t)};
       if (accept_op('=')) {
@@ -416,7 +434,8 @@ class Parser {
     }
     if (GiNaC::is_a<numeric>(a) && GiNaC::abs(GiNaC::ex_to<numeric>(a)) > numeric(1000000))
       fail(at, fmt::format("{} cannot be evaluated reliably: the argument of {}() exceeds 10^6 in "
-                           "magnitude", what, name));
+                           "magnitude",
+                           what, name));
   }
 
   static std::vector<std::string> symbols_in_expr(const ex& e) {
@@ -432,7 +451,8 @@ class Parser {
     ExVec v;
     std::vector<SourceLoc> locs;
     if (accept_op('[')) {
-      if (peek().kind == Tok::op && peek().text == "]") fail(peek(), fmt::format("'{}' is an empty list", kw.text));
+      if (peek().kind == Tok::op && peek().text == "]")
+        fail(peek(), fmt::format("'{}' is an empty list", kw.text));
       do {
         locs.push_back(loc(peek()));
         v.push_back(expression());
@@ -452,7 +472,8 @@ class Parser {
     if (!model_.domain.empty()) fail(kw, "duplicate 'domain' statement");
     do {
       const Token& t = next();
-      if (t.kind != Tok::ident) fail(t, fmt::format("expected a name in 'domain', found {}", describe(t)));
+      if (t.kind != Tok::ident)
+        fail(t, fmt::format("expected a name in 'domain', found {}", describe(t)));
       auto it = names_.find(t.text);
       if (it == names_.end())
         fail(t, fmt::format("unknown symbol '{}' in 'domain' (declare it first){}", t.text,
@@ -463,7 +484,8 @@ class Parser {
             fail(t, fmt::format("parameter '{}' has the fixed value {} and needs no domain", t.text,
                                 to_string(*p.value)));
       }
-      if (model_.domain.count(t.text)) fail(t, fmt::format("'{}' appears twice in 'domain'", t.text));
+      if (model_.domain.count(t.text))
+        fail(t, fmt::format("'{}' appears twice in 'domain'", t.text));
       const Token& in = next();
       if (in.kind != Tok::ident || in.text != "in")
         fail(in, fmt::format("expected 'in' after '{}', found {}", t.text, describe(in)));
@@ -474,7 +496,9 @@ class Parser {
       const Token& hi_t = peek();
       const numeric hi = numeric_value(expression(), hi_t, "a domain bound");
       expect_op(']', "to close the interval");
-      if (!(lo < hi)) fail(lo_t, fmt::format("empty interval for '{}': lower bound must be below the upper", t.text));
+      if (!(lo < hi))
+        fail(lo_t,
+             fmt::format("empty interval for '{}': lower bound must be below the upper", t.text));
       model_.domain[t.text] = Interval{lo, hi};
     } while (accept_op(','));
     expect_end_of_statement("domain");
@@ -554,8 +578,10 @@ class Parser {
       if (GiNaC::is_a<numeric>(e)) {
         const numeric& q = GiNaC::ex_to<numeric>(e);
         if (!q.is_rational()) fail(at, "exponent must be a rational number or an expression");
-        if (GiNaC::abs(q.numer()) > lim_.max_integer_exponent || q.denom() > lim_.max_integer_exponent)
-          fail(at, fmt::format("exponent {} is out of range (limit {})", to_string(e), lim_.max_integer_exponent));
+        if (GiNaC::abs(q.numer()) > lim_.max_integer_exponent ||
+            q.denom() > lim_.max_integer_exponent)
+          fail(at, fmt::format("exponent {} is out of range (limit {})", to_string(e),
+                               lim_.max_integer_exponent));
         if (q.is_negative() && base.is_zero()) fail(op, "division by zero (0 to a negative power)");
         // Checked here rather than left to GiNaC, whose exception for 0^0 leaks the power object.
         if (q.is_zero() && base.is_zero()) fail(op, "0^0 is undefined");
@@ -587,21 +613,25 @@ class Parser {
     const auto check = [&](const ex& b) {
       if (GiNaC::is_a<GiNaC::power>(b) && GiNaC::is_a<numeric>(b.op(1))) {
         const numeric p = GiNaC::ex_to<numeric>(b.op(1)) * q;
-        if (p.is_rational() &&
-            (GiNaC::abs(p.numer()) > lim_.max_integer_exponent || p.denom() > lim_.max_integer_exponent))
-          fail(at, fmt::format("exponent out of range: the powers combine to an exponent of {} (limit {})",
-                               to_string(p), lim_.max_integer_exponent));
+        if (p.is_rational() && (GiNaC::abs(p.numer()) > lim_.max_integer_exponent ||
+                                p.denom() > lim_.max_integer_exponent))
+          fail(at, fmt::format(
+                       "exponent out of range: the powers combine to an exponent of {} (limit {})",
+                       to_string(p), lim_.max_integer_exponent));
       } else if (GiNaC::is_a<numeric>(b)) {
-        if (saturating_mul(bit_size(GiNaC::ex_to<numeric>(b)), GiNaC::abs(q.numer()).to_long()) > kMaxExactBits)
-          fail(at, fmt::format("number too large: this power has more than {} binary digits", kMaxExactBits));
+        if (saturating_mul(bit_size(GiNaC::ex_to<numeric>(b)), GiNaC::abs(q.numer()).to_long()) >
+            kMaxExactBits)
+          fail(at, fmt::format("number too large: this power has more than {} binary digits",
+                               kMaxExactBits));
       } else if (GiNaC::is_a<GiNaC::add>(b)) {
         // GiNaC also pulls the numeric content out of a sum raised to an integer power and
         // raises it on the spot: (2*(1e400*x1 + 5e-400)^999 - 400)^999 hung here.
         const long bits = bit_size(b.integer_content());
         if (saturating_mul(bits, GiNaC::abs(q.numer()).to_long()) > kMaxExactBits)
-          fail(at, fmt::format("number too large: the numeric factor of this power has more than {} "
-                               "binary digits",
-                               kMaxExactBits));
+          fail(at,
+               fmt::format("number too large: the numeric factor of this power has more than {} "
+                           "binary digits",
+                           kMaxExactBits));
       }
     };
     if (GiNaC::is_a<GiNaC::mul>(base)) {
@@ -629,7 +659,8 @@ class Parser {
         }
         return it->second.sym;
       }
-      if (is_supported_function(t.text)) fail(t, fmt::format("function '{}' needs an argument in parentheses", t.text));
+      if (is_supported_function(t.text))
+        fail(t, fmt::format("function '{}' needs an argument in parentheses", t.text));
       fail(t, fmt::format("unknown symbol '{}'{}", t.text, suggestion(t.text, declared_names())));
     }
     fail(t, fmt::format("expected an expression, found {}", describe(t)));
@@ -638,8 +669,9 @@ class Parser {
   ex call(const Token& name) {
     if (!is_supported_function(name.text)) {
       std::vector<std::string> fns(std::begin(kFunctions), std::end(kFunctions));
-      fail(name, fmt::format("unsupported function '{}' (supported: sin cos tan exp log sqrt tanh atan){}",
-                             name.text, suggestion(name.text, fns)));
+      fail(name, fmt::format(
+                     "unsupported function '{}' (supported: sin cos tan exp log sqrt tanh atan){}",
+                     name.text, suggestion(name.text, fns)));
     }
     expect_op('(', "");
     const ex a = expression();
@@ -670,7 +702,8 @@ class Parser {
     long bits;   // bit size of the exactly computed (numeric) part
     bool exact;  // the whole subexpression evaluates to an exact number
   };
-  ExactSize exact_size(const ex& e, const std::map<std::string, long>& point_bits, long& worst) const {
+  ExactSize exact_size(const ex& e, const std::map<std::string, long>& point_bits,
+                       long& worst) const {
     ExactSize r{0, true};
     if (GiNaC::is_a<numeric>(e)) {
       r.bits = bit_size(GiNaC::ex_to<numeric>(e));
@@ -708,22 +741,23 @@ class Parser {
       long worst = 0;
       exact_size(e, point_bits, worst);
       if (worst > kMaxEvaluationBits)
-        throw UserError(l, fmt::format("expression too large: evaluating it exactly at a point needs "
-                                       "numbers of about {} binary digits (limit {})",
-                                       worst, kMaxEvaluationBits));
+        throw UserError(l,
+                        fmt::format("expression too large: evaluating it exactly at a point needs "
+                                    "numbers of about {} binary digits (limit {})",
+                                    worst, kMaxEvaluationBits));
     };
-    const std::pair<const char*, const ExVec*> fields[] = {{F_ ? "F" : "f", &model_.f},
-                                                           {F_ ? "F" : "g", &model_.g},
-                                                           {"h", &model_.h}};
+    const std::pair<const char*, const ExVec*> fields[] = {
+        {F_ ? "F" : "f", &model_.f}, {F_ ? "F" : "g", &model_.g}, {"h", &model_.h}};
     for (const auto& [key, vec] : fields)
       for (std::size_t i = 0; i < vec->size(); ++i) {
         const SourceLoc l = where(fmt::format("{}[{}]", key, i));
         check((*vec)[i], l);
         // sqrt(-1) and log(-2) evaluate to I and log(2) + I*Pi: the model must stay real.
         if (has_nonreal_number((*vec)[i]))
-          throw UserError(l, fmt::format("{}[{}] is not real: {} (the imaginary unit comes from sqrt or "
-                                         "log of a negative number)",
-                                         key, i + 1, to_string((*vec)[i])));
+          throw UserError(
+              l, fmt::format("{}[{}] is not real: {} (the imaginary unit comes from sqrt or "
+                             "log of a negative number)",
+                             key, i + 1, to_string((*vec)[i])));
       }
     for (const auto& [d, l] : divisors_) check(d, l);
   }
@@ -736,10 +770,12 @@ class Parser {
       for (std::size_t k = 0; k < d.nops(); ++k) zero_candidates(d.op(k), out);
     } else if (GiNaC::is_a<GiNaC::power>(d) && GiNaC::is_a<numeric>(d.op(1))) {
       if (GiNaC::ex_to<numeric>(d.op(1)).is_positive()) zero_candidates(d.op(0), out);
-    } else if (GiNaC::is_a<GiNaC::function>(d) && (GiNaC::ex_to<GiNaC::function>(d).get_name() == "exp")) {
+    } else if (GiNaC::is_a<GiNaC::function>(d) &&
+               (GiNaC::ex_to<GiNaC::function>(d).get_name() == "exp")) {
       // never zero
-    } else if (GiNaC::is_a<GiNaC::function>(d) && (GiNaC::ex_to<GiNaC::function>(d).get_name() == "atan" ||
-                                                   GiNaC::ex_to<GiNaC::function>(d).get_name() == "tanh")) {
+    } else if (GiNaC::is_a<GiNaC::function>(d) &&
+               (GiNaC::ex_to<GiNaC::function>(d).get_name() == "atan" ||
+                GiNaC::ex_to<GiNaC::function>(d).get_name() == "tanh")) {
       zero_candidates(d.op(0), out);  // zero exactly where the argument is
     } else if (!GiNaC::is_a<numeric>(d) || d.is_zero()) {
       out.push_back(d);
@@ -769,9 +805,8 @@ class Parser {
   // "proving" a divisor zero. Bound the arguments near the corners of the domain box.
   void check_function_arguments(const SampleBoxes& boxes) const {
     const std::vector<GiNaC::exmap> points = sample_points(model_.all_symbols(), boxes, 2, 1);
-    const std::pair<const char*, const ExVec*> fields[] = {{F_ ? "F" : "f", &model_.f},
-                                                           {F_ ? "F" : "g", &model_.g},
-                                                           {"h", &model_.h}};
+    const std::pair<const char*, const ExVec*> fields[] = {
+        {F_ ? "F" : "f", &model_.f}, {F_ ? "F" : "g", &model_.g}, {"h", &model_.h}};
     const DigitsGuard digits(40);
     for (const auto& pt : points) {
       GiNaC::exmap fpt;
@@ -794,9 +829,10 @@ class Parser {
       return;  // undefined at this point: not a magnitude problem
     }
     if (GiNaC::is_a<numeric>(a) && GiNaC::abs(GiNaC::ex_to<numeric>(a)) > numeric(1000000))
-      throw UserError(l, fmt::format("the argument of {}() exceeds 10^6 in magnitude in the domain box, "
-                                     "where {}() cannot be evaluated reliably",
-                                     name, name));
+      throw UserError(
+          l, fmt::format("the argument of {}() exceeds 10^6 in magnitude in the domain box, "
+                         "where {}() cannot be evaluated reliably",
+                         name, name));
   }
 
   static bool real_somewhere(const ex& e, const SampleBoxes& boxes) {
@@ -817,7 +853,8 @@ class Parser {
   }
 
   static bool has_nonreal_number(const ex& e) {
-    if (GiNaC::is_a<numeric>(e)) return !GiNaC::ex_to<numeric>(e).imag().is_zero();  // I^2 is not is_real()
+    if (GiNaC::is_a<numeric>(e))
+      return !GiNaC::ex_to<numeric>(e).imag().is_zero();  // I^2 is not is_real()
     for (std::size_t k = 0; k < e.nops(); ++k)
       if (has_nonreal_number(e.op(k))) return true;
     return false;
@@ -831,7 +868,8 @@ class Parser {
   Model finish() {
     const Token& eof = toks_.back();
     const SourceLoc end{file_, eof.line, eof.col};
-    if (model_.name.empty()) throw UserError(SourceLoc{file_, 1, 1}, "missing 'model NAME' statement");
+    if (model_.name.empty())
+      throw UserError(SourceLoc{file_, 1, 1}, "missing 'model NAME' statement");
     if (model_.states.empty()) throw UserError(end, "missing 'states' statement");
     if (F_ && (f_ || g_))
       throw UserError(where("F"), "give either 'F = [...]' or 'f = [...]' (and 'g'), not both");
@@ -840,8 +878,8 @@ class Parser {
     const std::size_t n = model_.states.size();
     auto check_len = [&](const char* key, const ExVec& v) {
       if (v.size() != n)
-        throw UserError(where(key), fmt::format("'{}' has {} component{}, but there {} {} state{}", key,
-                                                v.size(), v.size() == 1 ? "" : "s",
+        throw UserError(where(key), fmt::format("'{}' has {} component{}, but there {} {} state{}",
+                                                key, v.size(), v.size() == 1 ? "" : "s",
                                                 n == 1 ? "is" : "are", n, n == 1 ? "" : "s"));
     };
     GiNaC::exmap u_zero;
@@ -850,9 +888,10 @@ class Parser {
     auto at_u_zero = [&](const ex& e, const char* field, std::size_t i) -> ex {
       const SourceLoc l = where(fmt::format("{}[{}]", field, i));
       const auto undefined = [&](const std::string& why) {
-        return UserError(l, fmt::format("{}[{}] is undefined at u = 0 ({}); the input part g(x,u) must "
-                                        "be defined and zero at u = 0",
-                                        field, i + 1, why));
+        return UserError(
+            l, fmt::format("{}[{}] is undefined at u = 0 ({}); the input part g(x,u) must "
+                           "be defined and zero at u = 0",
+                           field, i + 1, why));
       };
       // GiNaC leaks the half-built term when a pole makes subs() throw (x2/u*x2 with u = 0),
       // so look for vanishing denominators first, innermost first.
@@ -882,9 +921,10 @@ class Parser {
         const SourceLoc l = where(fmt::format("f[{}]", i));
         for (const auto& u : model_.inputs)
           if (model_.f[i].has(u))
-            throw UserError(l, fmt::format("f[{}] depends on the input '{}'; put input terms in 'g' "
-                                           "(or give the whole field as 'F')",
-                                           i + 1, u.get_name()));
+            throw UserError(l,
+                            fmt::format("f[{}] depends on the input '{}'; put input terms in 'g' "
+                                        "(or give the whole field as 'F')",
+                                        i + 1, u.get_name()));
       }
       if (g_) {
         check_len("g", *g_);
@@ -898,7 +938,8 @@ class Parser {
       for (const auto& u : model_.inputs)
         if (model_.h[i].has(u))
           throw UserError(where(fmt::format("h[{}]", i)),
-                          fmt::format("h[{}] depends on the input '{}'; outputs must be h(x)", i + 1, u.get_name()));
+                          fmt::format("h[{}] depends on the input '{}'; outputs must be h(x)",
+                                      i + 1, u.get_name()));
     const SampleBoxes boxes = SampleBoxes::from_model(model_);
     check_exact_size(boxes);
     check_function_arguments(boxes);
@@ -906,9 +947,10 @@ class Parser {
       for (std::size_t i = 0; i < n; ++i) {
         const ex g0 = at_u_zero(model_.g[i], "g", i);
         if (!real_somewhere(g0, boxes) || zero_test(g0, boxes) == ZeroVerdict::nonzero)
-          throw UserError(where(fmt::format("g[{}]", i)),
-                          fmt::format("g[{}] is not zero at u = 0 (it is {} there); move that part to 'f'",
-                                      i + 1, to_string(g0)));
+          throw UserError(
+              where(fmt::format("g[{}]", i)),
+              fmt::format("g[{}] is not zero at u = 0 (it is {} there); move that part to 'f'",
+                          i + 1, to_string(g0)));
       }
     }
     check_divisors(boxes);

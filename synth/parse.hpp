@@ -11,8 +11,8 @@
 namespace obsynth {
 
 struct ParseLimits {
-  int max_nesting = 200;          // parentheses / unary operators
-  int max_literal_length = 400;   // digits in a number
+  int max_nesting = 200;         // parentheses / unary operators
+  int max_literal_length = 400;  // digits in a number
   long max_integer_exponent = 1000;
 };
 

@@ -22,7 +22,8 @@ std::vector<std::string> names_of(const std::vector<GiNaC::symbol>& s) {
   return out;
 }
 
-std::vector<std::string> concat_names(std::vector<std::string> a, const std::vector<std::string>& b) {
+std::vector<std::string> concat_names(std::vector<std::string> a,
+                                      const std::vector<std::string>& b) {
   a.insert(a.end(), b.begin(), b.end());
   return a;
 }
@@ -46,7 +47,8 @@ void rk4(F&& rhs, double t, double dt, Vec& x) {
   const Vec k2 = rhs(t + dt / 2, axpy(x, dt / 2, k1));
   const Vec k3 = rhs(t + dt / 2, axpy(x, dt / 2, k2));
   const Vec k4 = rhs(t + dt, axpy(x, dt, k3));
-  for (std::size_t i = 0; i < x.size(); ++i) x[i] += dt / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+  for (std::size_t i = 0; i < x.size(); ++i)
+    x[i] += dt / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
 }
 
 // Runtime-sized access to the runtime's fixed-order differentiator.
@@ -71,20 +73,30 @@ struct JetK : Jet {
 
 std::unique_ptr<Jet> make_jet(std::size_t k, double eps) {
   switch (k) {
-    case 0: return std::make_unique<JetK<0>>(eps);
-    case 1: return std::make_unique<JetK<1>>(eps);
-    case 2: return std::make_unique<JetK<2>>(eps);
-    case 3: return std::make_unique<JetK<3>>(eps);
-    case 4: return std::make_unique<JetK<4>>(eps);
-    case 5: return std::make_unique<JetK<5>>(eps);
-    case 6: return std::make_unique<JetK<6>>(eps);
-    case 7: return std::make_unique<JetK<7>>(eps);
-    default: throw UserError(SourceLoc{}, "simulate: the perfect observer is limited to n <= 8 states");
+    case 0:
+      return std::make_unique<JetK<0>>(eps);
+    case 1:
+      return std::make_unique<JetK<1>>(eps);
+    case 2:
+      return std::make_unique<JetK<2>>(eps);
+    case 3:
+      return std::make_unique<JetK<3>>(eps);
+    case 4:
+      return std::make_unique<JetK<4>>(eps);
+    case 5:
+      return std::make_unique<JetK<5>>(eps);
+    case 6:
+      return std::make_unique<JetK<6>>(eps);
+    case 7:
+      return std::make_unique<JetK<7>>(eps);
+    default:
+      throw UserError(SourceLoc{}, "simulate: the perfect observer is limited to n <= 8 states");
   }
 }
 
 // Newton on T(x) = z with [tau] as inverse Jacobian, as the runtime does.
-Vec newton(const NumericFunction& T, const NumericFunction& frame, const Vec& z, Vec x, int iterations, double tol) {
+Vec newton(const NumericFunction& T, const NumericFunction& frame, const Vec& z, Vec x,
+           int iterations, double tol) {
   const std::size_t n = z.size();
   for (int it = 0; it < iterations; ++it) {
     const Vec Tx = T(x);
@@ -119,19 +131,27 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
   const CanonicalForm& cf = a.canonical;
   const std::size_t n = m.n();
   if (!m.free_params().empty())
-    throw UserError(SourceLoc{m.file, 0, 0}, "simulate: free parameter '" + m.free_params()[0].get_name() + "' needs a value");
-  if (opt.x0.size() != n) throw UserError(SourceLoc{}, fmt::format("--x0 needs {} values, got {}", n, opt.x0.size()));
-  if (opt.xhat0.size() != n) throw UserError(SourceLoc{}, fmt::format("--xhat0 needs {} values, got {}", n, opt.xhat0.size()));
-  if (!(opt.dt > 0) || !(opt.t_end > 0)) throw UserError(SourceLoc{}, "--dt and --t-end must be positive");
+    throw UserError(SourceLoc{m.file, 0, 0}, "simulate: free parameter '" +
+                                                 m.free_params()[0].get_name() + "' needs a value");
+  if (opt.x0.size() != n)
+    throw UserError(SourceLoc{}, fmt::format("--x0 needs {} values, got {}", n, opt.x0.size()));
+  if (opt.xhat0.size() != n)
+    throw UserError(SourceLoc{},
+                    fmt::format("--xhat0 needs {} values, got {}", n, opt.xhat0.size()));
+  if (!(opt.dt > 0) || !(opt.t_end > 0))
+    throw UserError(SourceLoc{}, "--dt and --t-end must be positive");
   const double steps_d = std::ceil(opt.t_end / opt.dt - 1e-9);
-  if (steps_d > 5e7) throw UserError(SourceLoc{}, "simulate: more than 5e7 steps; raise --dt or lower --t-end");
+  if (steps_d > 5e7)
+    throw UserError(SourceLoc{}, "simulate: more than 5e7 steps; raise --dt or lower --t-end");
   const std::size_t steps = static_cast<std::size_t>(steps_d);
 
   GiNaC::symbol tsym("t");
   ExVec u_of_t = parse_expression_list(opt.u_text, "--u", {tsym});
   if (m.m() == 0 && opt.u_text == "0") u_of_t.clear();
   if (u_of_t.size() != m.m())
-    throw UserError(SourceLoc{}, fmt::format("--u needs {} expression{} in t (one per input), got {}", m.m(), m.m() == 1 ? "" : "s", u_of_t.size()));
+    throw UserError(SourceLoc{},
+                    fmt::format("--u needs {} expression{} in t (one per input), got {}", m.m(),
+                                m.m() == 1 ? "" : "s", u_of_t.size()));
   const NumericFunction u_fn(u_of_t, {"t"});
 
   const std::vector<std::string> xn = names_of(m.states), un = names_of(m.inputs);
@@ -172,7 +192,8 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
     }
     auto estimate = [&](const Vec& s, const Vec& seed) -> Vec {
       if (d.realisation == Realisation::x) return s;
-      if (d.newton_inverse) return newton(T_fn, frame_fn, s, seed, opt.newton_iterations, opt.newton_tolerance);
+      if (d.newton_inverse)
+        return newton(T_fn, frame_fn, s, seed, opt.newton_iterations, opt.newton_tolerance);
       return from_state(s);
     };
     Vec s = d.realisation == Realisation::z ? T_fn(opt.xhat0) : opt.xhat0;
@@ -183,7 +204,8 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
       if (opt.sampling == Sampling::continuous) {
         // One ODE: [x; s]' = [f + g(x, u(t)); observer(s, u(t), h(x))].
         Vec xs = concat(x, s);
-        rk4([&](double tt, const Vec& v) {
+        rk4(
+            [&](double tt, const Vec& v) {
               const Vec xv(v.begin(), v.begin() + static_cast<long>(n));
               const Vec sv(v.begin() + static_cast<long>(n), v.end());
               const Vec u = u_fn({tt});
@@ -197,7 +219,8 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
         // Firmware semantics: u_k, y_k held over the step for the observer.
         const Vec uk = u_fn({t});
         const Vec yk = output(x);
-        rk4([&](double, const Vec& sv) { return obs_rhs(concat(concat(sv, uk), yk)); }, t, opt.dt, s);
+        rk4([&](double, const Vec& sv) { return obs_rhs(concat(concat(sv, uk), yk)); }, t, opt.dt,
+            s);
         rk4([&](double tt, const Vec& xv) { return plant(concat(xv, u_fn({tt}))); }, t, opt.dt, x);
       }
       xh = estimate(s, xh);
@@ -233,11 +256,15 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
       Vec jets = ydiff->jet();
       for (auto& dj : udiff) jets = concat(jets, dj->jet());
       const Vec r = recon(jets);
-      xh = d.newton_inverse ? newton(T_fn, frame_fn, r, xh, opt.newton_iterations, opt.newton_tolerance) : r;
+      xh = d.newton_inverse
+               ? newton(T_fn, frame_fn, r, xh, opt.newton_iterations, opt.newton_tolerance)
+               : r;
       record(t1, x, xh);
     }
   } else {
-    throw UserError(SourceLoc{}, fmt::format("simulate: method '{}' is not implemented (canonical, perfect)", opt.method));
+    throw UserError(
+        SourceLoc{},
+        fmt::format("simulate: method '{}' is not implemented (canonical, perfect)", opt.method));
   }
 
   // CSV with full precision, and the plot.
@@ -248,16 +275,19 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
     for (double v : res.xh[i]) res.csv += fmt::format(",{:.17g}", v);
     res.csv += "\n";
   }
-  TrajectoryPlot plot{fmt::format("{}: {} observer ({} sampling), u = {}", m.name, opt.method,
-                                  opt.sampling == Sampling::continuous ? "continuous" : "zero-order hold", opt.u_text),
-                      xn, res.t, res.x, res.xh};
+  TrajectoryPlot plot{
+      fmt::format("{}: {} observer ({} sampling), u = {}", m.name, opt.method,
+                  opt.sampling == Sampling::continuous ? "continuous" : "zero-order hold",
+                  opt.u_text),
+      xn, res.t, res.x, res.xh};
   res.svg = render_svg(plot);
   double e0 = 0, e1 = 0;
   for (std::size_t k = 0; k < n; ++k) {
     e0 = std::max(e0, std::fabs(res.x.front()[k] - res.xh.front()[k]));
     e1 = std::max(e1, std::fabs(res.x.back()[k] - res.xh.back()[k]));
   }
-  res.summary = fmt::format("{} steps of {:g}: max |x - x_hat| {:.3e} at t = 0, {:.3e} at t = {:g}", steps, opt.dt, e0, e1, res.t.back());
+  res.summary = fmt::format("{} steps of {:g}: max |x - x_hat| {:.3e} at t = 0, {:.3e} at t = {:g}",
+                            steps, opt.dt, e0, e1, res.t.back());
   return res;
 }
 

@@ -18,11 +18,11 @@ enum class Sampling {
 struct SimulationOptions {
   std::string method = "canonical";
   CanonicalDesignOptions canonical;
-  std::string u_text = "0";       // comma-separated expressions in t, one per input
+  std::string u_text = "0";  // comma-separated expressions in t, one per input
   std::vector<double> x0, xhat0;
   double t_end = 10, dt = 1e-3;
   Sampling sampling = Sampling::continuous;
-  double epsilon = 0.01;          // perfect observer: differentiator time constant
+  double epsilon = 0.01;  // perfect observer: differentiator time constant
   int newton_iterations = 8;
   double newton_tolerance = 1e-13;
 };

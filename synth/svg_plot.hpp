@@ -9,9 +9,9 @@ namespace obsynth {
 
 struct TrajectoryPlot {
   std::string title;
-  std::vector<std::string> names;              // state names
+  std::vector<std::string> names;  // state names
   std::vector<double> t;
-  std::vector<std::vector<double>> x, xh;      // [sample][state]
+  std::vector<std::vector<double>> x, xh;  // [sample][state]
 };
 
 std::string render_svg(const TrajectoryPlot& p);

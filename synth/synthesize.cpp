@@ -10,12 +10,16 @@
 namespace obsynth {
 
 const std::vector<std::string>& all_methods() {
-  static const std::vector<std::string> m = {"canonical", "perfect", "riccati", "high-gain", "kalman-theta",
-                                             "thau", "kou", "extended-linearization", "finite-time"};
+  static const std::vector<std::string> m = {
+      "canonical",    "perfect", "riccati", "high-gain",
+      "kalman-theta", "thau",    "kou",     "extended-linearization",
+      "finite-time"};
   return m;
 }
 
-bool is_implemented(const std::string& method) { return method == "canonical" || method == "perfect"; }
+bool is_implemented(const std::string& method) {
+  return method == "canonical" || method == "perfect";
+}
 
 namespace {
 
@@ -27,14 +31,17 @@ std::string why_not_canonical(const Analysis& a) {
     if (!b.holds()) f.push_back(fmt::format("[tau_{}, tau_{}] != 0", b.i, b.j));
   for (const auto& b : cf.input)
     if (!b.holds()) f.push_back(fmt::format("[g, tau_{}] != 0", b.j));
-  if (!f.empty()) return fmt::format("not linearizable by output injection ({})", fmt::join(f, ", "));
+  if (!f.empty())
+    return fmt::format("not linearizable by output injection ({})", fmt::join(f, ", "));
   return cf.l_note;
 }
 
 std::string later_methods(const Analysis& a) {
   if (a.observability.generic_rank < a.model.n())
-    return "the model is not observable (generic rank " + std::to_string(a.observability.generic_rank) +
-           " < n): no observer can reconstruct the whole state; reduce the model to its observable part";
+    return "the model is not observable (generic rank " +
+           std::to_string(a.observability.generic_rank) +
+           " < n): no observer can reconstruct the whole state; reduce the model to its observable "
+           "part";
   return "designs for observable models that are not linearizable by output injection — riccati "
          "(James-Baras), high-gain and kalman-theta (Dufour et al.), thau, kou, "
          "extended-linearization, finite-time — are planned for later versions of obsynth";
@@ -50,18 +57,25 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
       const auto& cf = a.canonical;
       if (cf.applicable && cf.linearizable && cf.l_kind == Availability::symbolic) {
         methods.push_back("canonical");
-        s.explanation = "auto: the bracket conditions hold, so the canonical-form observer applies (its error dynamics are exactly linear)";
+        s.explanation =
+            "auto: the bracket conditions hold, so the canonical-form observer applies (its error "
+            "dynamics are exactly linear)";
       } else {
-        throw UserError(SourceLoc{a.model.file, 0, 0},
-                        fmt::format("no implemented observer design applies to model '{}': canonical form: {}; {}",
-                                    a.model.name, why_not_canonical(a), later_methods(a)));
+        throw UserError(
+            SourceLoc{a.model.file, 0, 0},
+            fmt::format(
+                "no implemented observer design applies to model '{}': canonical form: {}; {}",
+                a.model.name, why_not_canonical(a), later_methods(a)));
       }
       continue;
     }
     if (std::find(all_methods().begin(), all_methods().end(), m) == all_methods().end())
-      throw UserError(SourceLoc{}, fmt::format("unknown method '{}' (known: auto, {})", m, fmt::join(all_methods(), ", ")));
+      throw UserError(SourceLoc{}, fmt::format("unknown method '{}' (known: auto, {})", m,
+                                               fmt::join(all_methods(), ", ")));
     if (!is_implemented(m))
-      throw UserError(SourceLoc{}, fmt::format("method '{}' is not implemented in this version of obsynth (implemented: canonical, perfect)", m));
+      throw UserError(SourceLoc{}, fmt::format("method '{}' is not implemented in this version of "
+                                               "obsynth (implemented: canonical, perfect)",
+                                               m));
     if (std::find(methods.begin(), methods.end(), m) == methods.end()) methods.push_back(m);
   }
   std::vector<std::string> summaries;
@@ -84,12 +98,15 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   md += "\n## Generated observers\n\n";
   if (!s.explanation.empty()) md += s.explanation + ".\n\n";
   for (const auto& sm : summaries) md += "- " + sm + "\n";
-  md += fmt::format("\nLiterals are {} precision; every class is a template on the scalar type (float and double).\n",
-                    precision_name(opt.emit.precision));
+  md += fmt::format(
+      "\nLiterals are {} precision; every class is a template on the scalar type (float and "
+      "double).\n",
+      precision_name(opt.emit.precision));
   auto j = report_json(a, ro);
   j["generated"] = nlohmann::ordered_json::array();
   for (std::size_t i = 0; i < s.chosen.size(); ++i)
-    j["generated"].push_back({{"method", s.chosen[i]}, {"file", s.files[i].name}, {"summary", summaries[i]}});
+    j["generated"].push_back(
+        {{"method", s.chosen[i]}, {"file", s.files[i].name}, {"summary", summaries[i]}});
   const std::string stem = cxx_identifier(a.model.name);
   s.files.push_back({stem + "_report.md", md});
   s.files.push_back({stem + "_report.json", j.dump(2) + "\n"});

@@ -36,7 +36,8 @@ void publish_stage(const std::string& stage) {
 
 WorkerResult run_in_worker(const std::function<int()>& job, double stage_seconds) {
   WorkerResult res;
-  void* page = mmap(nullptr, sizeof(StageBeacon), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+  void* page =
+      mmap(nullptr, sizeof(StageBeacon), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
   if (page == MAP_FAILED) {
     res.exit_code = job();  // no isolation available: run in-process
     return res;
