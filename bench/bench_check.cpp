@@ -32,11 +32,11 @@
 #include <string>
 #include <vector>
 
-#include "analysis.hpp"
-#include "diagnostics.hpp"
+#include "analysis/analysis.hpp"
+#include "app/worker.hpp"
 #include "families.hpp"
-#include "parse.hpp"
-#include "worker.hpp"
+#include "front/diagnostics.hpp"
+#include "front/parse.hpp"
 
 namespace {
 

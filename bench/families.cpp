@@ -5,7 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "expr_print.hpp"
+#include "symbolic/expr_print.hpp"
 
 namespace obsynth::bench {
 

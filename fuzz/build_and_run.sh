@@ -30,17 +30,18 @@ if ! command -v "$cxx" >/dev/null 2>&1 || ! command -v pkg-config >/dev/null 2>&
 fi
 
 # ---- build -------------------------------------------------------------------------------
-# The synth/*.cpp files the parser needs: the include closure of synth/parse.cpp (each
-# '#include "x.hpp"' pulls in synth/x.cpp when it exists), so new dependencies are picked up.
+# The synth/*/*.cpp files the parser needs: the include closure of synth/front/parse.cpp
+# (each '#include "dir/x.hpp"' pulls in synth/dir/x.cpp when it exists), so new dependencies
+# are picked up.
 sources() {
-  local -a todo=("$root/synth/parse.cpp") seen=()
+  local -a todo=("$root/synth/front/parse.cpp") seen=()
   while ((${#todo[@]})); do
     local f="${todo[0]}"
     todo=("${todo[@]:1}")
     [[ " ${seen[*]-} " == *" $f "* ]] && continue
     seen+=("$f")
     local inc
-    for inc in $(sed -n 's/^#include "\([A-Za-z0-9_]*\)\.hpp".*/\1/p' "$f" "${f%.cpp}.hpp" 2>/dev/null | sort -u); do
+    for inc in $(sed -n 's/^#include "\([A-Za-z0-9_/]*\)\.hpp".*/\1/p' "$f" "${f%.cpp}.hpp" 2>/dev/null | sort -u); do
       [[ -f "$root/synth/$inc.cpp" ]] && todo+=("$root/synth/$inc.cpp")
       [[ -f "$root/synth/$inc.hpp" && ! -f "$root/synth/$inc.cpp" ]] && todo+=("$root/synth/$inc.hpp")
     done
@@ -55,7 +56,7 @@ build_fuzzer() {
   mapfile -t srcs < <(sources)
   srcs+=("$here/fuzz_parse.cpp")
   # Rebuild when any input is newer than the binary.
-  if [[ -x "$bin" ]] && [[ -z "$(find "${srcs[@]}" "$root"/synth/*.hpp "$0" -newer "$bin" 2>/dev/null | head -1)" ]]; then
+  if [[ -x "$bin" ]] && [[ -z "$(find "${srcs[@]}" "$root"/synth/*/*.hpp "$0" -newer "$bin" 2>/dev/null | head -1)" ]]; then
     return 0
   fi
   local -a deps

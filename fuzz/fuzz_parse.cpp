@@ -16,8 +16,8 @@
 #include <string>
 #include <string_view>
 
-#include "diagnostics.hpp"
-#include "parse.hpp"
+#include "front/diagnostics.hpp"
+#include "front/parse.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);

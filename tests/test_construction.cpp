@@ -5,10 +5,10 @@
 
 #include <set>
 
-#include "analysis.hpp"
-#include "lie.hpp"
+#include "analysis/analysis.hpp"
 #include "support/construct.hpp"
 #include "support/expect.hpp"
+#include "symbolic/lie.hpp"
 
 using namespace obsynth;
 using namespace obsynth::testing;
@@ -101,7 +101,8 @@ class InputBracket : public ::testing::TestWithParam<std::pair<std::size_t, std:
 TEST_P(InputBracket, FailsExactlyAtTheCoupledCoordinate) {
   // In z coordinates [g, d/dz_j] = -dg/dz_j: adding u*z_k to g breaks C3 at j = k only.
   const auto [n, k] = GetParam();
-  const Perturbation couple = [n, k = k](const std::vector<GiNaC::symbol>& z, const GiNaC::symbol& u) {
+  const Perturbation couple = [n, k = k](const std::vector<GiNaC::symbol>& z,
+                                         const GiNaC::symbol& u) {
     ExVec e(n, 0);
     e[n - 1] = u * z[k - 1];
     return e;

@@ -6,14 +6,14 @@
 #include <fstream>
 #include <set>
 
-#include "analysis.hpp"
-#include "parse.hpp"
+#include "analysis/analysis.hpp"
+#include "front/parse.hpp"
 #include "support/expect.hpp"
 
 using namespace obsynth;
+using nlohmann::json;
 using obsynth::testing::parse_with;
 using obsynth::testing::same;
-using nlohmann::json;
 
 namespace {
 
@@ -34,7 +34,8 @@ TEST_P(BundledModel, MatchesHandDerivation) {
   json expected;
   for (const auto& m : expectations())
     if (m["model"] == GetParam()) expected = m;
-  const Model model = load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/" + GetParam() + ".sym");
+  const Model model =
+      load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/" + GetParam() + ".sym");
   EXPECT_EQ(model.name, GetParam());
   const Analysis a = analyse(model);
   const CanonicalForm& cf = a.canonical;
@@ -70,7 +71,8 @@ TEST_P(BundledModel, MatchesHandDerivation) {
   EXPECT_TRUE(same(cf.r, parse_vec(expected["r"])));
 
   std::set<std::pair<std::size_t, std::size_t>> want_drift, got_drift;
-  for (const auto& p : expected["drift_fail"]) want_drift.insert({p[0].get<std::size_t>(), p[1].get<std::size_t>()});
+  for (const auto& p : expected["drift_fail"])
+    want_drift.insert({p[0].get<std::size_t>(), p[1].get<std::size_t>()});
   for (const auto& b : cf.drift)
     if (!b.holds()) got_drift.insert({b.i, b.j});
   EXPECT_EQ(got_drift, want_drift);

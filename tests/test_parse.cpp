@@ -12,10 +12,10 @@
 #include <string_view>
 #include <vector>
 
-#include "diagnostics.hpp"
-#include "expr_print.hpp"
-#include "model.hpp"
-#include "parse.hpp"
+#include "front/diagnostics.hpp"
+#include "front/model.hpp"
+#include "front/parse.hpp"
+#include "symbolic/expr_print.hpp"
 
 #ifndef OBSYNTH_SOURCE_DIR
 #error "compile with -DOBSYNTH_SOURCE_DIR=\"<repository root>\""

@@ -5,12 +5,12 @@
 
 #include <random>
 
-#include "budget.hpp"
-#include "lie.hpp"
-#include "observability.hpp"
-#include "parse.hpp"
-#include "poly.hpp"
-#include "symbolic.hpp"
+#include "analysis/budget.hpp"
+#include "analysis/observability.hpp"
+#include "front/parse.hpp"
+#include "symbolic/lie.hpp"
+#include "symbolic/poly.hpp"
+#include "symbolic/symbolic.hpp"
 
 namespace obsynth {
 namespace {

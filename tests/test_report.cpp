@@ -3,14 +3,14 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "analysis.hpp"
-#include "parse.hpp"
-#include "report.hpp"
+#include "analysis/analysis.hpp"
+#include "app/report.hpp"
+#include "front/parse.hpp"
 #include "support/expect.hpp"
 
 using namespace obsynth;
-using obsynth::testing::parse_with;
 using nlohmann::json;
+using obsynth::testing::parse_with;
 
 namespace {
 
@@ -27,14 +27,17 @@ std::string json_report(const std::string& name) {
 
 TEST(JsonReport, HasTheDocumentedKeys) {
   const json j = json::parse(json_report("slawinski17"));
-  for (const char* key : {"model", "states", "inputs", "lie_derivatives", "observability", "r", "frame",
-                          "conditions", "linearizable", "T", "T_inverse", "l", "timings_ms"})
+  for (const char* key :
+       {"model", "states", "inputs", "lie_derivatives", "observability", "r", "frame", "conditions",
+        "linearizable", "T", "T_inverse", "l", "timings_ms"})
     EXPECT_TRUE(j.contains(key)) << key;
   for (const char* key : {"n", "generic_rank", "rank_drop", "undefined"})
     EXPECT_TRUE(j["observability"].contains(key)) << key;
-  for (const char* key : {"drift", "input", "complete"}) EXPECT_TRUE(j["conditions"].contains(key)) << key;
+  for (const char* key : {"drift", "input", "complete"})
+    EXPECT_TRUE(j["conditions"].contains(key)) << key;
   const json& d = j["conditions"]["drift"][0];
-  for (const char* key : {"i", "j", "holds", "verdict", "residual"}) EXPECT_TRUE(d.contains(key)) << key;
+  for (const char* key : {"i", "j", "holds", "verdict", "residual"})
+    EXPECT_TRUE(d.contains(key)) << key;
   EXPECT_EQ(j["conditions"]["input"][0]["verdict"], "proved");
   EXPECT_TRUE(j["linearizable"].get<bool>());
 }
@@ -51,9 +54,9 @@ TEST(JsonReport, FailingConditionsCarryResiduals) {
 
 // Collects every string that is an expression in the report.
 void expression_strings(const json& j, const std::string& key, std::vector<std::string>& out) {
-  static const std::set<std::string> expr_keys = {"f", "g", "h", "lie_derivatives", "matrix", "det", "rank_drop",
-                                                  "undefined", "r", "frame", "residual", "base_point", "T",
-                                                  "T_inverse", "l"};
+  static const std::set<std::string> expr_keys = {
+      "f", "g",     "h",        "lie_derivatives", "matrix", "det",       "rank_drop", "undefined",
+      "r", "frame", "residual", "base_point",      "T",      "T_inverse", "l"};
   if (j.is_string() && expr_keys.count(key)) out.push_back(j.get<std::string>());
   if (j.is_array())
     for (const auto& e : j) expression_strings(e, key, out);
@@ -81,12 +84,14 @@ TEST_P(RoundTrip, EveryExpressionReadsBack) {
   }
   // And the strings denote the pipeline's expressions (not just some expression).
   for (std::size_t i = 0; i < a.canonical.T.size(); ++i)
-    EXPECT_TRUE(obsynth::testing::same(parse_with(j["T"][i].get<std::string>(), syms), a.canonical.T[i]));
+    EXPECT_TRUE(
+        obsynth::testing::same(parse_with(j["T"][i].get<std::string>(), syms), a.canonical.T[i]));
 }
 
 INSTANTIATE_TEST_SUITE_P(Models, RoundTrip,
                          ::testing::Values("slawinski17", "triangular4", "flexible_joint", "cstr",
-                                           "jamesbaras_sin", "lorenz", "garcia14", "stuart_landau"));
+                                           "jamesbaras_sin", "lorenz", "garcia14",
+                                           "stuart_landau"));
 
 TEST(Determinism, SameBytesAfterCreatingUnrelatedSymbols) {
   const std::string first = json_report("triangular4");

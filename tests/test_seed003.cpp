@@ -2,8 +2,8 @@
 // written out by hand here (design.md §1).
 #include <gtest/gtest.h>
 
-#include "analysis.hpp"
-#include "parse.hpp"
+#include "analysis/analysis.hpp"
+#include "front/parse.hpp"
 #include "support/expect.hpp"
 
 using namespace obsynth;

@@ -1,8 +1,8 @@
 // The three-valued zero test (design.md §5): proved / numeric / nonzero.
 #include <gtest/gtest.h>
 
-#include "parse.hpp"
-#include "zero_test.hpp"
+#include "front/parse.hpp"
+#include "symbolic/zero_test.hpp"
 
 using namespace obsynth;
 using GiNaC::ex;
@@ -11,7 +11,9 @@ namespace {
 
 GiNaC::symbol x("x"), y("y");
 
-ZeroVerdict verdict(const ex& e, SampleBoxes boxes = {}) { return zero_test(e, boxes); }
+ZeroVerdict verdict(const ex& e, SampleBoxes boxes = {}) {
+  return zero_test(e, boxes);
+}
 
 SampleBoxes positive() {
   SampleBoxes b;

@@ -6,10 +6,10 @@
 #include <fstream>
 #include <iostream>
 
-#include "analysis.hpp"
-#include "observers.hpp"
-#include "parse.hpp"
-#include "zero_test.hpp"
+#include "analysis/analysis.hpp"
+#include "designs/observers.hpp"
+#include "front/parse.hpp"
+#include "symbolic/zero_test.hpp"
 
 using namespace obsynth;
 using GiNaC::ex;
@@ -24,8 +24,11 @@ std::string value(const ex& e, const GiNaC::exmap& at) {
 }
 
 std::string array(const std::string& name, const std::vector<std::vector<std::string>>& rows) {
-  std::string s = fmt::format("inline constexpr double {}[kPoints][{}] = {{\n", name, rows.empty() ? 1 : std::max<std::size_t>(1, rows[0].size()));
-  for (const auto& r : rows) s += fmt::format("    {{{}}},\n", r.empty() ? std::string("0.0") : fmt::format("{}", fmt::join(r, ", ")));
+  std::string s = fmt::format("inline constexpr double {}[kPoints][{}] = {{\n", name,
+                              rows.empty() ? 1 : std::max<std::size_t>(1, rows[0].size()));
+  for (const auto& r : rows)
+    s += fmt::format("    {{{}}},\n",
+                     r.empty() ? std::string("0.0") : fmt::format("{}", fmt::join(r, ", ")));
   return s + "};\n";
 }
 
@@ -89,7 +92,8 @@ int main(int argc, char** argv) {
         for (const auto& e : d.z_rhs) zr.push_back(value(e, zc));
       }
       for (std::size_t k = 0; k < n; ++k)
-        for (std::size_t r = 0; r < n; ++r) fr.push_back(value(cf.frame[k][r], pt));  // column-major
+        for (std::size_t r = 0; r < n; ++r)
+          fr.push_back(value(cf.frame[k][r], pt));  // column-major
       X.push_back(x);
       U.push_back(u);
       F.push_back(f);
@@ -120,24 +124,32 @@ int main(int argc, char** argv) {
       cls += up ? static_cast<char>(std::toupper(static_cast<unsigned char>(ch))) : ch;
       up = false;
     }
-    std::string s = fmt::format("// reference values computed by GiNaC for {}\n#pragma once\n", m.name);
-    s += fmt::format("#define OBSYNTH_NS {}\n#define OBSYNTH_CLASS {}Canonical\n#define OBSYNTH_NAME \"{}\"\n", m.name, cls, m.name);
-    s += fmt::format("#define OBSYNTH_HAS_T {}\n#define OBSYNTH_HAS_TINV {}\n", cf.T_kind == Availability::symbolic ? 1 : 0,
+    std::string s =
+        fmt::format("// reference values computed by GiNaC for {}\n#pragma once\n", m.name);
+    s += fmt::format(
+        "#define OBSYNTH_NS {}\n#define OBSYNTH_CLASS {}Canonical\n#define OBSYNTH_NAME \"{}\"\n",
+        m.name, cls, m.name);
+    s += fmt::format("#define OBSYNTH_HAS_T {}\n#define OBSYNTH_HAS_TINV {}\n",
+                     cf.T_kind == Availability::symbolic ? 1 : 0,
                      cf.T_inverse_kind == Availability::symbolic ? 1 : 0);
-    s += fmt::format("#define OBSYNTH_Z_REALISATION {}\n#define OBSYNTH_HAS_FRAME {}\n", d.realisation == Realisation::z ? 1 : 0,
+    s += fmt::format("#define OBSYNTH_Z_REALISATION {}\n#define OBSYNTH_HAS_FRAME {}\n",
+                     d.realisation == Realisation::z ? 1 : 0,
                      (d.realisation == Realisation::x || d.newton_inverse) ? 1 : 0);
     // Horizon: the slowest pole (-2) brings a unit error below 1e-8 in ~9 s; larger n has
     // more nearby poles (polynomial factors), so allow one more second per state.
     s += fmt::format("#define OBSYNTH_T_END {}.0\n#define OBSYNTH_INPUT_AMPLITUDE 0.5\n", 10 + n);
     s += fmt::format("namespace ref {{\ninline constexpr int kPoints = {};\n", kPoints);
     s += fmt::format("inline constexpr bool kHasT = {};\ninline constexpr bool kHasTinv = {};\n",
-                     cf.T_kind == Availability::symbolic, cf.T_inverse_kind == Availability::symbolic);
+                     cf.T_kind == Availability::symbolic,
+                     cf.T_inverse_kind == Availability::symbolic);
     std::vector<std::string> poles, ks;
     for (const auto& q : d.poles) poles.push_back(fmt::format("{:.17e}", q.to_double()));
     s += fmt::format("inline constexpr double kSlowestPole = {};\n", poles.front());
-    s += array("x", X) + array("u", U) + array("f", F) + array("g", G) + array("h", H) + array("T", T) + array("z", Z);
+    s += array("x", X) + array("u", U) + array("f", F) + array("g", G) + array("h", H) +
+         array("T", T) + array("z", Z);
     s += array("Tinv", Tinv.empty() ? std::vector<std::vector<std::string>>(kPoints) : Tinv);
-    s += array("l", L) + array("frame", FR) + array("step_constant", C) + array("z_rhs", ZR) + array("x_rhs", XR);
+    s += array("l", L) + array("frame", FR) + array("step_constant", C) + array("z_rhs", ZR) +
+         array("x_rhs", XR);
     s += "}  // namespace ref\n";
     std::ofstream(argv[2]) << s;
   } catch (const std::exception& e) {

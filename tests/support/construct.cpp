@@ -2,7 +2,7 @@
 
 #include <fmt/format.h>
 
-#include "expr_print.hpp"
+#include "symbolic/expr_print.hpp"
 
 namespace obsynth::testing {
 
@@ -40,21 +40,28 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
     const ex a = x[k - 1], b = x[0];
     if (flavor != Flavor::transcendental) {
       switch (k % 3) {
-        case 0: return a * a / 2;
-        case 1: return a * b;
-        default: return a * a * b / 3 + a;
+        case 0:
+          return a * a / 2;
+        case 1:
+          return a * b;
+        default:
+          return a * a * b / 3 + a;
       }
     }
     switch (k % 3) {
-      case 0: return GiNaC::exp(a) - 1;
-      case 1: return GiNaC::sin(b) * a;
-      default: return GiNaC::atan(a);
+      case 0:
+        return GiNaC::exp(a) - 1;
+      case 1:
+        return GiNaC::sin(b) * a;
+      default:
+        return GiNaC::atan(a);
     }
   };
   const bool newton = flavor == Flavor::stable_newton;
   c.T.assign(n, 0);
   c.T[n - 1] = x[0];
-  for (std::size_t k = 1; k < n; ++k) c.T[n - 1 - k] = x[k] + (newton && k == n - 1 ? GiNaC::pow(x[k], 3) / 3 : ex(0)) + psi(k);
+  for (std::size_t k = 1; k < n; ++k)
+    c.T[n - 1 - k] = x[k] + (newton && k == n - 1 ? GiNaC::pow(x[k], 3) / 3 : ex(0)) + psi(k);
   // Inverse: x1 = zn, x_{k+1} = z_{n-k} - psi_k(x_1..x_k) with the earlier x substituted.
   ExVec xs(n);
   xs[0] = c.z[n - 1];
@@ -69,15 +76,22 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
   for (std::size_t i = 0; i < n; ++i) {
     const ex yy = c.y;
     switch (i % 3) {
-      case 0: c.l[i] = -yy / 2 + (flavor == Flavor::polynomial ? yy * yy * yy / 6 : GiNaC::sin(yy)); break;
-      case 1: c.l[i] = yy * yy / 4; break;
-      default: c.l[i] = (flavor == Flavor::polynomial ? -yy : -GiNaC::atan(yy)); break;
+      case 0:
+        c.l[i] = -yy / 2 + (flavor == Flavor::polynomial ? yy * yy * yy / 6 : GiNaC::sin(yy));
+        break;
+      case 1:
+        c.l[i] = yy * yy / 4;
+        break;
+      default:
+        c.l[i] = (flavor == Flavor::polynomial ? -yy : -GiNaC::atan(yy));
+        break;
     }
   }
   if (flavor == Flavor::stable || newton) {
     // Hurwitz: prod (s + 1 + k/2) gives a_i; the z-system is A - a e_n^T plus bounded terms.
     std::vector<GiNaC::numeric> poles;
-    for (std::size_t k = 0; k < n; ++k) poles.push_back(-1 - GiNaC::numeric(static_cast<long>(k), 2));
+    for (std::size_t k = 0; k < n; ++k)
+      poles.push_back(-1 - GiNaC::numeric(static_cast<long>(k), 2));
     GiNaC::symbol s("s");
     ex poly = 1;
     for (const auto& q : poles) poly *= (s - q);
@@ -87,7 +101,8 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
       c.l[i] = -a * c.y + (i % 2 == 0 ? GiNaC::sin(c.y) / 4 : c.y * c.y / (4 * (1 + c.y * c.y)));
     }
     c.l[0] += u * GiNaC::cos(c.y);
-    for (const auto& s2 : x) m.domain[s2.get_name()] = Interval{GiNaC::numeric(-1), GiNaC::numeric(1)};
+    for (const auto& s2 : x)
+      m.domain[s2.get_name()] = Interval{GiNaC::numeric(-1), GiNaC::numeric(1)};
   } else {
     c.l[0] += u * (1 + c.y * c.y);
   }
@@ -111,7 +126,8 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
   m.g = pull_back(c.T, x, wg);
   m.h = {x[0]};
   if (flavor == Flavor::transcendental)
-    for (const auto& s : x) m.domain[s.get_name()] = Interval{GiNaC::numeric(-1), GiNaC::numeric(1)};
+    for (const auto& s : x)
+      m.domain[s.get_name()] = Interval{GiNaC::numeric(-1), GiNaC::numeric(1)};
   return c;
 }
 
@@ -119,13 +135,15 @@ std::string to_sym(const Model& m) {
   std::vector<std::string> xs, us;
   for (const auto& s : m.states) xs.push_back(s.get_name());
   for (const auto& s : m.inputs) us.push_back(s.get_name());
-  std::string out = fmt::format("# constructed by the obsynth test suite\nmodel {}\nstates {}\n", m.name, fmt::join(xs, " "));
+  std::string out = fmt::format("# constructed by the obsynth test suite\nmodel {}\nstates {}\n",
+                                m.name, fmt::join(xs, " "));
   if (!us.empty()) out += fmt::format("inputs {}\n", fmt::join(us, " "));
   out += fmt::format("f = [\n  {}\n]\n", fmt::join(to_strings(m.f), ",\n  "));
   out += fmt::format("g = [\n  {}\n]\n", fmt::join(to_strings(m.g), ",\n  "));
   out += fmt::format("h = [ {} ]\n", fmt::join(to_strings(m.h), ", "));
   std::vector<std::string> dom;
-  for (const auto& [name, box] : m.domain) dom.push_back(fmt::format("{} in [{}, {}]", name, to_string(box.lo), to_string(box.hi)));
+  for (const auto& [name, box] : m.domain)
+    dom.push_back(fmt::format("{} in [{}, {}]", name, to_string(box.lo), to_string(box.hi)));
   if (!dom.empty()) out += fmt::format("domain {}\n", fmt::join(dom, ", "));
   return out;
 }

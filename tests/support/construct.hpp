@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "model.hpp"
+#include "front/model.hpp"
 
 namespace obsynth::testing {
 
@@ -32,7 +32,8 @@ struct Constructed {
 // or exp/sin/atan); f = (dT/dx)^-1 (A T + l(0, x1)), g = (dT/dx)^-1 (l(u, x1) - l(0, x1)).
 // extra_g (in z coordinates, may use u) is added to the input part to break C3 on purpose.
 // A perturbation in z coordinates: component vector given the symbols z1..zn and u.
-using Perturbation = std::function<ExVec(const std::vector<GiNaC::symbol>& z, const GiNaC::symbol& u)>;
+using Perturbation =
+    std::function<ExVec(const std::vector<GiNaC::symbol>& z, const GiNaC::symbol& u)>;
 
 Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation& extra_f_z = {},
                                const Perturbation& extra_g_z = {});

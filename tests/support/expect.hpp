@@ -1,15 +1,15 @@
 // Test helpers: exact comparison of expressions and parsing expected answers.
 #pragma once
 
-#include <gtest/gtest.h>
 #include <ginac/ginac.h>
+#include <gtest/gtest.h>
 
 #include <string>
 #include <vector>
 
-#include "expr_print.hpp"
-#include "model.hpp"
-#include "zero_test.hpp"
+#include "front/model.hpp"
+#include "symbolic/expr_print.hpp"
+#include "symbolic/zero_test.hpp"
 
 namespace obsynth::testing {
 

@@ -1,0 +1,87 @@
+// Linearization by output injection (seed 003 Lemma 1, Procedure 1; seed 001 Theorem 3):
+// the vector field r, the frame tau_k, conditions C1-C4, the diffeomorphism T to observer
+// canonical form (output last), its inverse, and the output injection l(u, y).
+#pragma once
+
+#include <ginac/ginac.h>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "analysis/budget.hpp"
+#include "analysis/observability.hpp"
+#include "front/model.hpp"
+#include "symbolic/lie.hpp"
+#include "symbolic/zero_test.hpp"
+
+namespace obsynth {
+
+struct BracketCheck {
+  std::size_t i = 0, j = 0;  // 1-based frame indices; i = 0 for [g, tau_j]
+  ZeroVerdict verdict = ZeroVerdict::proved;
+  ExVec residual;             // the bracket itself, simplified (zero when it holds)
+  std::string residual_note;  // set when a failing residual is too large to print
+  bool holds() const { return verdict != ZeroVerdict::nonzero; }
+};
+
+enum class Completeness { global, local, unknown };
+const char* completeness_name(Completeness c);
+
+// How a map is available to later stages.
+enum class Availability { symbolic, numeric, none };
+const char* availability_name(Availability a);
+
+struct CanonicalForm {
+  bool applicable = false;     // single output and generic rank n
+  std::string not_applicable;  // why not, when !applicable
+  ExVec r;
+  std::vector<ExVec> frame;                       // tau_1 .. tau_n
+  std::vector<BracketCheck> drift;                // [tau_i, tau_j], 1 <= i < j <= n   (C2)
+  std::vector<BracketCheck> input;                // [g, tau_j], j = 1..n-1            (C3)
+  Completeness complete = Completeness::unknown;  // C4
+  std::string complete_reason;
+  bool linearizable = false;  // C1, C2, C3 hold
+
+  GiNaC::symbol y{"y"};          // output symbol of l(u, y)
+  std::vector<GiNaC::symbol> z;  // canonical coordinates z1..zn
+  ExVec base_point;              // x0 with T(x0) = 0
+  Availability T_kind = Availability::none;
+  ExVec T;
+  std::string T_note;
+  ZeroVerdict T_verdict = ZeroVerdict::nonzero;  // dT/dx * [tau] == I
+  Availability T_inverse_kind = Availability::none;
+  ExVec T_inverse;  // in z1..zn
+  std::string T_inverse_note;
+  ZeroVerdict T_inverse_verdict = ZeroVerdict::nonzero;  // T^-1(T(x)) == x
+  Availability l_kind = Availability::none;
+  ExVec l;  // in inputs and y
+  std::string l_note;
+  ZeroVerdict l_verdict = ZeroVerdict::nonzero;  // l free of x
+};
+
+struct CanonicalOptions {
+  ZeroTestOptions zero;
+};
+
+CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget& budget,
+                                const CanonicalOptions& opt = {});
+
+// e(x) written as a function of y = h(x) alone, if it is one (h must be linear in some
+// state); nullopt otherwise.
+std::optional<GiNaC::ex> express_in_output(const GiNaC::ex& e, const GiNaC::ex& h, const Symbols& x,
+                                           const GiNaC::symbol& y, const ExVec& base_point,
+                                           const SampleBoxes& boxes);
+
+// Solves T(x) = z for x by successive elimination of equations that are linear in one state
+// (or in exp/log/atan of it); nullopt when the structure does not allow it.
+std::optional<ExVec> invert_map(const ExVec& T, const Symbols& x,
+                                const std::vector<GiNaC::symbol>& z, const SampleBoxes& boxes);
+
+// The frame [tau_1 ... tau_n] as a flat column-major list (tau_1 first).
+ExVec frame_column_major(const CanonicalForm& cf);
+
+// Classifies completeness of a vector field: affine or globally Lipschitz => complete.
+Completeness classify_completeness(const ExVec& v, const Symbols& x, std::string& reason);
+
+}  // namespace obsynth

@@ -1,0 +1,372 @@
+#include "analysis/observability.hpp"
+
+#include <algorithm>
+#include <optional>
+#include <set>
+
+#include "symbolic/expr_print.hpp"
+#include "symbolic/poly.hpp"
+#include "symbolic/symbolic.hpp"
+#include "symbolic/zero_test.hpp"
+
+namespace obsynth {
+
+using GiNaC::ex;
+using GiNaC::numeric;
+
+std::size_t numeric_rank(std::vector<std::vector<numeric>> a, bool exact) {
+  const std::size_t rows = a.size();
+  if (rows == 0) return 0;
+  const std::size_t cols = a[0].size();
+  const numeric eps = exact ? numeric(0) : numeric(10).power(numeric(-30));
+  if (!exact) {
+    // Scale rows to unit max-norm: the rows of O span many decades (design.md §5).
+    for (auto& r : a) {
+      numeric mx = 0;
+      for (const auto& v : r) mx = std::max(mx, GiNaC::abs(v));
+      if (!mx.is_zero())
+        for (auto& v : r) v = v / mx;
+    }
+  }
+  std::size_t rank = 0;
+  for (std::size_t c = 0; c < cols && rank < rows; ++c) {
+    std::size_t piv = rank;
+    numeric best = GiNaC::abs(a[rank][c]);
+    for (std::size_t r = rank + 1; r < rows; ++r)
+      if (GiNaC::abs(a[r][c]) > best) {
+        best = GiNaC::abs(a[r][c]);
+        piv = r;
+      }
+    if (best <= eps || best.is_zero()) continue;
+    std::swap(a[piv], a[rank]);
+    for (std::size_t r = rank + 1; r < rows; ++r) {
+      if (a[r][c].is_zero()) continue;
+      const numeric factor = a[r][c] / a[rank][c];
+      for (std::size_t k = c; k < cols; ++k) a[r][k] -= factor * a[rank][k];
+    }
+    ++rank;
+  }
+  return rank;
+}
+
+ExVec dependent_factors(const ex& e, const Symbols& x) {
+  GiNaC::exmap repl;
+  const ex num = GiNaC::numer(GiNaC::normal(e));
+  const ex poly = num.to_polynomial(repl);
+  ex fac = GiNaC::factor(poly);
+  GiNaC::exmap back;
+  for (const auto& [k, v] : repl) back[k] = v;
+  std::vector<ex> parts;
+  auto add = [&](const ex& f) {
+    ex g = f;
+    if (GiNaC::is_a<GiNaC::power>(g) && GiNaC::is_a<numeric>(g.op(1))) g = g.op(0);
+    if (!depends_on(g.subs(back), x)) return;
+    // Drop the integer content: 2*x1^2 + 2*x2^2 vanishes where x1^2 + x2^2 does.
+    if (g.info(GiNaC::info_flags::polynomial)) {
+      const GiNaC::ex ge = GiNaC::expand(g);
+      const GiNaC::numeric ic = ge.integer_content();
+      if (!ic.is_zero()) g = ge / ic;
+    }
+    g = g.subs(back);
+    // exp(.) never vanishes on the reals: it cannot be where the rank drops.
+    if (GiNaC::is_a<GiNaC::function>(g) && GiNaC::ex_to<GiNaC::function>(g).get_name() == "exp")
+      return;
+    parts.push_back(g);
+  };
+  if (GiNaC::is_a<GiNaC::mul>(fac)) {
+    for (std::size_t i = 0; i < fac.nops(); ++i) add(fac.op(i));
+  } else {
+    add(fac);
+  }
+  // Normalise sign (leading printed term positive) and deduplicate.
+  std::map<std::string, ex> unique;
+  for (auto& f : parts) {
+    std::string s = to_string(f);
+    if (!s.empty() && s[0] == '-') {
+      f = GiNaC::expand(-f);
+      s = to_string(f);
+    }
+    unique.emplace(s, f);
+  }
+  ExVec out;
+  for (auto& [s, f] : unique) out.push_back(f);
+  return out;
+}
+
+namespace {
+
+ExVec denominators(const ExMatrix& O, const Symbols& x) {
+  std::map<std::string, ex> unique;
+  for (const auto& row : O)
+    for (const auto& e : row) {
+      if (!has_denominator_in(e, x)) continue;  // cheap structural test first
+      for (const auto& f : dependent_factors(GiNaC::denom(e), x)) unique.emplace(to_string(f), f);
+    }
+  ExVec out;
+  for (auto& [s, f] : unique) out.push_back(f);
+  return out;
+}
+
+// Rank-drop set and the poles of det O.
+void finish_determinant(Observability& ob, const Symbols& x) {
+  ob.rank_drop = dependent_factors(ob.det, x);
+  for (const auto& f : dependent_factors(GiNaC::denom(GiNaC::normal(ob.det)), x)) {
+    const std::string s = to_string(f);
+    bool seen = false;
+    for (const auto& u : ob.undefined) seen |= to_string(u) == s;
+    if (!seen) ob.undefined.push_back(f);
+  }
+}
+
+struct PointMatrix {
+  std::vector<std::vector<numeric>> a;
+  bool valid = true;
+};
+
+PointMatrix evaluate_matrix(const ExMatrix& O, const GiNaC::exmap& pt, bool exact, int digits) {
+  PointMatrix pm;
+  const numeric rounding = numeric(10).power(-(digits - 10));
+  for (const auto& row : O) {
+    std::vector<numeric> r;
+    for (const auto& e : row) {
+      numeric v;
+      if (exact) {
+        try {
+          const ex val = e.subs(pt);
+          if (!GiNaC::is_a<numeric>(val)) {
+            pm.valid = false;
+            return pm;
+          }
+          v = GiNaC::ex_to<numeric>(val);
+        } catch (const std::exception&) {
+          pm.valid = false;
+          return pm;
+        }
+      } else {
+        numeric mag;
+        if (!evaluate_with_magnitude(e, pt, digits, v, mag)) {
+          pm.valid = false;
+          return pm;
+        }
+        // Zero within rounding: the row scaling below would otherwise blow noise up to 1.
+        if (GiNaC::abs(v) <= rounding * mag) v = 0;
+      }
+      r.push_back(v);
+    }
+    pm.a.push_back(std::move(r));
+  }
+  return pm;
+}
+
+}  // namespace
+
+// Columns c_0, c_1, ... such that row k of a is zero beyond {c_0..c_k} and nonzero at c_k
+// (structurally, on simplified entries), if they exist. Greedy is exact: row k's nonzero
+// columns outside {c_0..c_{k-1}} must be the single column c_k.
+std::optional<std::vector<std::size_t>> triangular_columns(const ExMatrix& a) {
+  const std::size_t n = a.size();
+  std::vector<std::size_t> cols;
+  std::vector<bool> taken(n, false);
+  for (std::size_t k = 0; k < n; ++k) {
+    std::optional<std::size_t> fresh;
+    for (std::size_t c = 0; c < n; ++c) {
+      if (taken[c] || a[k][c].is_zero()) continue;
+      if (fresh) return std::nullopt;
+      fresh = c;
+    }
+    if (!fresh) return std::nullopt;
+    taken[*fresh] = true;
+    cols.push_back(*fresh);
+  }
+  return cols;
+}
+
+namespace {
+
+// lie_chain_with_gradients in the polynomial ring, when f and h live in it: the same
+// (expanded) results, an order of magnitude faster.
+bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
+                       std::vector<ExMatrix>& grads) {
+  ExVec all(m.f);
+  all.insert(all.end(), m.h.begin(), m.h.end());
+  const auto ring = PolyRing::for_expressions(all, m.states);
+  if (!ring) return false;
+  try {
+    std::vector<Poly> field;
+    for (const auto& e : m.f) field.push_back(*ring->from_ex(e));
+    const std::size_t n = m.n();
+    for (std::size_t i = 0; i < m.p(); ++i) {
+      Poly phi = *ring->from_ex(m.h[i]);
+      ExVec chain{ring->to_ex(phi)};
+      for (std::size_t k = 0; k < n; ++k) {
+        std::vector<Poly> grad;
+        ExVec row;
+        for (std::size_t j = 0; j < n; ++j) {
+          grad.push_back(ring->derivative(phi, j));
+          row.push_back(ring->to_ex(grad.back()));
+        }
+        grads[i].push_back(std::move(row));
+        if (k + 1 < n) {
+          phi = PolyRing::dot(grad, field);
+          budget.check(phi.node_estimate());
+          chain.push_back(ring->to_ex(phi));
+        }
+      }
+      lie.push_back(std::move(chain));
+    }
+  } catch (const PolyOverflow&) {
+    return false;
+  }
+  return true;
+}
+
+// Generically nonzero: exactly for rational entries (simplified forms are canonical), by the
+// zero test otherwise.
+bool generically_nonzero(const ex& e, const SampleBoxes& boxes, bool& exact) {
+  if (!has_transcendental(e)) return !simplify(e).is_zero();
+  exact = false;
+  return zero_test(e, boxes) == ZeroVerdict::nonzero;
+}
+
+int permutation_sign(const std::vector<std::size_t>& perm) {
+  int sign = 1;
+  std::vector<bool> seen(perm.size(), false);
+  for (std::size_t i = 0; i < perm.size(); ++i) {
+    if (seen[i]) continue;
+    std::size_t len = 0;
+    for (std::size_t j = i; !seen[j]; j = perm[j], ++len) seen[j] = true;
+    if (len % 2 == 0) sign = -sign;
+  }
+  return sign;
+}
+
+}  // namespace
+
+Observability analyse_observability(const Model& m, Budget& budget,
+                                    const ObservabilityOptions& opt) {
+  Observability ob;
+  ob.n = m.n();
+  ob.p = m.p();
+  const Symbols& x = m.states;
+  // Rows of O per output: the Lie chain's gradients (lie.hpp), in the ring when possible.
+  std::vector<ExMatrix> grads(ob.p);
+  {
+    StageScope stage(budget, "lie");
+    if (!lie_chain_in_ring(m, budget, ob.lie, grads)) {
+      ob.lie.clear();
+      for (std::size_t i = 0; i < ob.p; ++i) {
+        LieChain chain = lie_chain_with_gradients(m.h[i], m.f, x, ob.n, &budget);
+        ob.lie.push_back(std::move(chain.derivatives));
+        grads[i] = std::move(chain.gradients);
+      }
+    }
+  }
+  StageScope stage(budget, "observability");
+  for (std::size_t k = 0; k < ob.n; ++k)
+    for (std::size_t i = 0; i < ob.p; ++i) {
+      ob.O.push_back(std::move(grads[i][k]));
+      ob.rows.push_back({i, k});
+    }
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  ob.undefined = denominators(ob.O, x);
+
+  if (ob.p == 1) {
+    if (const auto cols = triangular_columns(ob.O)) {
+      bool exact = true, regular = true;
+      for (std::size_t k = 0; k < ob.n && regular; ++k)
+        regular = generically_nonzero(ob.O[k][(*cols)[k]], boxes, exact);
+      if (regular) {
+        ob.triangular = true;
+        ob.diag_columns = *cols;
+        ob.rank_exact = exact;
+        ob.generic_rank = ob.n;
+        ob.indices = {ob.n};
+        for (std::size_t k = 0; k < ob.n; ++k) ob.selected.push_back(k);
+        // det = sign(perm) prod_k O[k][c_k]; adj(O) e_n = det O^-1 e_n = det e_{c_n} / O[n][c_n].
+        ex det = permutation_sign(*cols), head = det;
+        for (std::size_t k = 0; k < ob.n; ++k) {
+          det *= ob.O[k][(*cols)[k]];
+          if (k + 1 < ob.n) head *= ob.O[k][(*cols)[k]];
+        }
+        ob.det = det;
+        ob.last_row_cofactors.assign(ob.n, 0);
+        ob.last_row_cofactors[cols->back()] = head;
+        finish_determinant(ob, x);
+        return ob;
+      }
+    }
+  }
+
+  bool exact = true;
+  for (const auto& row : ob.O)
+    for (const auto& e : row)
+      if (has_transcendental(e)) exact = false;
+  ob.rank_exact = exact;
+
+  // Symbols to sample: states and free parameters (O does not depend on u).
+  std::vector<GiNaC::symbol> syms(x);
+  for (const auto& s : m.free_params()) syms.push_back(s);
+  // Several points; some may be invalid (poles, log of negatives): take up to 4x as many.
+  const auto points = sample_points(syms, boxes, opt.rank_points * 4, opt.seed);
+  int used = 0;
+  std::vector<std::vector<numeric>> best_matrix;
+  for (const auto& pt : points) {
+    if (used >= opt.rank_points) break;
+    PointMatrix pm = evaluate_matrix(ob.O, pt, exact, opt.float_digits);
+    if (!pm.valid) continue;
+    ++used;
+    const std::size_t r = numeric_rank(pm.a, exact);
+    if (r > ob.generic_rank || best_matrix.empty()) {
+      ob.generic_rank = std::max(ob.generic_rank, r);
+      best_matrix = pm.a;
+    }
+    budget.check();
+    if (ob.generic_rank == ob.n) break;  // full column rank: no point can show more
+  }
+  if (used == 0)
+    throw UserError(SourceLoc{m.file, 0, 0},
+                    "the observability matrix is undefined at every sampled point of the domain; "
+                    "declare a 'domain' where the model is defined");
+
+  // Observability indices: add rows in k-major order, keeping those that raise the rank.
+  ob.indices.assign(ob.p, 0);
+  std::vector<bool> stopped(ob.p, false);
+  std::vector<std::vector<numeric>> acc;
+  for (std::size_t r = 0; r < ob.O.size(); ++r) {
+    const std::size_t i = ob.rows[r].output;
+    if (stopped[i]) continue;
+    acc.push_back(best_matrix[r]);
+    if (numeric_rank(acc, exact) == acc.size()) {
+      ob.selected.push_back(r);
+      ++ob.indices[i];
+    } else {
+      acc.pop_back();
+      stopped[i] = true;
+    }
+  }
+
+  if (ob.generic_rank == ob.n && ob.selected.size() == ob.n) {
+    // det by cofactor expansion along the last selected row; the cofactors are adj(O) e_n.
+    const std::size_t n = ob.n;
+    ob.last_row_cofactors.assign(n, 0);
+    ex det = 0;
+    for (std::size_t c = 0; c < n; ++c) {
+      GiNaC::matrix minor(n - 1, n - 1);
+      for (std::size_t r = 0; r + 1 < n; ++r)
+        for (std::size_t cc = 0, k = 0; cc < n; ++cc) {
+          if (cc == c) continue;
+          minor(r, k++) = ob.O[ob.selected[r]][cc];
+        }
+      const ex md = n == 1 ? ex(1) : minor.determinant();
+      const ex cof = ((n - 1 + c) % 2 == 0 ? 1 : -1) * md;
+      ob.last_row_cofactors[c] = simplify(cof);
+      det += ob.O[ob.selected[n - 1]][c] * cof;
+      budget.check(expression_size(ob.last_row_cofactors[c]));
+    }
+    ob.det = simplify(det);
+    finish_determinant(ob, x);
+  }
+  return ob;
+}
+
+}  // namespace obsynth

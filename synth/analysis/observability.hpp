@@ -1,0 +1,64 @@
+// Observability: the matrix O of differentials of Lie derivatives, its generic rank decided
+// exactly at seeded random rational points, observability indices for several outputs, and
+// the set where the rank drops (x-dependent factors of det O) or O is undefined (poles).
+#pragma once
+
+#include <ginac/ginac.h>
+
+#include <optional>
+#include <vector>
+
+#include "analysis/budget.hpp"
+#include "front/model.hpp"
+#include "symbolic/lie.hpp"
+
+namespace obsynth {
+
+struct ObservabilityOptions {
+  int rank_points = 3;    // random points; the generic rank is the maximum seen
+  int float_digits = 60;  // for entries with transcendental functions
+  std::uint64_t seed = 0x0b5e7;
+};
+
+struct RowId {
+  std::size_t output;  // 0-based output index
+  std::size_t order;   // k in dL_f^k h_output
+};
+
+struct Observability {
+  std::size_t n = 0, p = 0;
+  std::vector<ExVec> lie;   // lie[i][k] = L_f^k h_i, k = 0..n-1
+  ExMatrix O;               // rows dL_f^k h_i, k-major: (k=0,i=0..p-1), (k=1, ...), ...
+  std::vector<RowId> rows;  // which (output, order) each row of O is
+  std::size_t generic_rank = 0;
+  bool rank_exact = true;  // all entries rational: rank decided in exact arithmetic
+  // O (p = 1) is lower triangular after permuting columns: diag_columns[k] is the column of
+  // row k's diagonal entry. The rank is then decided by testing the n diagonal entries, and
+  // det and the cofactors are products of them.
+  bool triangular = false;
+  std::vector<std::size_t> diag_columns;
+  std::vector<std::size_t> indices;   // observability indices (sum = rank)
+  std::vector<std::size_t> selected;  // rows of O forming a generically regular n x n block
+  // When generic_rank == n: det of the selected block, and the cofactors of its last row
+  // (adj(O_sel) e_n, reused to solve O r = e_n without a second elimination).
+  GiNaC::ex det;
+  ExVec last_row_cofactors;
+  ExVec rank_drop;  // x-dependent factors of det (its zeros are where the rank drops)
+  ExVec undefined;  // x-dependent denominator factors (O undefined on their zeros)
+};
+
+Observability analyse_observability(const Model& m, Budget& budget,
+                                    const ObservabilityOptions& opt = {});
+
+// Rank of a numeric matrix: exact rational elimination, or scaled floating elimination
+// when `exact` is false.
+std::size_t numeric_rank(std::vector<std::vector<GiNaC::numeric>> a, bool exact);
+
+// Columns c_0, c_1, ... making the square matrix a lower triangular (row k zero outside
+// {c_0..c_k}, structurally nonzero at c_k), or nullopt.
+std::optional<std::vector<std::size_t>> triangular_columns(const ExMatrix& a);
+
+// x-dependent irreducible factors of a (rational) expression's numerator, deterministic order.
+ExVec dependent_factors(const GiNaC::ex& e, const Symbols& x);
+
+}  // namespace obsynth

@@ -1,0 +1,419 @@
+#include "app/report.hpp"
+
+#include <fmt/format.h>
+
+#include "symbolic/expr_print.hpp"
+
+namespace obsynth {
+
+using nlohmann::ordered_json;
+
+namespace {
+
+std::vector<std::string> names(const std::vector<GiNaC::symbol>& s) {
+  std::vector<std::string> out;
+  for (const auto& x : s) out.push_back(x.get_name());
+  return out;
+}
+
+ordered_json expr_list(const ExVec& v) {
+  return ordered_json(to_strings(v));
+}
+
+ordered_json residual_json(const BracketCheck& b) {
+  if (b.residual.empty()) return nullptr;  // too large to print: residual_note says why
+  return expr_list(b.residual);
+}
+
+std::string residual_text(const BracketCheck& b) {
+  return b.residual.empty()
+             ? b.residual_note
+             : "[" + fmt::format("{}", fmt::join(to_strings(b.residual), ", ")) + "]";
+}
+
+ordered_json matrix_json(const ExMatrix& M) {
+  ordered_json out = ordered_json::array();
+  for (const auto& row : M) out.push_back(expr_list(row));
+  return out;
+}
+
+std::string vec_text(const ExVec& v) {
+  return "[" + fmt::format("{}", fmt::join(to_strings(v), ", ")) + "]";
+}
+
+std::string vec_latex(const ExVec& v) {
+  std::vector<std::string> parts;
+  for (const auto& e : v) parts.push_back(to_latex(e));
+  return "\\begin{bmatrix}" + fmt::format("{}", fmt::join(parts, " \\\\ ")) + "\\end{bmatrix}";
+}
+
+std::string matrix_latex(const ExMatrix& M) {
+  std::vector<std::string> rows;
+  for (const auto& r : M) {
+    std::vector<std::string> parts;
+    for (const auto& e : r) parts.push_back(to_latex(e));
+    rows.push_back(fmt::format("{}", fmt::join(parts, " & ")));
+  }
+  return "\\begin{bmatrix}" + fmt::format("{}", fmt::join(rows, " \\\\ ")) + "\\end{bmatrix}";
+}
+
+std::string timings_text(const Analysis& a) {
+  std::vector<std::string> t;
+  for (const auto& [stage, ms] : a.timings_ms) t.push_back(fmt::format("{} {:.1f} ms", stage, ms));
+  return fmt::format("{}", fmt::join(t, ", "));
+}
+
+const char* holds_word(bool h) {
+  return h ? "holds" : "FAILS";
+}
+
+std::string rank_method(const Observability& ob) {
+  if (ob.triangular)
+    return ob.rank_exact
+               ? "O triangular up to a column permutation, its diagonal nonzero: decided exactly"
+               : "O triangular up to a column permutation, its diagonal nonzero: decided by the "
+                 "zero test";
+  return ob.rank_exact ? "exact rational arithmetic at random points"
+                       : "60-digit scaled elimination at random points (transcendental entries)";
+}
+
+std::string lie_name(std::size_t k, std::size_t i, std::size_t p) {
+  const std::string h = p == 1 ? "h" : fmt::format("h{}", i + 1);
+  return k == 0 ? h : (k == 1 ? fmt::format("L_f {}", h) : fmt::format("L_f^{} {}", k, h));
+}
+
+}  // namespace
+
+ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
+  const Model& m = a.model;
+  const Observability& ob = a.observability;
+  const CanonicalForm& cf = a.canonical;
+  ordered_json j;
+  j["model"] = m.name;
+  j["states"] = names(m.states);
+  j["inputs"] = names(m.inputs);
+  ordered_json params = ordered_json::array();
+  for (const auto& p : m.params)
+    params.push_back(
+        {{"name", p.name},
+         {"value", p.value ? ordered_json(to_string(*p.value)) : ordered_json(nullptr)}});
+  j["params"] = params;
+  j["f"] = expr_list(m.f);
+  j["g"] = expr_list(m.g);
+  j["h"] = expr_list(m.h);
+  if (ob.p == 1) {
+    j["lie_derivatives"] = expr_list(ob.lie[0]);
+  } else {
+    ordered_json l = ordered_json::array();
+    for (const auto& v : ob.lie) l.push_back(expr_list(v));
+    j["lie_derivatives"] = l;
+  }
+  ordered_json o;
+  o["n"] = ob.n;
+  o["p"] = ob.p;
+  o["generic_rank"] = ob.generic_rank;
+  o["rank_method"] = ob.triangular ? "triangular" : ob.rank_exact ? "exact" : "high-precision";
+  o["matrix"] = matrix_json(ob.O);
+  o["indices"] = ob.indices;
+  o["det"] = ob.generic_rank == ob.n && ob.selected.size() == ob.n ? ordered_json(to_string(ob.det))
+                                                                   : ordered_json(nullptr);
+  o["rank_drop"] = expr_list(ob.rank_drop);
+  o["undefined"] = expr_list(ob.undefined);
+  j["observability"] = o;
+  const bool app = cf.applicable;
+  j["canonical_applicable"] = app;
+  j["canonical_note"] = cf.not_applicable;
+  j["r"] = app ? expr_list(cf.r) : ordered_json(nullptr);
+  if (app) {
+    ordered_json fr = ordered_json::array();
+    for (const auto& t : cf.frame) fr.push_back(expr_list(t));
+    j["frame"] = fr;
+  } else {
+    j["frame"] = nullptr;
+  }
+  ordered_json c;
+  ordered_json drift = ordered_json::array(), input = ordered_json::array();
+  for (const auto& b : cf.drift) {
+    drift.push_back({{"i", b.i},
+                     {"j", b.j},
+                     {"holds", b.holds()},
+                     {"verdict", verdict_name(b.verdict)},
+                     {"residual", residual_json(b)}});
+    if (!b.residual_note.empty()) drift.back()["residual_note"] = b.residual_note;
+  }
+  for (const auto& b : cf.input) {
+    input.push_back({{"j", b.j},
+                     {"holds", b.holds()},
+                     {"verdict", verdict_name(b.verdict)},
+                     {"residual", residual_json(b)}});
+    if (!b.residual_note.empty()) input.back()["residual_note"] = b.residual_note;
+  }
+  c["observable"] = ob.generic_rank == ob.n;
+  c["drift"] = drift;
+  c["input"] = input;
+  c["complete"] = app ? ordered_json(completeness_name(cf.complete)) : ordered_json(nullptr);
+  c["complete_reason"] = cf.complete_reason;
+  j["conditions"] = c;
+  j["linearizable"] = app && cf.linearizable;
+  j["base_point"] = cf.base_point.empty() ? ordered_json(nullptr) : expr_list(cf.base_point);
+  auto map_entry = [&](const char* key, Availability kind, const ExVec& v, ZeroVerdict verdict,
+                       const std::string& note) {
+    j[key] = kind == Availability::symbolic ? expr_list(v) : ordered_json(nullptr);
+    j[std::string(key) + "_info"] = {
+        {"kind", availability_name(kind)},
+        {"verdict", kind == Availability::symbolic ? ordered_json(verdict_name(verdict))
+                                                   : ordered_json(nullptr)},
+        {"note", note}};
+  };
+  map_entry("T", cf.T_kind, cf.T, cf.T_verdict, cf.T_note);
+  map_entry("T_inverse", cf.T_inverse_kind, cf.T_inverse, cf.T_inverse_verdict, cf.T_inverse_note);
+  map_entry("l", cf.l_kind, cf.l, cf.l_verdict, cf.l_note);
+  ordered_json t = ordered_json::object();
+  for (const auto& [stage, ms] : a.timings_ms) t[stage] = opt.timings ? ms : 0.0;
+  j["timings_ms"] = t;
+  return j;
+}
+
+namespace {
+
+std::string render_text(const Analysis& a, const ReportOptions& opt) {
+  const Model& m = a.model;
+  const Observability& ob = a.observability;
+  const CanonicalForm& cf = a.canonical;
+  std::string s;
+  auto line = [&](const std::string& t) { s += t + "\n"; };
+  line(fmt::format("model {}  (n = {} states: {}; m = {} inputs{}{}; p = {} output{})", m.name,
+                   m.n(), fmt::join(names(m.states), ", "), m.m(), m.m() ? ": " : "",
+                   fmt::join(names(m.inputs), ", "), m.p(), m.p() == 1 ? "" : "s"));
+  line(fmt::format("  f = {}", vec_text(m.f)));
+  line(fmt::format("  g = {}", vec_text(m.g)));
+  line(fmt::format("  h = {}", vec_text(m.h)));
+  line("");
+  line("Lie derivatives");
+  for (std::size_t i = 0; i < ob.p; ++i)
+    for (std::size_t k = 0; k < ob.lie[i].size(); ++k)
+      line(fmt::format("  {} = {}", lie_name(k, i, ob.p), to_string(ob.lie[i][k])));
+  line("");
+  line("Observability");
+  for (std::size_t r = 0; r < ob.O.size(); ++r)
+    line(fmt::format("  d({}) = {}", lie_name(ob.rows[r].order, ob.rows[r].output, ob.p),
+                     vec_text(ob.O[r])));
+  line(fmt::format("  generic rank {} of n = {}  ({})", ob.generic_rank, ob.n, rank_method(ob)));
+  if (ob.p > 1) line(fmt::format("  observability indices {}", fmt::join(ob.indices, ", ")));
+  if (ob.generic_rank == ob.n) {
+    line(fmt::format("  det O{} = {}", ob.p > 1 ? " (selected rows)" : "", to_string(ob.det)));
+    line(ob.rank_drop.empty() ? "  the rank never drops"
+                              : fmt::format("  the rank drops where any of these vanish: {}",
+                                            fmt::join(to_strings(ob.rank_drop), "; ")));
+  } else {
+    line(fmt::format("  NOT observable: rank deficit {} everywhere", ob.n - ob.generic_rank));
+  }
+  if (!ob.undefined.empty())
+    line(fmt::format("  O is undefined where any of these vanish: {}",
+                     fmt::join(to_strings(ob.undefined), "; ")));
+  line("");
+  line("Linearization by output injection (observer canonical form)");
+  if (!cf.applicable) {
+    line("  " + cf.not_applicable);
+  } else {
+    line(fmt::format("  r = {}", vec_text(cf.r)));
+    for (std::size_t k = 0; k < cf.frame.size(); ++k)
+      line(fmt::format("  tau_{} = {}", k + 1, vec_text(cf.frame[k])));
+    line(fmt::format("  C1 rank O = n                 holds"));
+    for (const auto& b : cf.drift)
+      line(fmt::format("  C2 [tau_{}, tau_{}] = 0{:>{}}{} ({}){}", b.i, b.j, "",
+                       9 - std::to_string(b.i).size() - std::to_string(b.j).size(),
+                       holds_word(b.holds()), verdict_name(b.verdict),
+                       b.holds() ? "" : fmt::format(": residual {}", residual_text(b))));
+    for (const auto& b : cf.input)
+      line(fmt::format("  C3 [g, tau_{}] = 0{:>{}}{} ({}){}", b.j, "",
+                       14 - std::to_string(b.j).size(), holds_word(b.holds()),
+                       verdict_name(b.verdict),
+                       b.holds() ? "" : fmt::format(": residual {}", residual_text(b))));
+    line(fmt::format("  C4 completeness               {}: {}", completeness_name(cf.complete),
+                     cf.complete_reason));
+    line(cf.linearizable ? "  => linearizable by output injection"
+                         : "  => NOT linearizable by output injection");
+    if (cf.linearizable) {
+      line("");
+      line(fmt::format("Diffeomorphism z = T(x), T(x0) = 0 at x0 = {}", vec_text(cf.base_point)));
+      if (cf.T_kind == Availability::symbolic) line(fmt::format("  T = {}", vec_text(cf.T)));
+      line(fmt::format("  T: {} ({})", availability_name(cf.T_kind), cf.T_note));
+      if (cf.T_inverse_kind == Availability::symbolic)
+        line(fmt::format("  T^-1(z) = {}", vec_text(cf.T_inverse)));
+      line(fmt::format("  T^-1: {} ({})", availability_name(cf.T_inverse_kind), cf.T_inverse_note));
+      if (cf.l_kind == Availability::symbolic) {
+        line("");
+        line("Canonical form (output last)");
+        for (std::size_t i = 0; i < cf.l.size(); ++i)
+          line(fmt::format("  z{}' = {}{}", i + 1, i == 0 ? "" : fmt::format("z{} + ", i),
+                           to_string(cf.l[i])));
+        line(fmt::format("  y = z{}{}", cf.l.size(), cf.base_point.empty() ? "" : " + h(x0)"));
+        line(fmt::format("  l(u, y) free of x: {}", verdict_name(cf.l_verdict)));
+      } else {
+        line(fmt::format("  l: {}", cf.l_note));
+      }
+    }
+  }
+  if (opt.timings) {
+    line("");
+    line("timings: " + timings_text(a));
+  }
+  return s;
+}
+
+std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
+  const Model& m = a.model;
+  const Observability& ob = a.observability;
+  const CanonicalForm& cf = a.canonical;
+  std::string s;
+  auto line = [&](const std::string& t) { s += t + "\n"; };
+  line(fmt::format("# Observer analysis: `{}`", m.name));
+  line("");
+  line(fmt::format("States $x = ({})$, inputs $({})$, {} output{}.",
+                   fmt::join(names(m.states), ", "), fmt::join(names(m.inputs), ", "), m.p(),
+                   m.p() == 1 ? "" : "s"));
+  line("");
+  line(fmt::format("$$f = {}, \\quad g = {}, \\quad h = {}$$", vec_latex(m.f), vec_latex(m.g),
+                   vec_latex(m.h)));
+  line("");
+  line("## Observability");
+  line("");
+  line("| Lie derivative | expression |");
+  line("|---|---|");
+  for (std::size_t i = 0; i < ob.p; ++i)
+    for (std::size_t k = 0; k < ob.lie[i].size(); ++k)
+      line(fmt::format(
+          "| ${}$ | ${}$ |",
+          k == 0 ? (ob.p == 1 ? std::string("h") : fmt::format("h_{}", i + 1))
+                 : fmt::format("L_f^{{{}}} h{}", k, ob.p == 1 ? "" : fmt::format("_{}", i + 1)),
+          to_latex(ob.lie[i][k])));
+  line("");
+  line(fmt::format("$$O(x) = {}$$", matrix_latex(ob.O)));
+  line("");
+  line(fmt::format("- generic rank **{}** of $n = {}$ ({})", ob.generic_rank, ob.n,
+                   rank_method(ob)));
+  if (ob.generic_rank == ob.n) {
+    line(fmt::format("- $\\det O = {}$", to_latex(ob.det)));
+    if (ob.rank_drop.empty()) line("- the rank never drops");
+    for (const auto& f : ob.rank_drop) line(fmt::format("- rank drops on ${} = 0$", to_latex(f)));
+  }
+  for (const auto& f : ob.undefined) line(fmt::format("- $O$ undefined on ${} = 0$", to_latex(f)));
+  line("");
+  line("## Linearization by output injection");
+  line("");
+  if (!cf.applicable) {
+    line(cf.not_applicable);
+  } else {
+    line(fmt::format("$$r = {}$$", vec_latex(cf.r)));
+    line("");
+    line("| condition | verdict | residual |");
+    line("|---|---|---|");
+    line("| C1: rank $O = n$ | holds | |");
+    for (const auto& b : cf.drift)
+      line(fmt::format(
+          "| C2: $[\\tau_{{{}}}, \\tau_{{{}}}] = 0$ | {} ({}) | {} |", b.i, b.j,
+          holds_word(b.holds()), verdict_name(b.verdict),
+          b.holds() ? ""
+                    : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
+    for (const auto& b : cf.input)
+      line(fmt::format(
+          "| C3: $[g, \\tau_{{{}}}] = 0$ | {} ({}) | {} |", b.j, holds_word(b.holds()),
+          verdict_name(b.verdict),
+          b.holds() ? ""
+                    : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
+    line(fmt::format("| C4: completeness | {} | {} |", completeness_name(cf.complete),
+                     cf.complete_reason));
+    line("");
+    line(cf.linearizable ? "**Linearizable by output injection.**"
+                         : "**Not linearizable by output injection.**");
+    if (cf.T_kind == Availability::symbolic) {
+      line("");
+      line(fmt::format("$$T(x) = {}, \\qquad T^{{-1}}(z) = {}$$", vec_latex(cf.T),
+                       cf.T_inverse_kind == Availability::symbolic
+                           ? vec_latex(cf.T_inverse)
+                           : std::string("\\text{(Newton)}")));
+    }
+    if (cf.l_kind == Availability::symbolic) {
+      line("");
+      line(fmt::format("Canonical form $\\dot z = A z + l(u, y)$, $y = z_{}$ with $$l(u,y) = {}$$",
+                       cf.l.size(), vec_latex(cf.l)));
+    }
+  }
+  if (opt.timings) {
+    line("");
+    line("_Timings: " + timings_text(a) + "._");
+  }
+  return s;
+}
+
+std::string render_latex(const Analysis& a) {
+  const Model& m = a.model;
+  const Observability& ob = a.observability;
+  const CanonicalForm& cf = a.canonical;
+  std::string s;
+  auto line = [&](const std::string& t) { s += t + "\n"; };
+  line(fmt::format("% obsynth analysis of model {} (needs amsmath)", m.name));
+  line(fmt::format("\\subsection*{{Observer analysis of \\texttt{{{}}}}}", [&] {
+    std::string e;
+    for (char c : m.name) e += c == '_' ? std::string("\\_") : std::string(1, c);
+    return e;
+  }()));
+  line("\\begin{align*}");
+  line(fmt::format("  f(x) &= {}, & g(x,u) &= {}, & h(x) &= {} \\\\", vec_latex(m.f),
+                   vec_latex(m.g), vec_latex(m.h)));
+  line(fmt::format("  O(x) &= {}, & \\operatorname{{rank}} O &= {}", matrix_latex(ob.O),
+                   ob.generic_rank));
+  if (ob.generic_rank == ob.n) line(fmt::format("  , & \\det O &= {}", to_latex(ob.det)));
+  line("\\end{align*}");
+  if (cf.applicable) {
+    line("\\begin{align*}");
+    line(fmt::format("  r &= {}", vec_latex(cf.r)));
+    for (std::size_t k = 1; k < cf.frame.size(); ++k)
+      line(fmt::format("  \\\\ \\tau_{{{}}} &= {}", k + 1, vec_latex(cf.frame[k])));
+    line("\\end{align*}");
+    line("\\begin{itemize}");
+    for (const auto& b : cf.drift)
+      line(fmt::format("  \\item $[\\tau_{{{}}}, \\tau_{{{}}}] {}$ ({})", b.i, b.j,
+                       b.holds() ? "= 0"
+                                 : (b.residual.empty() ? std::string("\\neq 0")
+                                                       : "= " + vec_latex(b.residual) + " \\neq 0"),
+                       verdict_name(b.verdict)));
+    for (const auto& b : cf.input)
+      line(fmt::format("  \\item $[g, \\tau_{{{}}}] {}$ ({})", b.j,
+                       b.holds() ? "= 0"
+                                 : (b.residual.empty() ? std::string("\\neq 0")
+                                                       : "= " + vec_latex(b.residual) + " \\neq 0"),
+                       verdict_name(b.verdict)));
+    line(fmt::format("  \\item completeness: {}", completeness_name(cf.complete)));
+    line("\\end{itemize}");
+    if (cf.T_kind == Availability::symbolic && cf.l_kind == Availability::symbolic) {
+      line("\\begin{align*}");
+      line(fmt::format("  T(x) &= {}, & l(u,y) &= {}", vec_latex(cf.T), vec_latex(cf.l)));
+      if (cf.T_inverse_kind == Availability::symbolic)
+        line(fmt::format("  \\\\ T^{{-1}}(z) &= {}", vec_latex(cf.T_inverse)));
+      line("\\end{align*}");
+    }
+  } else {
+    line(cf.not_applicable);
+  }
+  return s;
+}
+
+}  // namespace
+
+std::string render_report(const Analysis& a, ReportFormat format, const ReportOptions& opt) {
+  switch (format) {
+    case ReportFormat::json:
+      return report_json(a, opt).dump(2) + "\n";
+    case ReportFormat::text:
+      return render_text(a, opt);
+    case ReportFormat::markdown:
+      return render_markdown(a, opt);
+    case ReportFormat::latex:
+      return render_latex(a);
+  }
+  return {};
+}
+
+}  // namespace obsynth

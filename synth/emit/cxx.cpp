@@ -1,0 +1,316 @@
+#include "emit/cxx.hpp"
+
+#include <fmt/format.h>
+
+#include <cctype>
+#include <cmath>
+#include <functional>
+
+#include "front/diagnostics.hpp"
+
+namespace obsynth {
+
+const char* precision_name(Precision p) {
+  return p == Precision::single ? "float" : "double";
+}
+
+namespace {
+
+const char* const kCxxKeywords[] = {"alignas",       "alignof",     "and",
+                                    "and_eq",        "asm",         "auto",
+                                    "bitand",        "bitor",       "bool",
+                                    "break",         "case",        "catch",
+                                    "char",          "char8_t",     "char16_t",
+                                    "char32_t",      "class",       "compl",
+                                    "concept",       "const",       "consteval",
+                                    "constexpr",     "constinit",   "const_cast",
+                                    "continue",      "co_await",    "co_return",
+                                    "co_yield",      "decltype",    "default",
+                                    "delete",        "do",          "double",
+                                    "dynamic_cast",  "else",        "enum",
+                                    "explicit",      "export",      "extern",
+                                    "false",         "float",       "for",
+                                    "friend",        "goto",        "if",
+                                    "inline",        "int",         "long",
+                                    "mutable",       "namespace",   "new",
+                                    "noexcept",      "not",         "not_eq",
+                                    "nullptr",       "operator",    "or",
+                                    "or_eq",         "private",     "protected",
+                                    "public",        "register",    "reinterpret_cast",
+                                    "requires",      "return",      "short",
+                                    "signed",        "sizeof",      "static",
+                                    "static_assert", "static_cast", "struct",
+                                    "switch",        "template",    "this",
+                                    "thread_local",  "throw",       "true",
+                                    "try",           "typedef",     "typeid",
+                                    "typename",      "union",       "unsigned",
+                                    "using",         "virtual",     "void",
+                                    "volatile",      "wchar_t",     "while",
+                                    "xor",           "xor_eq",      "final",
+                                    "override",      "import",      "module"};
+// Names the generated code itself uses in observer classes and functions.
+const char* const kGeneratedNames[] = {
+    "Scalar", "Eigen",  "std",   "obsynth", "State",    "Input", "Output", "Matrix", "Status",
+    "dt",     "n",      "m",     "p",       "x",        "u",     "y",      "z",      "out",
+    "tau",    "xh",     "zh",    "dz",      "dx",       "K",     "y0",     "jet",    "ujet",
+    "main",   "assert", "errno", "NAN",     "INFINITY", "sin",   "cos",    "tan",    "exp",
+    "log",    "sqrt",   "tanh",  "atan",    "atanh",    "pow",   "abs",    "fabs",   "isfinite"};
+
+bool is_temporary_name(const std::string& s) {
+  if (s.size() < 2 || s[0] != 't') return false;
+  for (std::size_t i = 1; i < s.size(); ++i)
+    if (!std::isdigit(static_cast<unsigned char>(s[i]))) return false;
+  return true;
+}
+
+}  // namespace
+
+Namer::Namer() {
+  for (const char* k : kCxxKeywords) taken_.insert(k);
+  for (const char* k : kGeneratedNames) taken_.insert(k);
+}
+
+std::string Namer::unique(const std::string& wanted) {
+  std::string s = cxx_identifier(wanted);
+  // Temporaries t0, t1, ... and identifiers reserved to the implementation.
+  while (taken_.count(s) || is_temporary_name(s) || (s.size() > 1 && s[0] == '_')) s += "_";
+  taken_.insert(s);
+  return s;
+}
+
+std::string cxx_identifier(const std::string& name) {
+  std::string s;
+  for (char c : name) s += (std::isalnum(static_cast<unsigned char>(c)) || c == '_') ? c : '_';
+  if (s.empty() || std::isdigit(static_cast<unsigned char>(s[0]))) s = "m_" + s;
+  if (s.find("__") != std::string::npos) {
+    std::string t;
+    for (char c : s)
+      if (!(c == '_' && !t.empty() && t.back() == '_')) t += c;
+    s = t;
+  }
+  for (const char* k : kCxxKeywords)
+    if (s == k) return s + "_";
+  return s;
+}
+
+std::string scalar_literal(const GiNaC::numeric& v, Precision p) {
+  if (v.is_integer() && GiNaC::abs(v) < GiNaC::numeric(1L << 24))
+    return fmt::format("Scalar({})", v.to_long());
+  const double d = v.to_double();
+  if (p == Precision::single) {
+    std::string s = fmt::format("{:.9g}", static_cast<float>(d));
+    if (s.find_first_of(".e") == std::string::npos) s += ".0";
+    return "Scalar(" + s + "f)";
+  }
+  std::string s = fmt::format("{:.17g}", d);
+  if (s.find_first_of(".e") == std::string::npos) s += ".0";
+  return "Scalar(" + s + ")";
+}
+
+namespace {
+
+enum Prec { p_sum = 1, p_product = 2, p_unary = 3, p_atom = 4 };
+
+struct Text {
+  std::string s;
+  int prec;
+};
+
+class StatementEmitter {
+ public:
+  StatementEmitter(const Dag& dag, const std::map<std::string, Binding>& bindings,
+                   Precision precision, const std::string& indent)
+      : dag_(dag), bindings_(bindings), precision_(precision), indent_(indent) {}
+
+  EmittedCode run(const std::vector<Assignment>& outputs) {
+    count_uses(outputs);
+    std::string body;
+    for (const auto& a : outputs) {
+      const Text t = expr(a.node);
+      assign_.push_back(fmt::format("{}{} = {};\n", indent_, a.target, t.s));
+    }
+    EmittedCode code;
+    for (const auto& [name, b] : used_vars_)
+      code.text += fmt::format("{}const Scalar {} = {};\n", indent_, b.local, b.source);
+    for (const auto& s : temps_) code.text += s;
+    for (const auto& s : assign_) code.text += s;
+    code.temporaries = temp_count_;
+    code.operations = operations_;
+    return code;
+  }
+
+ private:
+  const Dag& dag_;
+  const std::map<std::string, Binding>& bindings_;
+  Precision precision_;
+  std::string indent_;
+  std::map<int, int> uses_;
+  std::map<int, Text> done_;
+  std::map<std::string, Binding> used_vars_;
+  std::vector<std::string> temps_, assign_;
+  std::size_t temp_count_ = 0, operations_ = 0;
+
+  const Node& node(int id) const { return dag_.node(id); }
+  static bool is_leaf(const Node& n) {
+    return n.op == NodeOp::constant || n.op == NodeOp::variable;
+  }
+
+  void count_uses(const std::vector<Assignment>& outputs) {
+    std::set<int> seen;
+    std::function<void(int)> visit = [&](int id) {
+      ++uses_[id];
+      if (!seen.insert(id).second) return;
+      for (int a : node(id).args) visit(a);
+    };
+    for (const auto& a : outputs) visit(a.node);
+  }
+
+  static std::string wrap(const Text& t, int min_prec) {
+    return t.prec >= min_prec ? t.s : "(" + t.s + ")";
+  }
+
+  Text materialise(int id, Text t) {
+    const Node& n = node(id);
+    if (!is_leaf(n) && (uses_[id] > 1 || t.s.size() > 160)) {
+      const std::string name = fmt::format("t{}", temp_count_++);
+      temps_.push_back(fmt::format("{}const Scalar {} = {};\n", indent_, name, t.s));
+      t = {name, p_atom};
+    }
+    done_[id] = t;
+    return t;
+  }
+
+  // Operand of a repeated product: must be a name or literal.
+  Text atom_operand(int id) {
+    Text t = expr(id);
+    if (t.prec == p_atom && t.s.find_first_of(" (") == std::string::npos) return t;
+    const std::string name = fmt::format("t{}", temp_count_++);
+    temps_.push_back(fmt::format("{}const Scalar {} = {};\n", indent_, name, t.s));
+    Text named{name, p_atom};
+    done_[id] = named;
+    return named;
+  }
+
+  Text expr(int id) {
+    auto d = done_.find(id);
+    if (d != done_.end()) return d->second;
+    const Node& n = node(id);
+    switch (n.op) {
+      case NodeOp::constant: {
+        const GiNaC::numeric& v = n.value;
+        const std::string lit = scalar_literal(GiNaC::abs(v), precision_);
+        return done_[id] = v.is_negative() ? Text{"-" + lit, p_unary} : Text{lit, p_atom};
+      }
+      case NodeOp::variable: {
+        auto it = bindings_.find(n.name);
+        OBSYNTH_ASSERT(it != bindings_.end(), "no binding for variable " + n.name);
+        used_vars_.emplace(n.name, it->second);
+        return done_[id] = Text{it->second.local, p_atom};
+      }
+      case NodeOp::add: {
+        std::string s;
+        for (std::size_t i = 0; i < n.args.size(); ++i) {
+          const Node& a = node(n.args[i]);
+          if (a.op == NodeOp::neg && i > 0) {
+            s += " - " + wrap(expr(a.args[0]), p_product);
+          } else {
+            const Text t = expr(n.args[i]);
+            s += (i ? " + " : "") + (i ? wrap(t, p_product) : t.s);
+          }
+          if (i) ++operations_;
+        }
+        return materialise(id, {s, p_sum});
+      }
+      case NodeOp::mul: {
+        std::string s;
+        for (std::size_t i = 0; i < n.args.size(); ++i) {
+          s += (i ? " * " : "") + wrap(expr(n.args[i]), p_unary);
+          if (i) ++operations_;
+        }
+        return materialise(id, {s, p_product});
+      }
+      case NodeOp::div: {
+        ++operations_;
+        const Text a = expr(n.args[0]), b = expr(n.args[1]);
+        return materialise(id, {wrap(a, p_product) + " / " + wrap(b, p_unary), p_product});
+      }
+      case NodeOp::neg: {
+        ++operations_;
+        return materialise(id, {"-" + wrap(expr(n.args[0]), p_unary), p_unary});
+      }
+      case NodeOp::pow_int: {
+        const Text b = atom_operand(n.args[0]);
+        long k = n.exponent;
+        OBSYNTH_ASSERT(k >= 2, "pow_int exponent below 2");
+        if (k <= 4) {
+          std::string s = b.s;
+          for (long i = 1; i < k; ++i) s += " * " + b.s;
+          operations_ += static_cast<std::size_t>(k - 1);
+          return materialise(id, {s, p_product});
+        }
+        // Square and multiply with named squares.
+        std::string result;
+        std::string sq = b.s;
+        while (k > 0) {
+          if (k & 1) result = result.empty() ? sq : result + " * " + sq;
+          k >>= 1;
+          if (k) {
+            const std::string name = fmt::format("t{}", temp_count_++);
+            temps_.push_back(fmt::format("{}const Scalar {} = {} * {};\n", indent_, name, sq, sq));
+            sq = name;
+            ++operations_;
+          }
+        }
+        return materialise(id, {result, p_product});
+      }
+      case NodeOp::sqrt:
+        ++operations_;
+        return materialise(id, {"std::sqrt(" + expr(n.args[0]).s + ")", p_atom});
+      case NodeOp::pow_real:
+        ++operations_;
+        return materialise(id, {fmt::format("std::pow({}, {})", expr(n.args[0]).s,
+                                            scalar_literal(n.value, precision_)),
+                                p_atom});
+      case NodeOp::call:
+        ++operations_;
+        return materialise(id, {fmt::format("std::{}({})", n.name, expr(n.args[0]).s), p_atom});
+    }
+    OBSYNTH_ASSERT(false, "unknown node kind");
+  }
+};
+
+}  // namespace
+
+EmittedCode emit_statements(const Dag& dag, const std::vector<Assignment>& outputs,
+                            const std::map<std::string, Binding>& bindings, Precision precision,
+                            const std::string& indent) {
+  return StatementEmitter(dag, bindings, precision, indent).run(outputs);
+}
+
+std::string render_template(const std::string& tmpl,
+                            const std::map<std::string, std::string>& values) {
+  std::string out;
+  std::set<std::string> used;
+  std::size_t pos = 0;
+  for (;;) {
+    const std::size_t open = tmpl.find("{{", pos);
+    if (open == std::string::npos) {
+      out += tmpl.substr(pos);
+      break;
+    }
+    const std::size_t close = tmpl.find("}}", open);
+    OBSYNTH_ASSERT(close != std::string::npos, "unterminated placeholder in template");
+    out += tmpl.substr(pos, open - pos);
+    const std::string key = tmpl.substr(open + 2, close - open - 2);
+    auto it = values.find(key);
+    OBSYNTH_ASSERT(it != values.end(), "template placeholder without a value: " + key);
+    out += it->second;
+    used.insert(key);
+    pos = close + 2;
+  }
+  for (const auto& [k, v] : values)
+    OBSYNTH_ASSERT(used.count(k), "template value never used: " + k);
+  return out;
+}
+
+}  // namespace obsynth

@@ -1,0 +1,65 @@
+// C++ emission primitives: a naming component that escapes keywords and clashes, a
+// precision-aware printer that turns DAG nodes into straight-line code with numbered
+// temporaries, and a strict template renderer (all logic stays in C++).
+#pragma once
+
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "emit/dag.hpp"
+
+namespace obsynth {
+
+enum class Precision { single, double_precision };
+const char* precision_name(Precision p);
+
+// Unique C++ identifiers: keywords, names the generated code uses itself, and names
+// already handed out get a trailing underscore (repeated until unique).
+class Namer {
+ public:
+  Namer();
+  std::string unique(const std::string& wanted);
+  bool taken(const std::string& name) const { return taken_.count(name) > 0; }
+
+ private:
+  std::set<std::string> taken_;
+};
+
+// An escaped identifier for a model name (for namespaces and file names).
+std::string cxx_identifier(const std::string& name);
+
+// A floating literal of the given precision for an exact value, wrapped as Scalar(...).
+std::string scalar_literal(const GiNaC::numeric& v, Precision p);
+
+struct Assignment {
+  std::string target;  // e.g. "out(0)"
+  int node;
+};
+
+// A variable of the DAG and how the function reads it.
+struct Binding {
+  std::string local;   // local name in the function (escaped)
+  std::string source;  // e.g. "x(0)"
+};
+
+struct EmittedCode {
+  std::string text;  // statements, one per line, with the given indent
+  std::size_t temporaries = 0;
+  std::size_t operations = 0;  // arithmetic operations and calls (a size measure)
+};
+
+// Straight-line statements computing every assignment. Variables used are first read into
+// const locals; nodes used more than once become numbered temporaries (t0, t1, ... in
+// emission order, which depends only on expression content).
+EmittedCode emit_statements(const Dag& dag, const std::vector<Assignment>& outputs,
+                            const std::map<std::string, Binding>& bindings, Precision precision,
+                            const std::string& indent);
+
+// Replaces {{key}} in a template. Every placeholder must be provided and every provided
+// key must be used; anything else is an internal error (a bug in a template).
+std::string render_template(const std::string& tmpl,
+                            const std::map<std::string, std::string>& values);
+
+}  // namespace obsynth
