@@ -9,7 +9,8 @@
 #   obsynth_add_observer(<target>
 #     MODEL <file.sym>
 #     [METHOD auto | <method>[,<method>...]]   # default auto; e.g. canonical, perfect,
-#                                              # "canonical,perfect" or a CMake list
+#                                              # "canonical,perfect" or a CMake list; obsynth
+#                                              # checks the names (`obsynth --list-methods`)
 #     [PRECISION float|double]                 # literal precision and default Scalar
 #     [POLES -2,-3]                            # canonical error poles (comma list or CMake list)
 #     [REALISATION z|x]                        # canonical observer realisation
@@ -24,10 +25,10 @@
 #   <model>_<method>.hpp (one per method), <model>_report.md, <model>_report.json
 # where <model> is the name in the model's `model NAME` statement (as obsynth spells it in
 # C++: e.g. `model slawinski17` -> slawinski17_canonical.hpp, class
-# obsynth_gen::slawinski17::Slawinski17Canonical). With METHOD auto obsynth picks the design;
-# the function then also writes <model>_auto.hpp, which includes the chosen header and
-# declares obsynth_gen::<model>::AutoObserver<...> (an alias of the chosen class) and
-# obsynth_gen::<model>::auto_method (its method name).
+# obsynth_gen::slawinski17::Slawinski17Canonical). With METHOD auto obsynth picks the design
+# and writes <model>_auto.hpp itself, which includes the chosen header and declares
+# obsynth_gen::<model>::AutoObserver<...> (an alias of the chosen class) and
+# obsynth_gen::<model>::auto_method (its method name): nothing here reads generated files.
 #
 # The output directory is added to <target>'s include directories, <target> links
 # obsynth::runtime (Eigen and the runtime headers), and <target> depends on the generation,
@@ -48,14 +49,6 @@ cmake_policy(VERSION 3.22)
 
 # Note: include_guard(GLOBAL) makes functions global but variables set here would only exist in
 # the directory that first included this file, so constants live in functions.
-
-# Every method name obsynth knows (design.md section 3); the implemented ones are checked by
-# obsynth itself, which prints a diagnostic for the others.
-function(_obsynth_known_methods out_var)
-  set(${out_var}
-      canonical perfect riccati high-gain kalman-theta thau kou extended-linearization finite-time
-      PARENT_SCOPE)
-endfunction()
 
 # The C++ spelling obsynth uses for a model name in file names and namespaces (mirrors
 # cxx_identifier in synth/cxx.cpp): runs of '_' collapse to one, keywords get a '_' suffix.
@@ -101,8 +94,6 @@ function(obsynth_add_observer target)
   set(multi_value METHOD POLES)
   cmake_parse_arguments(PARSE_ARGV 1 arg "" "${one_value}" "${multi_value}")
   set(fn "obsynth_add_observer(${target})")
-  set(this_module "${CMAKE_CURRENT_FUNCTION_LIST_FILE}")
-  _obsynth_known_methods(known_methods)
   set(poles "")
   if(arg_UNPARSED_ARGUMENTS)
     message(FATAL_ERROR "${fn}: unexpected arguments: ${arg_UNPARSED_ARGUMENTS}")
@@ -147,14 +138,9 @@ function(obsynth_add_observer target)
       message(FATAL_ERROR "${fn}: METHOD auto cannot be combined with other methods")
     endif()
     set(auto TRUE)
-  else()
-    foreach(m IN LISTS methods)
-      if(NOT m IN_LIST known_methods)
-        string(REPLACE ";" ", " known "${known_methods}")
-        message(FATAL_ERROR "${fn}: unknown METHOD '${m}' (known: auto, ${known})")
-      endif()
-    endforeach()
   endif()
+  # Method names are checked by obsynth itself against its design registry (a diagnostic at
+  # build time names the known ones).
   string(REPLACE ";" "," methods_csv "${methods}")
 
   set(cli_options "")
@@ -246,20 +232,13 @@ function(obsynth_add_observer target)
   set(reports "${report_md}" "${out_dir}/${stem}_report.json")
   if(auto)
     set(headers "${out_dir}/${stem}_auto.hpp")
-    set(command
-        "${CMAKE_COMMAND}" "-DOBSYNTH_EXE=${exe_command}" "-DOBSYNTH_MODEL=${model}"
-        "-DOBSYNTH_STEM=${stem}" "-DOBSYNTH_OUT_DIR=${out_dir}"
-        "-DOBSYNTH_PRECISION=${arg_PRECISION}" "-DOBSYNTH_POLES=${poles}"
-        "-DOBSYNTH_REALISATION=${arg_REALISATION}" -P "${this_module}")
-    set(extra_depends "${this_module}")
   else()
     set(headers "")
     foreach(m IN LISTS methods)
       list(APPEND headers "${out_dir}/${stem}_${m}.hpp")
     endforeach()
-    set(command "${exe_command}" "${model}" -o "${out_dir}" --method "${methods_csv}" ${cli_options})
-    set(extra_depends "")
   endif()
+  set(command "${exe_command}" "${model}" -o "${out_dir}" --method "${methods_csv}" ${cli_options})
 
   file(RELATIVE_PATH model_rel "${CMAKE_SOURCE_DIR}" "${model}")
   if(model_rel MATCHES "^\\.\\.")
@@ -267,8 +246,10 @@ function(obsynth_add_observer target)
   endif()
   add_custom_command(
     OUTPUT ${headers} ${reports}
+    # A failed run must not leave the headers of an earlier one looking up to date.
+    COMMAND "${CMAKE_COMMAND}" -E rm -f ${headers}
     COMMAND ${command}
-    DEPENDS "${model}" ${exe_depends} ${extra_depends}
+    DEPENDS "${model}" ${exe_depends}
     COMMENT "obsynth: generating ${stem} observer (${methods_csv}) from ${model_rel}"
     VERBATIM)
 
@@ -285,71 +266,5 @@ function(obsynth_add_observer target)
     set(${arg_HEADERS_VAR} "${headers}" PARENT_SCOPE)
   endif()
 endfunction()
-
-# --- script mode: the METHOD auto driver ----------------------------------------------------
-# cmake -DOBSYNTH_EXE=... -DOBSYNTH_MODEL=... -DOBSYNTH_STEM=... -DOBSYNTH_OUT_DIR=...
-#       [-DOBSYNTH_PRECISION=...] [-DOBSYNTH_POLES=...] [-DOBSYNTH_REALISATION=...] -P <this file>
-# Runs `obsynth --method auto`, finds the header it wrote and writes <stem>_auto.hpp.
-if(CMAKE_SCRIPT_MODE_FILE STREQUAL CMAKE_CURRENT_LIST_FILE AND DEFINED OBSYNTH_EXE)
-  set(stem "${OBSYNTH_STEM}")
-  set(out "${OBSYNTH_OUT_DIR}")
-  # Headers of an earlier run: the design obsynth picks may have changed with the model.
-  _obsynth_known_methods(known_methods)
-  set(stale "${out}/${stem}_auto.hpp")
-  foreach(m IN LISTS known_methods)
-    list(APPEND stale "${out}/${stem}_${m}.hpp")
-  endforeach()
-  file(REMOVE ${stale})
-
-  set(options "")
-  if(OBSYNTH_PRECISION)
-    list(APPEND options --precision "${OBSYNTH_PRECISION}")
-  endif()
-  if(OBSYNTH_POLES)
-    list(APPEND options "--poles=${OBSYNTH_POLES}")
-  endif()
-  if(OBSYNTH_REALISATION)
-    list(APPEND options --realisation "${OBSYNTH_REALISATION}")
-  endif()
-  execute_process(COMMAND "${OBSYNTH_EXE}" "${OBSYNTH_MODEL}" -o "${out}" --method auto ${options}
-                  RESULT_VARIABLE rc)
-  if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "obsynth failed (exit status ${rc})")
-  endif()
-
-  set(chosen "")
-  foreach(m IN LISTS known_methods)
-    if(EXISTS "${out}/${stem}_${m}.hpp")
-      list(APPEND chosen "${m}")
-    endif()
-  endforeach()
-  list(LENGTH chosen n_chosen)
-  if(NOT n_chosen EQUAL 1)
-    message(FATAL_ERROR "obsynth --method auto wrote ${n_chosen} headers for '${stem}' into "
-                        "${out} (expected one): '${chosen}'")
-  endif()
-  file(STRINGS "${out}/${stem}_${chosen}.hpp" class_lines REGEX "^class [A-Za-z_][A-Za-z0-9_]* {")
-  list(GET class_lines 0 class_line)
-  string(REGEX MATCH "^class ([A-Za-z_][A-Za-z0-9_]*)" _ "${class_line}")
-  set(class "${CMAKE_MATCH_1}")
-  if(class STREQUAL "")
-    message(FATAL_ERROR "no observer class found in ${out}/${stem}_${chosen}.hpp")
-  endif()
-  file(WRITE "${out}/${stem}_auto.hpp"
-       "// generated by obsynth_add_observer (METHOD auto) from ${OBSYNTH_MODEL} -- do not edit.\n"
-       "// SPDX-License-Identifier: MIT\n"
-       "// obsynth chose the ${chosen} design; see ${stem}_report.md for why.\n"
-       "#pragma once\n\n"
-       "#include \"${stem}_${chosen}.hpp\"\n\n"
-       "namespace obsynth_gen {\n"
-       "namespace ${stem} {\n\n"
-       "/// The method obsynth picked for METHOD auto.\n"
-       "constexpr const char* auto_method = \"${chosen}\";\n\n"
-       "/// The observer class obsynth picked (AutoObserver<> uses the generated default scalar).\n"
-       "template <class... Scalar>\n"
-       "using AutoObserver = ${class}<Scalar...>;\n\n"
-       "}  // namespace ${stem}\n"
-       "}  // namespace obsynth_gen\n")
-endif()
 
 cmake_policy(POP)

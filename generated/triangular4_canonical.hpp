@@ -10,7 +10,7 @@
 // Observer: canonical-form Luenberger observer (Krener-Isidori; seeds 001 §7, 003)
 // Realisation: z coordinates (T and T^-1 are closed-form: the z realisation integrates a linear system)
 // T^-1: closed form
-// Error poles: -2, -5/2, -3, -7/2; K = [105/2, 319/4, 179/4, 11]; integrator RK4 with u, y held over a step
+// Error poles: -2, -5/2, -3, -7/2; K = [105/2, 319/4, 179/4, 11]; integrator exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -18,8 +18,8 @@
 
 #include <cmath>
 
+#include "obsynth/discretise.hpp"
 #include "obsynth/eigen.hpp"
-#include "obsynth/integrators.hpp"
 #include "obsynth/numeric.hpp"
 #include "obsynth/observer.hpp"
 #include "obsynth/status.hpp"
@@ -173,34 +173,34 @@ class Triangular4Canonical {
     status_ = obsynth::all_finite(zh_) ? obsynth::Status::ok : obsynth::Status::non_finite;
   }
 
-  /// One RK4 step of length dt with u and y held over the step.
+  /// One step of length dt with u and y held over it (zero-order hold), exact for the
+  /// linear dynamics w' = A_cl w + c: w <- w + (E w + Gamma c) with E = Phi(dt) - I. E and
+  /// Gamma are recomputed only when dt changes.
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
+    if (!(dt == dt_) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
     State c;
-    F::step_constant(u, y, c);  // l(u, y) + K (y - y0): constant over the step
-    const State z_prev = zh_;
-    obsynth::rk4_step<Scalar, n>([&c](const State& z, State& dz) noexcept { F::z_rhs(z, c, dz); }, dt, zh_);
-    if (!obsynth::all_finite(zh_)) {
-      zh_ = z_prev;
-      return status_ = obsynth::Status::non_finite;
-    }
+    F::step_constant(u, y, c);  // constant over the step
+    const State w = zh_ + (E_ * zh_ + Gamma_ * c);
+    if (!obsynth::all_finite(w)) return status_ = obsynth::Status::non_finite;
+    zh_ = w;
     return status_ = update_estimate();
   }
 
   const State& estimate() const noexcept { return xh_; }
   obsynth::Status status() const noexcept { return status_; }
 
-  /// The observer as a continuous-time system, d/dt zh = derivative(zh, u, y): for
-  /// simulating plant and observer as one ODE (then the error decays exactly as designed).
-  static void derivative(const State& zh, const Input& u, const Output& y, State& dzh) noexcept {
+  /// The observer as a continuous-time system, d/dt w = derivative(w, u, y) for its own state
+  /// w: for simulating plant and observer as one ODE (then the error decays as designed).
+  void derivative(const State& w, const Input& u, const Output& y, State& dw) const noexcept {
     State c;
     F::step_constant(u, y, c);
-    F::z_rhs(zh, c, dzh);
+    F::z_rhs(w, c, dw);
   }
-  /// The observer's own state zh = T(xh), in canonical coordinates.
+  /// The observer's own state: zh = T(xh), in canonical coordinates.
   const State& observer_state() const noexcept { return zh_; }
-  /// Sets zh and recomputes the estimate xh = T^-1(zh).
-  obsynth::Status set_observer_state(const State& zh) noexcept {
-    zh_ = zh;
+  /// Sets the observer's own state and recomputes the estimate.
+  obsynth::Status set_observer_state(const State& w) noexcept {
+    zh_ = w;
     return status_ = update_estimate();
   }
 
@@ -213,8 +213,22 @@ class Triangular4Canonical {
     return obsynth::Status::ok;
   }
 
+  /// E = e^{A_cl dt} - I, Gamma = int_0^dt e^{A_cl s} ds for the closed loop A_cl.
+  bool discretise(Scalar dt) noexcept {
+    Eigen::Matrix<Scalar, n, n> A;
+    A << Scalar(0), Scalar(0), Scalar(0), Scalar(-52.5), Scalar(1), Scalar(0), Scalar(0), Scalar(-79.75), Scalar(0), Scalar(1), Scalar(0), Scalar(-44.75), Scalar(0), Scalar(0), Scalar(1), Scalar(-11);
+    if (!obsynth::discretise_linear<Scalar, n>(A, dt, E_, Gamma_)) {
+      dt_ = Scalar(0);
+      return false;
+    }
+    dt_ = dt;
+    return true;
+  }
+
   State zh_;
   State xh_;
+  Eigen::Matrix<Scalar, n, n> E_, Gamma_;  ///< e^{A_cl dt} - I and Gamma
+  Scalar dt_ = Scalar(0);  ///< dt of E_ and Gamma_ (0: not yet computed)
   obsynth::Status status_ = obsynth::Status::ok;
 };
 

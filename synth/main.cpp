@@ -6,12 +6,15 @@
 #include <iostream>
 
 #include "analysis/analysis.hpp"
+#include "app/design_report.hpp"
 #include "app/output_dir.hpp"
 #include "app/report.hpp"
 #include "app/simulate.hpp"
 #include "app/synthesize.hpp"
 #include "app/worker.hpp"
+#include "designs/registry.hpp"
 #include "emit/cxx.hpp"
+#include "front/bind.hpp"
 #include "front/diagnostics.hpp"
 #include "front/parse.hpp"
 
@@ -102,21 +105,61 @@ GiNaC::numeric parse_real(const std::string& text, const char* option) {
   }
 }
 
+// Design options (--poles, --realisation, ...) come from the registry: each design declares
+// its own, and every subcommand that builds designs accepts them all.
+void add_design_options(CLI::App* app, DesignOptions& o) {
+  for (const auto& info : all_design_options()) {
+    auto* opt = app->add_option("--" + info.name, o.values[info.name], info.help);
+    if (!info.default_text.empty()) opt->default_str(info.default_text);
+  }
+}
+
+// Only the options actually given.
+DesignOptions given(const DesignOptions& o) {
+  DesignOptions out;
+  for (const auto& [k, v] : o.values)
+    if (!v.empty()) out.values[k] = v;
+  return out;
+}
+
+void add_param_option(CLI::App* app, std::vector<std::string>& params) {
+  app->add_option("--param", params,
+                  "bind a free parameter at synthesis time, name=value (repeatable); unbound "
+                  "free parameters are run-time fields of the generated class");
+}
+
+std::string method_help() {
+  std::vector<std::string> names;
+  for (const auto& d : design_registry()) names.push_back(d.name);
+  return fmt::format(
+      "auto, all (every design that applies), or a comma-separated list of: {} (planned: {})",
+      fmt::join(names, ", "), fmt::join(planned_methods(), ", "));
+}
+
+Model load_bound_model(const std::string& path, const std::vector<std::string>& params) {
+  return bind_parameters(load_model(path), params);
+}
+
 struct CheckCommand {
   std::string model, format = "text";
   bool no_timings = false;
+  std::vector<std::string> params;
   CommonOptions common;
 };
 
 struct SimulateCommand {
-  std::string model, method = "canonical", u = "0", x0, xhat0, out, poles, realisation,
-                     sampling = "continuous";
-  double t_end = 10, dt = 1e-3, epsilon = 0.01;
+  std::string model, method = "canonical", u = "0", x0, xhat0, out, sampling = "continuous";
+  double t_end = 10, dt = 1e-3;
+  std::vector<std::string> params;
+  DesignOptions design;
   CommonOptions common;
 };
 
 struct MainJob {
-  std::string model, out, methods = "auto", precision = "double", poles, realisation;
+  std::string model, out, methods = "auto", precision = "double";
+  std::vector<std::string> params;
+  DesignOptions design;
+  bool list_methods = false;
   CommonOptions common;
 };
 
@@ -128,6 +171,7 @@ CLI::App* add_check(CLI::App& app, CheckCommand& c) {
       ->capture_default_str();
   check->add_flag("--no-timings", c.no_timings,
                   "omit stage timings (byte-identical output between runs)");
+  add_param_option(check, c.params);
   add_common(check, c.common);
   return check;
 }
@@ -136,24 +180,22 @@ CLI::App* add_simulate(CLI::App& app, SimulateCommand& c) {
   auto* sim = app.add_subcommand("simulate",
                                  "simulate plant and observer side by side; writes CSV and SVG");
   sim->add_option("model", c.model, "the .sym model file")->required();
-  sim->add_option("--method", c.method, "canonical or perfect")->capture_default_str();
+  sim->add_option("--method", c.method, method_help())->capture_default_str();
   sim->add_option("--u", c.u, "input(s) as expressions in t, comma-separated")
       ->capture_default_str();
   sim->add_option("--x0", c.x0, "initial plant state, comma-separated")->required();
   sim->add_option("--xhat0", c.xhat0, "initial estimate, comma-separated")->required();
   sim->add_option("--t-end", c.t_end, "horizon")->capture_default_str();
   sim->add_option("--dt", c.dt, "step")->capture_default_str();
-  sim->add_option("--poles", c.poles, "canonical observer poles");
-  sim->add_option("--realisation", c.realisation, "z or x")->check(CLI::IsMember({"z", "x"}));
   sim->add_option(
          "--sampling", c.sampling,
          "continuous: plant and observer as one ODE; zoh: the firmware step() with u, y held")
       ->check(CLI::IsMember({"continuous", "zoh"}))
       ->capture_default_str();
-  sim->add_option("--epsilon", c.epsilon, "perfect observer: differentiator time constant")
-      ->capture_default_str();
   sim->add_option("-o,--output", c.out, "output directory for <model>_<method>.csv and .svg")
       ->required();
+  add_design_options(sim, c.design);
+  add_param_option(sim, c.params);
   add_common(sim, c.common);
   return sim;
 }
@@ -161,20 +203,14 @@ CLI::App* add_simulate(CLI::App& app, SimulateCommand& c) {
 void add_main_job(CLI::App& app, MainJob& c) {
   app.add_option("model", c.model, "the .sym model file (main job: generate observers)");
   app.add_option("-o,--output", c.out, "output directory for headers and reports");
-  app.add_option("--method", c.methods,
-                 "auto, or a comma-separated list of: canonical, perfect (riccati, high-gain, "
-                 "kalman-theta, thau, kou, extended-linearization, finite-time: planned)")
-      ->capture_default_str();
+  app.add_option("--method", c.methods, method_help())->capture_default_str();
   app.add_option("--precision", c.precision,
                  "literal precision and default scalar of the generated code")
       ->check(CLI::IsMember({"float", "double"}))
       ->capture_default_str();
-  app.add_option("--poles", c.poles,
-                 "canonical observer error poles, comma-separated negative reals "
-                 "(default -2, -2.5, -3, ...)");
-  app.add_option("--realisation", c.realisation,
-                 "canonical observer realisation: z or x (default: z when T^-1 is closed-form)")
-      ->check(CLI::IsMember({"z", "x"}));
+  app.add_flag("--list-methods", c.list_methods, "list the observer designs and exit");
+  add_design_options(&app, c.design);
+  add_param_option(&app, c.params);
   add_common(&app, c.common);
 }
 
@@ -185,13 +221,21 @@ ReportFormat report_format(const std::string& name) {
                               : ReportFormat::text;
 }
 
+int list_methods() {
+  for (const auto& d : design_registry())
+    std::printf("%-24s %s\n", d.name.c_str(), d.summary.c_str());
+  for (const auto& p : planned_methods())
+    std::printf("%-24s planned (not implemented in this version)\n", p.c_str());
+  return 0;
+}
+
 int run_check(const CheckCommand& c) {
   return guarded(c.common, [&] {
-    const Model m = load_model(c.model);
+    const Model m = load_bound_model(c.model, c.params);
     const Analysis a = analyse(m, analysis_options(c.common));
     ReportOptions ro;
     ro.timings = !c.no_timings;
-    std::fputs(render_report(a, report_format(c.format), ro).c_str(), stdout);
+    std::fputs(render_check(a, report_format(c.format), ro).c_str(), stdout);
     return 0;
   });
 }
@@ -200,25 +244,25 @@ int run_simulate(const SimulateCommand& c) {
   return guarded(c.common, [&] {
     SimulationOptions so;
     so.method = c.method;
+    so.design = given(c.design);
     so.u_text = c.u;
     for (const auto& v : split_list(c.x0)) so.x0.push_back(parse_real(v, "--x0").to_double());
     for (const auto& v : split_list(c.xhat0))
       so.xhat0.push_back(parse_real(v, "--xhat0").to_double());
     so.t_end = c.t_end;
     so.dt = c.dt;
-    so.epsilon = c.epsilon;
     so.sampling = c.sampling == "zoh" ? Sampling::zoh : Sampling::continuous;
-    for (const auto& p : split_list(c.poles))
-      so.canonical.poles.push_back(parse_real(p, "--poles"));
-    if (!c.realisation.empty())
-      so.canonical.realisation = c.realisation == "z" ? Realisation::z : Realisation::x;
-    const Model m = load_model(c.model);
+    const Model m = load_bound_model(c.model, c.params);
     const Analysis a = analyse(m, analysis_options(c.common));
     const SimulationResult r = simulate(a, so);
     const std::string stem = cxx_identifier(m.name) + "_" + c.method;
     write_output_dir(c.out, {{stem + ".csv", r.csv}, {stem + ".svg", r.svg}});
     std::printf("wrote %s/%s.csv and %s.svg\n%s\n", c.out.c_str(), stem.c_str(), stem.c_str(),
                 r.summary.c_str());
+    if (!r.diverged.empty()) {
+      std::fprintf(stderr, "obsynth: error: %s\n", r.diverged.c_str());
+      return 1;
+    }
     return 0;
   });
 }
@@ -233,13 +277,10 @@ int run_main_job(const MainJob& c) {
   return guarded(c.common, [&] {
     SynthesisOptions so;
     so.methods = split_list(c.methods);
+    so.design = given(c.design);
     so.emit.precision = c.precision == "float" ? Precision::single : Precision::double_precision;
     so.emit.source_name = c.model;
-    for (const auto& p : split_list(c.poles))
-      so.canonical.poles.push_back(parse_real(p, "--poles"));
-    if (!c.realisation.empty())
-      so.canonical.realisation = c.realisation == "z" ? Realisation::z : Realisation::x;
-    const Model m = load_model(c.model);
+    const Model m = load_bound_model(c.model, c.params);
     const Analysis a = analyse(m, analysis_options(c.common));
     const Synthesis s = synthesize(a, so);
     write_output_dir(c.out, s.files);
@@ -266,6 +307,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 1;
   }
+  if (job.list_methods) return list_methods();
   if (*check_cmd) return run_check(check);
   if (*sim_cmd) return run_simulate(sim);
   if (!job.model.empty()) return run_main_job(job);

@@ -38,13 +38,13 @@ class Lcg {
 /// Samples in double; convert with SampleArrays<Obs> for a given observer type.
 struct SampleSet {
   int n = 0, m = 0;
-  std::vector<double> dt;         // kSamples
-  std::vector<double> u;          // kSamples * m
-  std::vector<double> y;          // kSamples
-  std::vector<double> x;          // kSamples * n (true state at t_k)
-  std::vector<double> xh0;        // initial estimate (true x0 + offset)
-  bool finite = true;             // plant stayed finite
-  double max_abs_x = 0;           // largest |x_i| along the trajectory
+  std::vector<double> dt;   // kSamples
+  std::vector<double> u;    // kSamples * m
+  std::vector<double> y;    // kSamples
+  std::vector<double> x;    // kSamples * n (true state at t_k)
+  std::vector<double> xh0;  // initial estimate (true x0 + offset)
+  bool finite = true;       // plant stayed finite
+  double max_abs_x = 0;     // largest |x_i| along the trajectory
 };
 
 /// Input signal: two incommensurate sines, amplitude `amp`.
@@ -56,7 +56,7 @@ inline double input_signal(double t, int j, double amp) {
 /// GenD::F::f, ::g, ::h) from x0 and samples it. x0 has GenD::n entries.
 template <class GenD>
 SampleSet simulate_plant(const std::vector<double>& x0, double u_amp, double noise,
-                         std::uint64_t seed) {
+                         std::uint64_t seed, double jitter = 0.1) {
   using F = typename GenD::F;
   using State = typename GenD::State;
   using Input = typename GenD::Input;
@@ -82,12 +82,13 @@ SampleSet simulate_plant(const std::vector<double>& x0, double u_amp, double noi
   };
   double t = 0;
   for (std::size_t k = 0; k < kSamples; ++k) {
-    const double dt = kNominalDt * (1.0 + 0.2 * rng.next());
+    const double dt = kNominalDt * (1.0 + 2 * jitter * rng.next());
     Output y;
     F::h(x, y);
     s.dt[k] = dt;
     s.y[k] = y(0) + noise * rng.next();
-    for (int j = 0; j < m; ++j) s.u[k * m + static_cast<std::size_t>(j)] = input_signal(t, j, u_amp);
+    for (int j = 0; j < m; ++j)
+      s.u[k * m + static_cast<std::size_t>(j)] = input_signal(t, j, u_amp);
     for (int i = 0; i < n; ++i) {
       s.x[k * n + static_cast<std::size_t>(i)] = x(i);
       s.max_abs_x = std::fmax(s.max_abs_x, std::fabs(x(i)));
@@ -106,7 +107,8 @@ SampleSet simulate_plant(const std::vector<double>& x0, double u_amp, double noi
     }
   }
   s.xh0.resize(static_cast<std::size_t>(n));  // initial estimate: 0.05 off in every component
-  for (int i = 0; i < n; ++i) s.xh0[static_cast<std::size_t>(i)] = x0[static_cast<std::size_t>(i)] + 0.05;
+  for (int i = 0; i < n; ++i)
+    s.xh0[static_cast<std::size_t>(i)] = x0[static_cast<std::size_t>(i)] + 0.05;
   return s;
 }
 
@@ -122,10 +124,12 @@ struct SampleArrays {
   explicit SampleArrays(const SampleSet& s) : dt(kSamples), u(kSamples), y(kSamples) {
     for (std::size_t k = 0; k < kSamples; ++k) {
       dt[k] = static_cast<Scalar>(s.dt[k]);
-      for (int j = 0; j < Obs::m; ++j) u[k](j) = static_cast<Scalar>(s.u[k * Obs::m + static_cast<std::size_t>(j)]);
+      for (int j = 0; j < Obs::m; ++j)
+        u[k](j) = static_cast<Scalar>(s.u[k * Obs::m + static_cast<std::size_t>(j)]);
       y[k](0) = static_cast<Scalar>(s.y[k]);
     }
-    for (int i = 0; i < Obs::n; ++i) xh0(i) = static_cast<Scalar>(s.xh0[static_cast<std::size_t>(i)]);
+    for (int i = 0; i < Obs::n; ++i)
+      xh0(i) = static_cast<Scalar>(s.xh0[static_cast<std::size_t>(i)]);
   }
 };
 
@@ -134,6 +138,15 @@ struct SampleArrays {
 template <class GenD>
 const SampleSet& seed003_samples() {
   static const SampleSet s = simulate_plant<GenD>({0.4, -0.3}, 0.25, 1e-3, 3);
+  return s;
+}
+
+/// The same plant sampled with a fixed period (no jitter): the firmware case, where an
+/// observer that caches per-dt data (the generated exact discretisation, the expert's folded
+/// RK4 matrices) computes it once.
+template <class GenD>
+const SampleSet& seed003_samples_fixed_dt() {
+  static const SampleSet s = simulate_plant<GenD>({0.4, -0.3}, 0.25, 1e-3, 3, 0.0);
   return s;
 }
 

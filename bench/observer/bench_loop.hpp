@@ -19,7 +19,8 @@ namespace obsynth_bench {
 /// Estimation error after convergence: max |xh(t_k) - x(t_k)| over the second half of the
 /// samples, and the number of steps whose status was not ok. Run outside the timed loop.
 template <class Obs, class Make>
-void accuracy(const SampleArrays<Obs>& a, const SampleSet& s, Make&& make, double& max_err, int& failures) {
+void accuracy(const SampleArrays<Obs>& a, const SampleSet& s, Make&& make, double& max_err,
+              int& failures) {
   Obs obs = make();
   obs.reset(a.xh0);
   max_err = 0;
@@ -28,13 +29,17 @@ void accuracy(const SampleArrays<Obs>& a, const SampleSet& s, Make&& make, doubl
     failures += obs.step(a.dt[k], a.u[k], a.y[k]) != obsynth::Status::ok;
     if (k >= kSamples / 2)
       for (int i = 0; i < Obs::n; ++i)
-        max_err = std::max(max_err, std::fabs(static_cast<double>(obs.estimate()(i)) -
-                                              s.x[(k + 1) * static_cast<std::size_t>(Obs::n) + static_cast<std::size_t>(i)]));
+        max_err = std::max(
+            max_err,
+            std::fabs(
+                static_cast<double>(obs.estimate()(i)) -
+                s.x[(k + 1) * static_cast<std::size_t>(Obs::n) + static_cast<std::size_t>(i)]));
   }
 }
 
 template <class Obs, class Make>
-void step_benchmark(benchmark::State& st, const SampleArrays<Obs>& a, const SampleSet& s, Make&& make) {
+void step_benchmark(benchmark::State& st, const SampleArrays<Obs>& a, const SampleSet& s,
+                    Make&& make) {
   double max_err = 0;
   int acc_failures = 0;
   accuracy<Obs>(a, s, make, max_err, acc_failures);
@@ -53,8 +58,8 @@ void step_benchmark(benchmark::State& st, const SampleArrays<Obs>& a, const Samp
     i = (i + 1) & (kSamples - 1);
   }
   st.counters["failures"] = static_cast<double>(failures);  // steps with status != ok (timed loop)
-  st.counters["acc_failures"] = acc_failures;                // the same in the accuracy run
-  st.counters["est_err"] = max_err;                          // after convergence, vs the true state
+  st.counters["acc_failures"] = acc_failures;               // the same in the accuracy run
+  st.counters["est_err"] = max_err;                         // after convergence, vs the true state
   st.counters["plant_max_abs_x"] = s.max_abs_x;
   if (!s.finite) st.SetLabel("WARNING: the plant simulation left the finite range");
 }
@@ -67,7 +72,8 @@ namespace obsynth_bench {
 /// cycling through the samples. Returns the number of steps whose status was not ok and leaves
 /// the sum of the final estimate in *checksum.
 template <class Obs, class Make>
-__attribute__((noinline)) long run_steps(const SampleArrays<Obs>& a, Make&& make, std::size_t steps, double* checksum) {
+__attribute__((noinline)) long run_steps(const SampleArrays<Obs>& a, Make&& make, std::size_t steps,
+                                         double* checksum) {
   Obs obs = make();
   obs.reset(a.xh0);
   const auto* dt = a.dt.data();

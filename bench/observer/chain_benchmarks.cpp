@@ -33,13 +33,14 @@ const SampleArrays<Obs<Scalar>>& chain_arrays() {
 
 template <template <class> class Obs>
 void chain_benchmark(benchmark::State& st) {
-  step_benchmark<Obs<Scalar>>(st, chain_arrays<Obs>(), chain_samples<Obs<double>>(), [] { return Obs<Scalar>(); });
+  step_benchmark<Obs<Scalar>>(st, chain_arrays<Obs>(), chain_samples<Obs<double>>(),
+                              [] { return Obs<Scalar>(); });
 }
 
 }  // namespace
 
 void OBSYNTH_CHAIN_REGISTER() {
-#define OBSYNTH_REGISTER_ONE(ns, cls) \
+#define OBSYNTH_REGISTER_ONE(ns, cls)                                                          \
   benchmark::RegisterBenchmark(#ns OBSYNTH_CHAIN_SUFFIX "/" OBSYNTH_STR(OBSYNTH_CHAIN_SCALAR), \
                                chain_benchmark<obsynth_gen::ns::cls>);
   OBSYNTH_CHAINS(OBSYNTH_REGISTER_ONE)
@@ -49,12 +50,12 @@ void OBSYNTH_CHAIN_REGISTER() {
 /// For count_steps: runs `steps` steps of the named chain observer (model name plus the set's
 /// suffix, e.g. chain5_newton_z); false if the name is unknown.
 bool OBSYNTH_CHAIN_COUNT(const char* name, std::size_t steps, long* failures, double* checksum) {
-#define OBSYNTH_COUNT_ONE(ns, cls)                                                                       \
-  if (std::strcmp(name, #ns OBSYNTH_CHAIN_SUFFIX) == 0) {                                                \
-    *failures = run_steps<obsynth_gen::ns::cls<Scalar>>(chain_arrays<obsynth_gen::ns::cls>(),           \
-                                                        [] { return obsynth_gen::ns::cls<Scalar>(); }, \
-                                                        steps, checksum);                                \
-    return true;                                                                                         \
+#define OBSYNTH_COUNT_ONE(ns, cls)                                                           \
+  if (std::strcmp(name, #ns OBSYNTH_CHAIN_SUFFIX) == 0) {                                    \
+    *failures = run_steps<obsynth_gen::ns::cls<Scalar>>(                                     \
+        chain_arrays<obsynth_gen::ns::cls>(), [] { return obsynth_gen::ns::cls<Scalar>(); }, \
+        steps, checksum);                                                                    \
+    return true;                                                                             \
   }
   OBSYNTH_CHAINS(OBSYNTH_COUNT_ONE)
 #undef OBSYNTH_COUNT_ONE

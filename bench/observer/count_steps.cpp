@@ -1,6 +1,6 @@
 // Runs N steps of one observer, for instruction counting under valgrind --tool=callgrind:
 //
-//   count_steps generated|handwritten float|double N          (seed 003 observers)
+//   count_steps generated|handwritten|expert float|double N          (seed 003 observers)
 //   count_steps_chains chain<n>_stable|chain<n>_newton|chain<n>_newton_z float|double N
 //
 // Setup (plant simulation, sample conversion) does not depend on N, so
@@ -17,16 +17,20 @@
 
 namespace obsynth_bench {
 #ifdef OBSYNTH_BENCH_CHAINS
-bool count_chain_steps_double(const char* name, std::size_t steps, long* failures, double* checksum);
+bool count_chain_steps_double(const char* name, std::size_t steps, long* failures,
+                              double* checksum);
 bool count_chain_steps_float(const char* name, std::size_t steps, long* failures, double* checksum);
-bool count_chain_steps_double_z(const char* name, std::size_t steps, long* failures, double* checksum);
-bool count_chain_steps_float_z(const char* name, std::size_t steps, long* failures, double* checksum);
+bool count_chain_steps_double_z(const char* name, std::size_t steps, long* failures,
+                                double* checksum);
+bool count_chain_steps_float_z(const char* name, std::size_t steps, long* failures,
+                               double* checksum);
 #endif
 
 template <class Obs>
 long count_seed003(std::size_t steps, double* checksum) {
   static const SampleArrays<Obs> a(seed003_samples<Generated003<double>>());
-  return run_steps<Obs>(a, [] { return make_observer<Obs>(); }, steps, checksum);
+  return run_steps<Obs>(
+      a, [] { return make_observer<Obs>(); }, steps, checksum);
 }
 
 }  // namespace obsynth_bench
@@ -34,7 +38,7 @@ long count_seed003(std::size_t steps, double* checksum) {
 int main(int argc, char** argv) {
   using namespace obsynth_bench;
   if (argc != 4 || (std::strcmp(argv[2], "float") != 0 && std::strcmp(argv[2], "double") != 0)) {
-    std::fprintf(stderr, "usage: %s generated|handwritten%s float|double N\n", argv[0],
+    std::fprintf(stderr, "usage: %s generated|handwritten|expert%s float|double N\n", argv[0],
 #ifdef OBSYNTH_BENCH_CHAINS
                  "|chain<n>_stable|chain<n>_newton|chain<n>_newton_z"
 #else
@@ -54,6 +58,9 @@ int main(int argc, char** argv) {
   } else if (which == "handwritten") {
     failures = dbl ? count_seed003<Handwritten003<double>>(steps, &checksum)
                    : count_seed003<Handwritten003<float>>(steps, &checksum);
+  } else if (which == "expert") {
+    failures = dbl ? count_seed003<Expert003<double>>(steps, &checksum)
+                   : count_seed003<Expert003<float>>(steps, &checksum);
   } else {
 #ifdef OBSYNTH_BENCH_CHAINS
     const char* w = which.c_str();
@@ -66,10 +73,12 @@ int main(int argc, char** argv) {
       return 2;
     }
 #else
-    std::fprintf(stderr, "unknown observer '%s' (chains are in count_steps_chains)\n", which.c_str());
+    std::fprintf(stderr, "unknown observer '%s' (chains are in count_steps_chains)\n",
+                 which.c_str());
     return 2;
 #endif
   }
-  std::printf("%s %s steps=%zu failures=%ld checksum=%.6e\n", which.c_str(), argv[2], steps, failures, checksum);
+  std::printf("%s %s steps=%zu failures=%ld checksum=%.6e\n", which.c_str(), argv[2], steps,
+              failures, checksum);
   return 0;  // failed steps (e.g. Newton hitting its cap on the first step) are reported, not fatal
 }

@@ -51,7 +51,7 @@ echo "running ${bench} (${REPS} repetitions x ${MIN_TIME} s)..." >&2
   --benchmark_out="${out}/${bench}.json" --benchmark_out_format=json >&2
 
 # ---- instructions ----------------------------------------------------------------------------
-observers=(generated handwritten)
+observers=(generated handwritten expert)
 if (( chains )); then
   for n in 2 3 4 5 6 7 8; do observers+=("chain${n}_stable" "chain${n}_newton" "chain${n}_newton_z"); done
 fi
@@ -90,15 +90,15 @@ for line in open(sys.argv[2]):
         fails[(o, s)] = (int(f), 2 * int(n))
 
 def key(o, s):
-    return f"seed003/{o}/{s}" if o in ("generated", "handwritten") else f"{o}/{s}"
+    return f"seed003/{o}/{s}" if o in ("generated", "handwritten", "expert") else f"{o}/{s}"
 
 ctx = bench["context"]
 print(f"Flags: {ctx.get('compile_flags', '?')}; CPU time, median of the repetitions; "
       f"{ctx.get('num_cpus')} x {ctx.get('mhz_per_cpu')} MHz; load average {ctx.get('load_avg')}")
 print()
-print("| observer | scalar | ns/step | instructions/step | ratio generated/handwritten (ns) | ratio (instructions) |")
+print("| observer | scalar | ns/step | instructions/step | ratio generated/expert (ns) | ratio (instructions) |")
 print("|---|---|---:|---:|---:|---:|")
-for o in ["generated", "handwritten"] + sorted({o for o, _ in ins if o.startswith("chain")},
+for o in ["generated", "handwritten", "expert"] + sorted({o for o, _ in ins if o.startswith("chain")},
                                                 key=lambda c: (int(c[5:].split("_")[0]), c)):
     for s in ("double", "float"):
         if (o, s) not in ins:
@@ -106,9 +106,9 @@ for o in ["generated", "handwritten"] + sorted({o for o, _ in ins if o.startswit
         t = ns.get(key(o, s), float("nan"))
         r_ns = r_in = ""
         if o == "generated":
-            r_ns = f"{t / ns[key('handwritten', s)]:.2f}"
-            r_in = f"{ins[(o, s)] / ins[('handwritten', s)]:.2f}"
-        name = f"seed003 {o}" if o in ("generated", "handwritten") else f"{o} (generated)"
+            r_ns = f"{t / ns[key('expert', s)]:.2f}"
+            r_in = f"{ins[(o, s)] / ins[('expert', s)]:.2f}"
+        name = f"seed003 {o}" if o in ("generated", "handwritten", "expert") else f"{o} (generated)"
         print(f"| {name} | {s} | {t:.1f} | {ins[(o, s)]:.1f} | {r_ns} | {r_in} |")
 
 for (o, s), (f, steps) in sorted(fails.items()):

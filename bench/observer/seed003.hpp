@@ -1,6 +1,8 @@
 // The two seed 003 canonical observers under comparison, configured identically:
 //   generated    obsynth_gen::slawinski17::Slawinski17Canonical<S>  (generated/, default poles)
 //   handwritten  handwritten::seed003::CanonicalObserver<S>          (bench/, poles set here)
+//   expert       handwritten::seed003::ExpertObserver<S>             (bench/expert_seed003.hpp:
+//                RK4 folded into precomputed 2x2 matrices, issue 7's reference step)
 // The generated header uses obsynth's default poles -2, -5/2, i.e. s^2 + 4.5 s + 5 and
 // K = [5, 4.5]; the hand-written one defaults to -2, -3 and is therefore constructed with
 // (-2, -2.5) explicitly. check_seed003_agreement() verifies that both produce the same estimates.
@@ -14,6 +16,7 @@
 #include <type_traits>
 
 #include "bench_common.hpp"
+#include "expert_seed003.hpp"
 #include "handwritten_seed003.hpp"
 #include "slawinski17_canonical.hpp"
 
@@ -23,13 +26,15 @@ template <class S>
 using Generated003 = obsynth_gen::slawinski17::Slawinski17Canonical<S>;
 template <class S>
 using Handwritten003 = handwritten::seed003::CanonicalObserver<S>;
+template <class S>
+using Expert003 = handwritten::seed003::ExpertObserver<S>;
 
 constexpr double kPole1 = -2.0, kPole2 = -2.5;  // obsynth's default for n = 2
 
 template <class Obs>
 Obs make_observer() {
   using S = typename Obs::Scalar;
-  if constexpr (std::is_same_v<Obs, Handwritten003<S>>) {
+  if constexpr (std::is_same_v<Obs, Handwritten003<S>> || std::is_same_v<Obs, Expert003<S>>) {
     return Obs(static_cast<S>(kPole1), static_cast<S>(kPole2));
   } else {
     return Obs();
@@ -51,16 +56,18 @@ struct Agreement {
 
 /// Runs both observers over `steps` samples from the same initial estimate and compares
 /// the estimates after every step.
-template <class S>
+template <class S, class Hand = Handwritten003<S>>
 Agreement check_seed003_agreement(std::size_t steps) {
   const auto& a = seed003_arrays<S>();
   auto gen = make_observer<Generated003<S>>();
-  auto hand = make_observer<Handwritten003<S>>();
-  // the gains must agree: K = [c0, c1] = [5, 4.5]
-  if (hand.c0() != S(5) || hand.c1() != S(4.5)) {
-    std::fprintf(stderr, "hand-written gains (%g, %g) differ from the generated K = [5, 4.5]\n",
-                 static_cast<double>(hand.c0()), static_cast<double>(hand.c1()));
-    std::abort();
+  auto hand = make_observer<Hand>();
+  if constexpr (std::is_same_v<Hand, Handwritten003<S>>) {
+    // the gains must agree: K = [c0, c1] = [5, 4.5]
+    if (hand.c0() != S(5) || hand.c1() != S(4.5)) {
+      std::fprintf(stderr, "hand-written gains (%g, %g) differ from the generated K = [5, 4.5]\n",
+                   static_cast<double>(hand.c0()), static_cast<double>(hand.c1()));
+      std::abort();
+    }
   }
   gen.reset(a.xh0);
   hand.reset(a.xh0);

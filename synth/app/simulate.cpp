@@ -5,7 +5,10 @@
 #include <cmath>
 #include <memory>
 
+#include <unsupported/Eigen/MatrixFunctions>
+
 #include "app/svg_plot.hpp"
+#include "app/synthesize.hpp"
 #include "emit/dag.hpp"
 #include "front/parse.hpp"
 #include "obsynth/differentiator.hpp"
@@ -94,7 +97,7 @@ std::unique_ptr<Jet> make_jet(std::size_t k, double eps) {
   }
 }
 
-// Newton on T(x) = z with [tau] as inverse Jacobian, as the runtime does.
+// Newton on T(x) = z with (dT/dx)^-1 given, as the runtime does.
 Vec newton(const NumericFunction& T, const NumericFunction& frame, const Vec& z, Vec x,
            int iterations, double tol) {
   const std::size_t n = z.size();
@@ -126,13 +129,159 @@ std::string csv_header(const std::vector<std::string>& names) {
 
 }  // namespace
 
-SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
-  const Model& m = a.model;
-  const CanonicalForm& cf = a.canonical;
-  const std::size_t n = m.n();
-  if (!m.free_params().empty())
-    throw UserError(SourceLoc{m.file, 0, 0}, "simulate: free parameter '" +
-                                                 m.free_params()[0].get_name() + "' needs a value");
+namespace {
+
+bool finite(const Vec& v) {
+  for (double d : v)
+    if (!std::isfinite(d)) return false;
+  return true;
+}
+
+// The spec's functions as numeric maps: inputs are the arguments' symbols in order; the
+// run-time parameters are fixed at their values.
+class SpecFunctions {
+ public:
+  SpecFunctions(const ObserverSpec& s, const GiNaC::exmap& params) : s_(s), params_(params) {}
+  const NumericFunction& operator()(const std::string& name) {
+    auto it = cache_.find(name);
+    if (it != cache_.end()) return it->second;
+    const GeneratedFunction* f = s_.function(name);
+    OBSYNTH_ASSERT(f != nullptr, "simulate: the spec has no function " + name);
+    ExVec out = resolved_outputs(*f);
+    for (auto& e : out) e = e.subs(params_);
+    std::vector<std::string> in;
+    for (const auto& arg : f->args)
+      for (const auto& sym : arg.symbols) in.push_back(sym.get_name());
+    return cache_.emplace(name, NumericFunction(out, in)).first->second;
+  }
+
+ private:
+  const ObserverSpec& s_;
+  GiNaC::exmap params_;
+  std::map<std::string, NumericFunction> cache_;
+};
+
+// Phi = e^{A dt}, Gamma = int_0^dt e^{A s} ds from the exponential of [[A, I], [0, 0]] dt
+// (Eigen's Pade-based matrix exponential: independent of the runtime's scaling-and-squaring).
+void exact_discretisation(const ObserverSpec& s, double dt, Eigen::MatrixXd& Phi,
+                          Eigen::MatrixXd& Gamma) {
+  const auto n = static_cast<Eigen::Index>(s.closed_loop.size());
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(2 * n, 2 * n);
+  for (Eigen::Index r = 0; r < n; ++r) {
+    for (Eigen::Index c = 0; c < n; ++c)
+      M(r, c) =
+          s.closed_loop[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)].to_double() * dt;
+    M(r, n + r) = dt;
+  }
+  const Eigen::MatrixXd E = M.exp();
+  Phi = E.topLeftCorner(n, n);
+  Gamma = E.topRightCorner(n, n);
+}
+
+// One observer run: its state w, estimate xh, and how both advance.
+class SpecObserver {
+ public:
+  SpecObserver(const ObserverSpec& s, const GiNaC::exmap& params, const SimulationOptions& o)
+      : s_(s), fn_(s, params), o_(o) {}
+
+  void reset(const Vec& xh0) {
+    xh_ = xh0;
+    w_ = s_.init == InitKind::function ? fn_(s_.roles.init)(xh0) : xh0;
+  }
+  // d/dt w at (w, u, y): the generated derivative().
+  Vec derivative(const Vec& w, const Vec& u, const Vec& y) {
+    if (s_.update == UpdateKind::ode) return fn_(s_.roles.rhs)(concat(concat(w, u), y));
+    return fn_(s_.roles.rhs)(concat(w, fn_(s_.roles.step_constant)(concat(u, y))));
+  }
+  // The firmware step with u, y held over dt.
+  void step(double dt, const Vec& u, const Vec& y) {
+    if (s_.update == UpdateKind::linear_exact && !s_.rk4_for_linear) {
+      if (Phi_.size() == 0) exact_discretisation(s_, dt, Phi_, Gamma_);
+      const Vec c = fn_(s_.roles.step_constant)(concat(u, y));
+      const Eigen::Map<const Eigen::VectorXd> wv(w_.data(), static_cast<Eigen::Index>(w_.size()));
+      const Eigen::Map<const Eigen::VectorXd> cv(c.data(), static_cast<Eigen::Index>(c.size()));
+      const Eigen::VectorXd next = Phi_ * wv + Gamma_ * cv;
+      w_.assign(next.data(), next.data() + next.size());
+    } else {
+      rk4([&](double, const Vec& w) { return derivative(w, u, y); }, 0, dt, w_);
+    }
+    update_estimate();
+  }
+  void set_state(const Vec& w) {
+    w_ = w;
+    update_estimate();
+  }
+  const Vec& state() const { return w_; }
+  const Vec& estimate() const { return xh_; }
+
+ private:
+  void update_estimate() {
+    switch (s_.estimate) {
+      case EstimateKind::identity:
+        xh_ = w_;
+        break;
+      case EstimateKind::function:
+        xh_ = fn_(s_.roles.estimate)(w_);
+        break;
+      case EstimateKind::newton:
+        xh_ = newton(fn_(s_.roles.newton_map), fn_(s_.roles.newton_inverse_jacobian), w_, xh_,
+                     s_.newton_iterations, o_.newton_tolerance);
+        break;
+    }
+  }
+  const ObserverSpec& s_;
+  SpecFunctions fn_;
+  const SimulationOptions& o_;
+  Vec w_, xh_;
+  Eigen::MatrixXd Phi_, Gamma_;
+};
+
+// The jets observer (perfect): differentiators for y and u, then reconstruct and estimate.
+class JetsObserver {
+ public:
+  JetsObserver(const ObserverSpec& s, const GiNaC::exmap& params, const SimulationOptions& o,
+               std::size_t inputs)
+      : s_(s), fn_(s, params), o_(o) {
+    y_ = make_jet(s.y_jet_order, s.default_epsilon);
+    for (std::size_t j = 0; j < inputs; ++j)
+      u_.push_back(make_jet(s.u_jet_order, s.default_epsilon));
+  }
+  void reset(const Vec& xh0, double y0) {
+    xh_ = xh0;
+    y_->reset(y0);
+    for (auto& d : u_) d->reset(0);
+  }
+  void update(double dt, const Vec& u, double y) {
+    y_->update(dt, y);
+    for (std::size_t j = 0; j < u_.size(); ++j) u_[j]->update(dt, u[j]);
+    // Arguments (yj, uj) with uj column-major: order k outer, input j inner.
+    Vec in = y_->jet();
+    const std::size_t orders = s_.u_jet_order + 1;
+    for (std::size_t k = 0; k < orders; ++k)
+      for (const auto& d : u_) in.push_back(d->jet()[k]);
+    const Vec r = fn_(s_.roles.reconstruct)(in);
+    xh_ = s_.estimate == EstimateKind::newton
+              ? newton(fn_(s_.roles.newton_map), fn_(s_.roles.newton_inverse_jacobian), r, xh_,
+                       s_.newton_iterations, o_.newton_tolerance)
+              : r;
+  }
+  const Vec& estimate() const { return xh_; }
+
+ private:
+  const ObserverSpec& s_;
+  SpecFunctions fn_;
+  const SimulationOptions& o_;
+  std::unique_ptr<Jet> y_;
+  std::vector<std::unique_ptr<Jet>> u_;
+  Vec xh_;
+};
+
+struct Plant {
+  NumericFunction field, output, inputs;
+  Vec f(double t, const Vec& x) const { return field(concat(x, inputs({t}))); }
+};
+
+std::size_t step_count(const SimulationOptions& opt, std::size_t n) {
   if (opt.x0.size() != n)
     throw UserError(SourceLoc{}, fmt::format("--x0 needs {} values, got {}", n, opt.x0.size()));
   if (opt.xhat0.size() != n)
@@ -140,135 +289,101 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
                     fmt::format("--xhat0 needs {} values, got {}", n, opt.xhat0.size()));
   if (!(opt.dt > 0) || !(opt.t_end > 0))
     throw UserError(SourceLoc{}, "--dt and --t-end must be positive");
-  const double steps_d = std::ceil(opt.t_end / opt.dt - 1e-9);
-  if (steps_d > 5e7)
+  const double steps = std::ceil(opt.t_end / opt.dt - 1e-9);
+  if (steps > 5e7)
     throw UserError(SourceLoc{}, "simulate: more than 5e7 steps; raise --dt or lower --t-end");
-  const std::size_t steps = static_cast<std::size_t>(steps_d);
+  return static_cast<std::size_t>(steps);
+}
 
+Plant make_plant(const Model& m, const std::string& u_text, const GiNaC::exmap& params) {
   GiNaC::symbol tsym("t");
-  ExVec u_of_t = parse_expression_list(opt.u_text, "--u", {tsym});
-  if (m.m() == 0 && opt.u_text == "0") u_of_t.clear();
+  ExVec u_of_t = parse_expression_list(u_text, "--u", {tsym});
+  if (m.m() == 0 && u_text == "0") u_of_t.clear();
   if (u_of_t.size() != m.m())
     throw UserError(SourceLoc{},
                     fmt::format("--u needs {} expression{} in t (one per input), got {}", m.m(),
                                 m.m() == 1 ? "" : "s", u_of_t.size()));
-  const NumericFunction u_fn(u_of_t, {"t"});
+  ExVec field = m.field(), h = m.h;
+  for (auto& e : field) e = e.subs(params);
+  for (auto& e : h) e = e.subs(params);
+  const auto xn = names_of(m.states);
+  return {NumericFunction(field, concat_names(xn, names_of(m.inputs))), NumericFunction(h, xn),
+          NumericFunction(u_of_t, {"t"})};
+}
 
-  const std::vector<std::string> xn = names_of(m.states), un = names_of(m.inputs);
-  const NumericFunction plant(m.field(), concat_names(xn, un));
-  const NumericFunction output(m.h, xn);
-  SimulationResult res;
-  res.names = xn;
-  auto record = [&](double t, const Vec& x, const Vec& xh) {
+struct Recorder {
+  SimulationResult& res;
+  bool record(double t, const Vec& x, const Vec& xh, const char* observer_part) {
+    if (!finite(x) || !finite(xh)) {
+      res.diverged = fmt::format(
+          "simulate: the {} left the finite numbers at t = {:g}; the run stopped there (the CSV "
+          "and the plot end at t = {:g})",
+          !finite(x) ? "plant" : observer_part, t, res.t.empty() ? 0.0 : res.t.back());
+      return false;
+    }
     res.t.push_back(t);
     res.x.push_back(x);
     res.xh.push_back(xh);
-  };
-
-  Vec x = opt.x0;
-  if (opt.method == "canonical") {
-    const CanonicalDesign d = design_canonical(a, opt.canonical);
-    const std::string yname = cf.y.get_name();
-    // Observer ODE: the same expressions as the generated derivative().
-    NumericFunction obs_rhs, to_state, from_state, T_fn, frame_fn;
-    if (d.realisation == Realisation::z) {
-      ExVec c;
-      for (std::size_t i = 0; i < n; ++i) c.push_back(a.canonical.l[i] + d.K[i] * (cf.y - d.y0));
-      GiNaC::exmap cs;
-      for (std::size_t i = 0; i < n; ++i) cs[d.c[i]] = c[i];
-      ExVec rhs;
-      for (const auto& e : d.z_rhs) rhs.push_back(e.subs(cs));
-      std::vector<std::string> in = names_of(d.zh);
-      in = concat_names(concat_names(in, un), {yname});
-      obs_rhs = NumericFunction(rhs, in);
-      T_fn = NumericFunction(cf.T, xn);
-      if (d.newton_inverse) {
-        frame_fn = NumericFunction(frame_column_major(cf), xn);
-      } else {
-        from_state = NumericFunction(cf.T_inverse, names_of(cf.z));
-      }
-    } else {
-      obs_rhs = NumericFunction(d.x_rhs, concat_names(concat_names(xn, un), {yname}));
-    }
-    auto estimate = [&](const Vec& s, const Vec& seed) -> Vec {
-      if (d.realisation == Realisation::x) return s;
-      if (d.newton_inverse)
-        return newton(T_fn, frame_fn, s, seed, opt.newton_iterations, opt.newton_tolerance);
-      return from_state(s);
-    };
-    Vec s = d.realisation == Realisation::z ? T_fn(opt.xhat0) : opt.xhat0;
-    Vec xh = opt.xhat0;
-    record(0, x, xh);
-    for (std::size_t k = 0; k < steps; ++k) {
-      const double t = static_cast<double>(k) * opt.dt;
-      if (opt.sampling == Sampling::continuous) {
-        // One ODE: [x; s]' = [f + g(x, u(t)); observer(s, u(t), h(x))].
-        Vec xs = concat(x, s);
-        rk4(
-            [&](double tt, const Vec& v) {
-              const Vec xv(v.begin(), v.begin() + static_cast<long>(n));
-              const Vec sv(v.begin() + static_cast<long>(n), v.end());
-              const Vec u = u_fn({tt});
-              const Vec y = output(xv);
-              return concat(plant(concat(xv, u)), obs_rhs(concat(concat(sv, u), y)));
-            },
-            t, opt.dt, xs);
-        x.assign(xs.begin(), xs.begin() + static_cast<long>(n));
-        s.assign(xs.begin() + static_cast<long>(n), xs.end());
-      } else {
-        // Firmware semantics: u_k, y_k held over the step for the observer.
-        const Vec uk = u_fn({t});
-        const Vec yk = output(x);
-        rk4([&](double, const Vec& sv) { return obs_rhs(concat(concat(sv, uk), yk)); }, t, opt.dt,
-            s);
-        rk4([&](double tt, const Vec& xv) { return plant(concat(xv, u_fn({tt}))); }, t, opt.dt, x);
-      }
-      xh = estimate(s, xh);
-      record(static_cast<double>(k + 1) * opt.dt, x, xh);
-    }
-  } else if (opt.method == "perfect") {
-    const PerfectDesign d = design_perfect(a);
-    std::vector<std::string> in;
-    for (const auto& s : d.y_jet) in.push_back(s.get_name());
-    for (const auto& jet : d.u_jet)
-      for (const auto& s : jet) in.push_back(s.get_name());
-    const NumericFunction recon(d.newton_inverse ? d.z : d.x, in);
-    NumericFunction T_fn, frame_fn;
-    if (d.newton_inverse) {
-      T_fn = NumericFunction(cf.T, xn);
-      frame_fn = NumericFunction(frame_column_major(cf), xn);
-    }
-    auto ydiff = make_jet(n - 1, opt.epsilon);
-    std::vector<std::unique_ptr<Jet>> udiff;
-    const std::size_t uk = std::max<std::size_t>(n, 2) - 2;
-    for (std::size_t j = 0; j < m.m(); ++j) udiff.push_back(make_jet(uk, opt.epsilon));
-    ydiff->reset(output(opt.xhat0)[0]);
-    for (auto& dj : udiff) dj->reset(0);
-    Vec xh = opt.xhat0;
-    record(0, x, xh);
-    for (std::size_t k = 0; k < steps; ++k) {
-      const double t = static_cast<double>(k) * opt.dt;
-      rk4([&](double tt, const Vec& xv) { return plant(concat(xv, u_fn({tt}))); }, t, opt.dt, x);
-      const double t1 = static_cast<double>(k + 1) * opt.dt;
-      ydiff->update(opt.dt, output(x)[0]);
-      const Vec u1 = u_fn({t1});
-      for (std::size_t j = 0; j < m.m(); ++j) udiff[j]->update(opt.dt, u1[j]);
-      Vec jets = ydiff->jet();
-      for (auto& dj : udiff) jets = concat(jets, dj->jet());
-      const Vec r = recon(jets);
-      xh = d.newton_inverse
-               ? newton(T_fn, frame_fn, r, xh, opt.newton_iterations, opt.newton_tolerance)
-               : r;
-      record(t1, x, xh);
-    }
-  } else {
-    throw UserError(
-        SourceLoc{},
-        fmt::format("simulate: method '{}' is not implemented (canonical, perfect)", opt.method));
+    return true;
   }
+};
 
-  // CSV with full precision, and the plot.
-  res.csv = csv_header(xn);
+void run_state_observer(const Plant& plant, SpecObserver& obs, const SimulationOptions& opt,
+                        std::size_t steps, Recorder& rec) {
+  const std::size_t n = opt.x0.size();
+  Vec x = opt.x0;
+  obs.reset(opt.xhat0);
+  if (!rec.record(0, x, obs.estimate(), "observer")) return;
+  for (std::size_t k = 0; k < steps; ++k) {
+    const double t = static_cast<double>(k) * opt.dt;
+    if (opt.sampling == Sampling::continuous) {
+      // One ODE: [x; w]' = [f + g(x, u(t)); derivative(w, u(t), h(x))].
+      Vec xw = concat(x, obs.state());
+      rk4(
+          [&](double tt, const Vec& v) {
+            const Vec xv(v.begin(), v.begin() + static_cast<long>(n));
+            const Vec wv(v.begin() + static_cast<long>(n), v.end());
+            const Vec u = plant.inputs({tt});
+            return concat(plant.field(concat(xv, u)), obs.derivative(wv, u, plant.output(xv)));
+          },
+          t, opt.dt, xw);
+      x.assign(xw.begin(), xw.begin() + static_cast<long>(n));
+      obs.set_state(Vec(xw.begin() + static_cast<long>(n), xw.end()));
+    } else {
+      obs.step(opt.dt, plant.inputs({t}), plant.output(x));
+      rk4([&](double tt, const Vec& xv) { return plant.f(tt, xv); }, t, opt.dt, x);
+    }
+    if (!rec.record(static_cast<double>(k + 1) * opt.dt, x, obs.estimate(), "observer")) return;
+  }
+}
+
+void run_jets_observer(const Plant& plant, JetsObserver& obs, const SimulationOptions& opt,
+                       std::size_t steps, Recorder& rec) {
+  Vec x = opt.x0;
+  obs.reset(opt.xhat0, plant.output(opt.xhat0)[0]);
+  if (!rec.record(0, x, obs.estimate(), "observer")) return;
+  for (std::size_t k = 0; k < steps; ++k) {
+    const double t = static_cast<double>(k) * opt.dt, t1 = static_cast<double>(k + 1) * opt.dt;
+    rk4([&](double tt, const Vec& xv) { return plant.f(tt, xv); }, t, opt.dt, x);
+    if (!finite(x)) {
+      rec.record(t1, x, obs.estimate(), "observer");
+      return;
+    }
+    obs.update(opt.dt, plant.inputs({t1}), plant.output(x)[0]);
+    if (!rec.record(t1, x, obs.estimate(), "observer")) return;
+  }
+}
+
+GiNaC::exmap parameter_values(const ObserverSpec& s) {
+  GiNaC::exmap at;
+  for (const auto& p : s.params) at[p.symbol] = p.default_value;
+  return at;
+}
+
+void render_outputs(const Model& m, const SimulationOptions& opt, SimulationResult& res,
+                    std::size_t steps) {
+  const std::size_t n = m.n();
+  res.csv = csv_header(res.names);
   for (std::size_t i = 0; i < res.t.size(); ++i) {
     res.csv += fmt::format("{:.10g}", res.t[i]);
     for (double v : res.x[i]) res.csv += fmt::format(",{:.17g}", v);
@@ -279,7 +394,7 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
       fmt::format("{}: {} observer ({} sampling), u = {}", m.name, opt.method,
                   opt.sampling == Sampling::continuous ? "continuous" : "zero-order hold",
                   opt.u_text),
-      xn, res.t, res.x, res.xh};
+      res.names, res.t, res.x, res.xh};
   res.svg = render_svg(plot);
   double e0 = 0, e1 = 0;
   for (std::size_t k = 0; k < n; ++k) {
@@ -287,7 +402,34 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
     e1 = std::max(e1, std::fabs(res.x.back()[k] - res.xh.back()[k]));
   }
   res.summary = fmt::format("{} steps of {:g}: max |x - x_hat| {:.3e} at t = 0, {:.3e} at t = {:g}",
-                            steps, opt.dt, e0, e1, res.t.back());
+                            res.t.size() - 1, opt.dt, e0, e1, res.t.back());
+  (void)steps;
+}
+
+}  // namespace
+
+SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
+  const Model& m = a.model;
+  const std::size_t steps = step_count(opt, m.n());
+  std::string explanation;
+  const auto methods = resolve_methods(a, {opt.method}, explanation);
+  const ObserverSpec spec = build_design(a, methods.front(), opt.design);
+  const GiNaC::exmap params = parameter_values(spec);
+  const Plant plant = make_plant(m, opt.u_text, params);
+  SimulationResult res;
+  res.names = names_of(m.states);
+  Recorder rec{res};
+  if (spec.update == UpdateKind::jets) {
+    JetsObserver obs(spec, params, opt, m.m());
+    run_jets_observer(plant, obs, opt, steps, rec);
+  } else {
+    SpecObserver obs(spec, params, opt);
+    run_state_observer(plant, obs, opt, steps, rec);
+  }
+  if (res.t.empty())
+    throw UserError(SourceLoc{}, res.diverged.empty() ? "simulate: nothing recorded"
+                                                      : res.diverged + " before the first sample");
+  render_outputs(m, opt, res, steps);
   return res;
 }
 

@@ -1,12 +1,13 @@
-// `obsynth simulate`: plant and observer side by side, the observer evaluated through the
-// same expression DAGs that the emitted C++ is printed from.
+// `obsynth simulate`: plant and observer side by side. The observer is the design's
+// ObserverSpec, evaluated through the same expression DAGs that the emitted code is printed
+// from; the plant is the model's field.
 #pragma once
 
 #include <string>
 #include <vector>
 
 #include "analysis/analysis.hpp"
-#include "designs/observers.hpp"
+#include "designs/spec.hpp"
 
 namespace obsynth {
 
@@ -17,13 +18,11 @@ enum class Sampling {
 
 struct SimulationOptions {
   std::string method = "canonical";
-  CanonicalDesignOptions canonical;
+  DesignOptions design;
   std::string u_text = "0";  // comma-separated expressions in t, one per input
   std::vector<double> x0, xhat0;
   double t_end = 10, dt = 1e-3;
   Sampling sampling = Sampling::continuous;
-  double epsilon = 0.01;  // perfect observer: differentiator time constant
-  int newton_iterations = 8;
   double newton_tolerance = 1e-13;
 };
 
@@ -34,6 +33,9 @@ struct SimulationResult {
   std::string csv;
   std::string svg;
   std::string summary;
+  // Set when the plant or the observer left the finite numbers: the run stopped there and
+  // the CSV and plot end at the last finite sample.
+  std::string diverged;
 };
 
 SimulationResult simulate(const Analysis& a, const SimulationOptions& opt);

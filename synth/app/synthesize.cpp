@@ -4,109 +4,126 @@
 
 #include <algorithm>
 
+#include "app/design_report.hpp"
 #include "app/report.hpp"
-#include "symbolic/expr_print.hpp"
+#include "designs/registry.hpp"
 
 namespace obsynth {
 
-const std::vector<std::string>& all_methods() {
-  static const std::vector<std::string> m = {
-      "canonical",    "perfect", "riccati", "high-gain",
-      "kalman-theta", "thau",    "kou",     "extended-linearization",
-      "finite-time"};
-  return m;
-}
-
-bool is_implemented(const std::string& method) {
-  return method == "canonical" || method == "perfect";
-}
-
 namespace {
 
-std::string why_not_canonical(const Analysis& a) {
-  const auto& cf = a.canonical;
-  if (!cf.applicable) return cf.not_applicable;
-  std::vector<std::string> f;
-  for (const auto& b : cf.drift)
-    if (!b.holds()) f.push_back(fmt::format("[tau_{}, tau_{}] != 0", b.i, b.j));
-  for (const auto& b : cf.input)
-    if (!b.holds()) f.push_back(fmt::format("[g, tau_{}] != 0", b.j));
-  if (!f.empty())
-    return fmt::format("not linearizable by output injection ({})", fmt::join(f, ", "));
-  return cf.l_note;
+std::string known_methods() {
+  std::vector<std::string> names;
+  for (const auto& d : design_registry()) names.push_back(d.name);
+  for (const auto& p : planned_methods()) names.push_back(p);
+  return fmt::format("{}", fmt::join(names, ", "));
 }
 
-std::string later_methods(const Analysis& a) {
-  if (a.observability.generic_rank < a.model.n())
-    return "the model is not observable (generic rank " +
-           std::to_string(a.observability.generic_rank) +
-           " < n): no observer can reconstruct the whole state; reduce the model to its observable "
-           "part";
-  return "designs for observable models that are not linearizable by output injection — riccati "
-         "(James-Baras), high-gain and kalman-theta (Dufour et al.), thau, kou, "
-         "extended-linearization, finite-time — are planned for later versions of obsynth";
+std::string implemented_methods() {
+  std::vector<std::string> names;
+  for (const auto& d : design_registry()) names.push_back(d.name);
+  return fmt::format("{}", fmt::join(names, ", "));
+}
+
+std::string not_observable_note(const Analysis& a) {
+  if (a.observability.generic_rank >= a.model.n()) return "";
+  return fmt::format(
+      "; the model is not observable (generic rank {} < n = {}): no observer can reconstruct the "
+      "whole state; reduce the model to its observable part",
+      a.observability.generic_rank, a.model.n());
+}
+
+std::string choose_auto(const Analysis& a, std::string& explanation) {
+  std::vector<std::string> rejected;
+  for (const auto& d : design_registry()) {
+    const Verdict v = d.applies(a);
+    if (v.applies) {
+      explanation = fmt::format("auto: chose '{}' because {}", d.name, v.text());
+      if (!rejected.empty())
+        explanation += fmt::format(" (rejected before it: {})", fmt::join(rejected, "; "));
+      return d.name;
+    }
+    rejected.push_back(fmt::format("{}: {}", d.name, v.text()));
+  }
+  throw UserError(
+      SourceLoc{a.model.file, 0, 0},
+      fmt::format("no implemented observer design applies to model '{}': {}{}; not implemented "
+                  "yet: {}",
+                  a.model.name, fmt::join(rejected, "; "), not_observable_note(a),
+                  fmt::join(planned_methods(), ", ")));
 }
 
 }  // namespace
 
-Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
-  Synthesis s;
+std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<std::string>& asked,
+                                         std::string& explanation) {
   std::vector<std::string> methods;
-  for (const auto& m : opt.methods) {
-    if (m == "auto") {
-      const auto& cf = a.canonical;
-      if (cf.applicable && cf.linearizable && cf.l_kind == Availability::symbolic) {
-        methods.push_back("canonical");
-        s.explanation =
-            "auto: the bracket conditions hold, so the canonical-form observer applies (its error "
-            "dynamics are exactly linear)";
-      } else {
-        throw UserError(
-            SourceLoc{a.model.file, 0, 0},
-            fmt::format(
-                "no implemented observer design applies to model '{}': canonical form: {}; {}",
-                a.model.name, why_not_canonical(a), later_methods(a)));
-      }
+  for (const auto& m : asked) {
+    std::string name = m;
+    if (m == "all") {
+      for (const auto& d : design_registry())
+        if (d.applies(a).applies &&
+            std::find(methods.begin(), methods.end(), d.name) == methods.end())
+          methods.push_back(d.name);
       continue;
     }
-    if (std::find(all_methods().begin(), all_methods().end(), m) == all_methods().end())
-      throw UserError(SourceLoc{}, fmt::format("unknown method '{}' (known: auto, {})", m,
-                                               fmt::join(all_methods(), ", ")));
-    if (!is_implemented(m))
-      throw UserError(SourceLoc{}, fmt::format("method '{}' is not implemented in this version of "
-                                               "obsynth (implemented: canonical, perfect)",
-                                               m));
-    if (std::find(methods.begin(), methods.end(), m) == methods.end()) methods.push_back(m);
-  }
-  std::vector<std::string> summaries;
-  for (const auto& m : methods) {
-    EmittedHeader h;
-    if (m == "canonical") {
-      const CanonicalDesign d = design_canonical(a, opt.canonical);
-      h = emit_canonical_header(a, d, opt.emit);
-    } else {
-      const PerfectDesign d = design_perfect(a);
-      h = emit_perfect_header(a, d, opt.emit);
+    if (m == "auto") {
+      name = choose_auto(a, explanation);
+    } else if (!find_design(m)) {
+      const auto& planned = planned_methods();
+      if (std::find(planned.begin(), planned.end(), m) != planned.end())
+        throw UserError(SourceLoc{}, fmt::format("method '{}' is not implemented in this version "
+                                                 "of obsynth (implemented: {})",
+                                                 m, implemented_methods()));
+      throw UserError(SourceLoc{}, fmt::format("unknown method '{}' (known: auto, all, {})", m,
+                                               known_methods()));
     }
+    if (std::find(methods.begin(), methods.end(), name) == methods.end()) methods.push_back(name);
+  }
+  return methods;
+}
+
+ObserverSpec build_design(const Analysis& a, const std::string& method, const DesignOptions& o) {
+  const Design* d = find_design(method);
+  OBSYNTH_ASSERT(d != nullptr, "build_design: unresolved method " + method);
+  return d->build(a, o);
+}
+
+Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
+  Synthesis s;
+  const bool auto_asked =
+      std::find(opt.methods.begin(), opt.methods.end(), "auto") != opt.methods.end();
+  s.chosen = resolve_methods(a, opt.methods, s.explanation);
+  std::vector<GeneratedObserver> generated;
+  for (const auto& method : s.chosen) {
+    const ObserverSpec spec = build_design(a, method, opt.design);
+    const EmittedHeader h = emit_cxx_header(a, spec, opt.emit);
     s.files.push_back({h.filename, h.text});
-    summaries.push_back(h.summary);
-    s.chosen.push_back(m);
+    generated.push_back(
+        {method, h.filename, fmt::format("obsynth_gen::{}::{}", h.namespace_name, h.class_name),
+         fmt::format("`{}`: {} `obsynth_gen::{}::{}`, {} arithmetic operations in its functions.",
+                     h.filename, spec.summary, h.namespace_name, h.class_name, h.operations),
+         h.usage_example, spec.report, spec.params});
+    if (auto_asked && method == s.chosen.front()) {
+      const EmittedHeader alias = emit_cxx_auto_alias(a, h, method);
+      s.files.push_back({alias.filename, alias.text});
+    }
   }
   ReportOptions ro;
   ro.timings = false;  // the output directory is byte-identical between runs
-  std::string md = render_report(a, ReportFormat::markdown, ro);
+  std::string md = render_check(a, ReportFormat::markdown, ro);
   md += "\n## Generated observers\n\n";
   if (!s.explanation.empty()) md += s.explanation + ".\n\n";
-  for (const auto& sm : summaries) md += "- " + sm + "\n";
+  for (const auto& g : generated) md += "- " + g.summary + "\n";
   md += fmt::format(
       "\nLiterals are {} precision; every class is a template on the scalar type (float and "
       "double).\n",
       precision_name(opt.emit.precision));
+  md += render_generated_markdown(generated);
   auto j = report_json(a, ro);
-  j["generated"] = nlohmann::ordered_json::array();
-  for (std::size_t i = 0; i < s.chosen.size(); ++i)
-    j["generated"].push_back(
-        {{"method", s.chosen[i]}, {"file", s.files[i].name}, {"summary", summaries[i]}});
+  j["designs"] = design_verdicts_json(a);
+  if (!s.explanation.empty()) j["auto"] = s.explanation;
+  j["generated"] = generated_json(generated);
   const std::string stem = cxx_identifier(a.model.name);
   s.files.push_back({stem + "_report.md", md});
   s.files.push_back({stem + "_report.json", j.dump(2) + "\n"});

@@ -1,4 +1,5 @@
-// The main job as a pure function: analysis -> chosen designs -> header texts and reports.
+// The main job as a pure function: analysis -> chosen designs (registry) -> ObserverSpecs ->
+// header texts and reports.
 #pragma once
 
 #include <string>
@@ -6,14 +7,14 @@
 
 #include "analysis/analysis.hpp"
 #include "app/output_dir.hpp"
-#include "designs/observers.hpp"
-#include "emit/emit_header.hpp"
+#include "designs/spec.hpp"
+#include "emit/emit_cxx.hpp"
 
 namespace obsynth {
 
 struct SynthesisOptions {
   std::vector<std::string> methods = {"auto"};
-  CanonicalDesignOptions canonical;
+  DesignOptions design;
   EmitOptions emit;
 };
 
@@ -23,9 +24,13 @@ struct Synthesis {
   std::string explanation;          // why auto chose what it chose
 };
 
-// Every method name of design.md §3, and whether this version implements it.
-const std::vector<std::string>& all_methods();
-bool is_implemented(const std::string& method);
+// The methods to build: `auto` resolved through the registry (first design that applies, in
+// registry order), names checked. `explanation` says why auto chose what it chose.
+std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<std::string>& asked,
+                                         std::string& explanation);
+
+// Builds the spec of one registered method (UserError when it does not apply).
+ObserverSpec build_design(const Analysis& a, const std::string& method, const DesignOptions& o);
 
 Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt);
 

@@ -85,6 +85,57 @@ int Dag::make(NodeOp op, std::vector<int> args, bool commutative) {
   return intern(std::move(n));
 }
 
+namespace {
+
+bool negative_term(const ex& t) {
+  if (is_a<numeric>(t)) return GiNaC::ex_to<numeric>(t).is_negative();
+  if (is_a<GiNaC::mul>(t))
+    for (std::size_t i = 0; i < t.nops(); ++i)
+      if (is_a<numeric>(t.op(i)) && GiNaC::ex_to<numeric>(t.op(i)).is_negative()) return true;
+  return false;
+}
+
+}  // namespace
+
+// GiNaC's normal() returns a quotient with either sign of its sum factors, differently from
+// run to run ((u - a)/J or -(a - u)/J): each sum factor is put in the sign of the two (S or
+// -S) with fewer negative terms, ties broken by the smaller content hash, the product's sign
+// absorbing the difference, so that the emitted text is deterministic.
+int Dag::canonical_sum(const ex& s, bool& negated) {
+  std::size_t negative = 0;
+  for (std::size_t i = 0; i < s.nops(); ++i) negative += negative_term(s.op(i));
+  const std::size_t positive = s.nops() - negative;
+  const int plus = convert(s);
+  if (negative < positive) {
+    negated = false;
+    return plus;
+  }
+  const int minus = convert_owned(-s);
+  negated = negative > positive || nodes_[static_cast<std::size_t>(minus)].hash <
+                                       nodes_[static_cast<std::size_t>(plus)].hash;
+  return negated ? minus : plus;
+}
+
+// A factor of a product: a sum or an integer power of a sum gets the canonical sign.
+int Dag::factor(const ex& f, bool& negated) {
+  negated = false;
+  if (is_a<GiNaC::add>(f)) return canonical_sum(f, negated);
+  if (is_a<GiNaC::power>(f) && is_a<GiNaC::add>(f.op(0)) && is_a<numeric>(f.op(1)) &&
+      GiNaC::ex_to<numeric>(f.op(1)).is_pos_integer()) {
+    bool base_negated = false;
+    const int base = canonical_sum(f.op(0), base_negated);
+    const long k = GiNaC::ex_to<numeric>(f.op(1)).to_long();
+    negated = base_negated && k % 2 == 1;
+    if (k == 1) return base;
+    Node n;
+    n.op = NodeOp::pow_int;
+    n.args = {base};
+    n.exponent = k;
+    return intern(std::move(n));
+  }
+  return convert(f);
+}
+
 int Dag::add(const ex& e) {
   keep_alive_.push_back(e);
   return convert(e);
@@ -113,14 +164,18 @@ int Dag::convert(const ex& e) {
     numeric coeff = 1;
     for (std::size_t i = 0; i < e.nops(); ++i) {
       const ex f = e.op(i);
+      bool negated = false;
       if (is_a<numeric>(f)) {
         coeff *= GiNaC::ex_to<numeric>(f);
       } else if (is_a<GiNaC::power>(f) && is_a<numeric>(f.op(1)) &&
                  GiNaC::ex_to<numeric>(f.op(1)).is_negative()) {
-        den.push_back(convert_owned(GiNaC::pow(f.op(0), -f.op(1))));
+        const ex positive = GiNaC::pow(f.op(0), -f.op(1));
+        keep_alive_.push_back(positive);
+        den.push_back(factor(keep_alive_.back(), negated));
       } else {
-        num.push_back(convert(f));
+        num.push_back(factor(f, negated));
       }
+      if (negated) coeff = -coeff;
     }
     // One rational literal per product (a multiplication, cheaper than a division).
     const bool negate = coeff.is_negative();
@@ -137,7 +192,14 @@ int Dag::convert(const ex& e) {
     OBSYNTH_ASSERT(is_a<numeric>(x), "symbolic exponents are rejected by the parser");
     const numeric q = GiNaC::ex_to<numeric>(x);
     if (q.is_negative()) {
-      id = make(NodeOp::div, {constant(1), convert_owned(GiNaC::pow(b, -q))}, false);
+      keep_alive_.push_back(GiNaC::pow(b, -q));
+      bool negated = false;
+      id = make(NodeOp::div, {constant(1), factor(keep_alive_.back(), negated)}, false);
+      if (negated) id = make(NodeOp::neg, {id}, false);
+    } else if (q.is_integer() && is_a<GiNaC::add>(b)) {
+      bool negated = false;
+      id = factor(e, negated);
+      if (negated) id = make(NodeOp::neg, {id}, false);
     } else if (q.is_integer()) {
       Node n;
       n.op = NodeOp::pow_int;

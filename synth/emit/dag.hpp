@@ -53,6 +53,8 @@ class Dag {
   int convert(const GiNaC::ex& e);
   int convert_owned(const GiNaC::ex& e);
   int make(NodeOp op, std::vector<int> args, bool commutative);
+  int canonical_sum(const GiNaC::ex& s, bool& negated);
+  int factor(const GiNaC::ex& f, bool& negated);
 
   std::vector<Node> nodes_;
   std::map<std::string, int> index_;  // structural key -> id

@@ -27,7 +27,9 @@ void expect(bool ok, const char* what, double got, double bound) {
   }
 }
 
-double input(double t) { return 0.5 * std::sin(t); }
+double input(double t) {
+  return 0.5 * std::sin(t);
+}
 
 F::State field(const F::State& x, double u) {
   F::State a, b;
@@ -50,7 +52,8 @@ int main() {
     F::State x;
     F::reconstruct(yj, uj, x);
     expect(std::fabs(x(0) - 0.7) < 1e-15, "reconstruct x1 = y", x(0), 0.7);
-    expect(std::fabs(x(1) - (0.4 + 1.7 * 0.3)) < 1e-15, "reconstruct x2 = -y' + (1 + y) u", x(1), 0.4 + 1.7 * 0.3);
+    expect(std::fabs(x(1) - (0.4 + 1.7 * 0.3)) < 1e-15, "reconstruct x2 = -y' + (1 + y) u", x(1),
+           0.4 + 1.7 * 0.3);
   }
   const double eps = 1e-3, dt = 1e-4, t_end = 5;
   Obs obs(eps);
@@ -65,7 +68,8 @@ int main() {
     const double t = k * dt;
     // plant, RK4 with the exact input
     const F::State k1 = field(x, input(t)), k2 = field(x + dt / 2 * k1, input(t + dt / 2)),
-                   k3 = field(x + dt / 2 * k2, input(t + dt / 2)), k4 = field(x + dt * k3, input(t + dt));
+                   k3 = field(x + dt / 2 * k2, input(t + dt / 2)),
+                   k4 = field(x + dt * k3, input(t + dt));
     x += dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
     const double t1 = t + dt;
     F::Input u;
@@ -78,17 +82,21 @@ int main() {
     const double yd = field(x, input(t1))(0);  // y' = x1'
     if (k > 0) max_ydd = std::fmax(max_ydd, std::fabs(yd - yd_prev) / dt);
     yd_prev = yd;
-    if (t1 > 1.0) max_err_tail = std::fmax(max_err_tail, (x - obs.estimate()).cwiseAbs().maxCoeff());
+    if (t1 > 1.0)
+      max_err_tail = std::fmax(max_err_tail, (x - obs.estimate()).cwiseAbs().maxCoeff());
   }
   // x2 = -y' + (1 + y) u: its error is the y' error plus (1 + |u|) times the (much smaller)
   // y error; the documented bias bound of y' is 2 epsilon M_2. 20% margin for the sampled M_2.
   const double bound = 1.2 * (2 * eps * max_ydd) * (1 + 0.5 * eps);
   expect(obs.status() == obsynth::Status::ok, "status ok", 0, 0);
-  expect(max_err_tail <= bound, "error after the start-up transient within the documented bound", max_err_tail, bound);
-  expect(max_err_tail > 0.05 * bound, "the bound is not vacuous (error is of its order)", max_err_tail, 0.05 * bound);
+  expect(max_err_tail <= bound, "error after the start-up transient within the documented bound",
+         max_err_tail, bound);
+  expect(max_err_tail > 0.05 * bound, "the bound is not vacuous (error is of its order)",
+         max_err_tail, 0.05 * bound);
   expect(allocations == 0, "zero allocations per step", static_cast<double>(allocations), 0);
-  std::printf("perfect observer: max error for t > 1: %.3e, documented bound %.3e (epsilon %g, M2 %.3g)\n", max_err_tail,
-              bound, eps, max_ydd);
+  std::printf(
+      "perfect observer: max error for t > 1: %.3e, documented bound %.3e (epsilon %g, M2 %.3g)\n",
+      max_err_tail, bound, eps, max_ydd);
   std::printf("perfect_slawinski17: %d passed, %d failed\n", passed, failed);
   return failed == 0 ? 0 : 1;
 }

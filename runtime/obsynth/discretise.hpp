@@ -1,0 +1,69 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) obsynth authors
+//
+// Exact discretisation of a linear system w' = A w + c with c held over a step (zero-order
+// hold): w(t + dt) = Phi w(t) + Gamma c with
+//   Phi = e^{A dt},   Gamma = int_0^dt e^{A s} ds.
+// It returns E = Phi - I rather than Phi, and the step is taken as an increment,
+//   w <- w + (E w + Gamma c),
+// because for small ||A dt|| the entries of Phi round to 1 + O(eps) in float: the rounding of
+// Phi would act like a perturbation of A of relative size eps / ||A dt|| (1e-4 in float at
+// dt = 1e-4), which a steady input turns into a steady estimation error. E keeps the full
+// relative precision of the small terms (as expm1 does for scalars).
+// Computed by scaling and squaring: the Taylor series of both on h = dt / 2^s with
+// ||A h|| <= 1/2 (terms summed until they no longer change the sum), then s doublings
+//   E(2h) = E(h) (E(h) + 2 I),   Gamma(2h) = Gamma(h) + (E(h) + I) Gamma(h).
+// This is exact up to rounding (no truncation of the time discretisation, unlike RK4), has no
+// heap, and runs only when dt changes.
+#pragma once
+
+#include <cmath>
+
+#include "obsynth/eigen.hpp"
+#include "obsynth/numeric.hpp"
+
+namespace obsynth {
+
+template <class Scalar, int N>
+bool discretise_linear(const Eigen::Matrix<Scalar, N, N>& A, Scalar dt,
+                       Eigen::Matrix<Scalar, N, N>& E,
+                       Eigen::Matrix<Scalar, N, N>& Gamma) noexcept {
+  using Mat = Eigen::Matrix<Scalar, N, N>;
+  if (!is_finite(dt) || !(dt > Scalar(0)) || !all_finite(A)) return false;
+  // ||A dt||_1 (max column sum), halved until <= 1/2.
+  Scalar norm = Scalar(0);
+  for (int c = 0; c < N; ++c) {
+    Scalar col = Scalar(0);
+    for (int r = 0; r < N; ++r) col += std::abs(A(r, c));
+    norm = col > norm ? col : norm;
+  }
+  norm *= dt;
+  int squarings = 0;
+  Scalar h = dt;
+  while (norm > Scalar(0.5) && squarings < 64) {
+    norm *= Scalar(0.5);
+    h *= Scalar(0.5);
+    ++squarings;
+  }
+  // E = sum_{k>=1} (A h)^k / k!,  Gamma = h sum_{k>=0} (A h)^k / (k + 1)!
+  const Mat Ah = A * h;
+  Mat term = Ah;
+  E = Ah;
+  Gamma = Mat::Identity() * h + Ah * (h / Scalar(2));
+  for (int k = 2; k <= 30; ++k) {
+    term = (term * Ah) / Scalar(k);
+    const Mat e_next = E + term;
+    const Mat gamma_next = Gamma + term * (h / Scalar(k + 1));
+    const bool converged = e_next == E && gamma_next == Gamma;
+    E = e_next;
+    Gamma = gamma_next;
+    if (converged) break;
+  }
+  for (int i = 0; i < squarings; ++i) {
+    Gamma = Gamma + Gamma + E * Gamma;
+    E = E * E + E + E;
+  }
+  return all_finite(E) && all_finite(Gamma);
+}
+
+}  // namespace obsynth

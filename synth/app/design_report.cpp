@@ -1,0 +1,124 @@
+#include "app/design_report.hpp"
+
+#include <fmt/format.h>
+
+#include "designs/registry.hpp"
+#include "symbolic/expr_print.hpp"
+
+namespace obsynth {
+
+nlohmann::ordered_json design_verdicts_json(const Analysis& a) {
+  nlohmann::ordered_json j = nlohmann::ordered_json::array();
+  for (const auto& d : design_registry()) {
+    const Verdict v = d.applies(a);
+    j.push_back({{"method", d.name}, {"applies", v.applies}, {"reasons", v.reasons}});
+  }
+  for (const auto& name : planned_methods())
+    j.push_back({{"method", name},
+                 {"applies", nullptr},
+                 {"reasons", {"not implemented in this version of obsynth"}}});
+  return j;
+}
+
+namespace {
+
+std::string verdict_word(const nlohmann::ordered_json& v) {
+  if (v["applies"].is_null()) return "planned";
+  return v["applies"].get<bool>() ? "applies" : "does not apply";
+}
+
+std::string latex_escape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    if (c == '_' || c == '&' || c == '%' || c == '#' || c == '$' || c == '{' || c == '}')
+      out += '\\';
+    if (c == '^') {
+      out += "\\textasciicircum{}";
+      continue;
+    }
+    out += c;
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string render_design_verdicts(const Analysis& a, ReportFormat format) {
+  const auto verdicts = design_verdicts_json(a);
+  std::string out;
+  switch (format) {
+    case ReportFormat::json:
+      return verdicts.dump(2);
+    case ReportFormat::text:
+      out = "\nObserver designs\n";
+      for (const auto& v : verdicts)
+        out += fmt::format("  {:<24} {}: {}\n", v["method"].get<std::string>(), verdict_word(v),
+                           fmt::join(v["reasons"].get<std::vector<std::string>>(), "; "));
+      return out;
+    case ReportFormat::markdown:
+      out = "\n## Observer designs\n\n| method | verdict | why |\n|---|---|---|\n";
+      for (const auto& v : verdicts)
+        out += fmt::format("| `{}` | {} | {} |\n", v["method"].get<std::string>(), verdict_word(v),
+                           fmt::join(v["reasons"].get<std::vector<std::string>>(), "; "));
+      return out;
+    case ReportFormat::latex:
+      out = "\n\\subsection*{Observer designs}\n\\begin{itemize}\n";
+      for (const auto& v : verdicts)
+        out +=
+            fmt::format("  \\item \\texttt{{{}}}: {} ({})\n",
+                        latex_escape(v["method"].get<std::string>()), verdict_word(v),
+                        latex_escape(fmt::format(
+                            "{}", fmt::join(v["reasons"].get<std::vector<std::string>>(), "; "))));
+      return out + "\\end{itemize}\n";
+  }
+  return out;
+}
+
+std::string render_check(const Analysis& a, ReportFormat format, const ReportOptions& opt) {
+  if (format == ReportFormat::json) {
+    auto j = report_json(a, opt);
+    j["designs"] = design_verdicts_json(a);
+    return j.dump(2) + "\n";
+  }
+  return render_report(a, format, opt) + render_design_verdicts(a, format);
+}
+
+nlohmann::ordered_json generated_json(const std::vector<GeneratedObserver>& g) {
+  nlohmann::ordered_json j = nlohmann::ordered_json::array();
+  for (const auto& o : g) {
+    nlohmann::ordered_json rows = nlohmann::ordered_json::object();
+    for (const auto& r : o.rows) rows[r.key] = r.value;
+    nlohmann::ordered_json params = nlohmann::ordered_json::array();
+    for (const auto& p : o.params)
+      params.push_back({{"name", p.name},
+                        {"default", to_string(p.default_value)},
+                        {"default_reason", p.default_reason}});
+    j.push_back({{"method", o.method},
+                 {"file", o.file},
+                 {"class", o.class_name},
+                 {"summary", o.summary},
+                 {"design", rows},
+                 {"runtime_parameters", params},
+                 {"usage_example", o.usage_example}});
+  }
+  return j;
+}
+
+std::string render_generated_markdown(const std::vector<GeneratedObserver>& g) {
+  std::string md;
+  for (const auto& o : g) {
+    md += fmt::format("\n### `{}`: `{}`\n\n{}\n\n", o.method, o.class_name, o.summary);
+    md += "| design | value |\n|---|---|\n";
+    for (const auto& r : o.rows) md += fmt::format("| {} | {} |\n", r.key, r.value);
+    if (!o.params.empty()) {
+      md += "\nRun-time parameters (`Params`, set with `set_params()`):\n\n";
+      for (const auto& p : o.params)
+        md += fmt::format("- `{}`: default {} ({})\n", p.name, to_string(p.default_value),
+                          p.default_reason);
+    }
+    md += fmt::format("\nUsage:\n\n```cpp\n{}```\n", o.usage_example);
+  }
+  return md;
+}
+
+}  // namespace obsynth

@@ -1,0 +1,33 @@
+// The designs part of a report: which registered designs apply to a model and why (check),
+// and the generated observers (main job). Renders what the registry's verdicts and the
+// designs' ObserverSpecs say; nothing is re-derived here.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+#include "analysis/analysis.hpp"
+#include "app/report.hpp"
+#include "designs/spec.hpp"
+
+namespace obsynth {
+
+// One generated observer, as the report shows it.
+struct GeneratedObserver {
+  std::string method, file, class_name, summary, usage_example;
+  std::vector<ReportRow> rows;
+  std::vector<RuntimeParam> params;
+};
+
+nlohmann::ordered_json design_verdicts_json(const Analysis& a);
+std::string render_design_verdicts(const Analysis& a, ReportFormat format);
+
+// The full `check` report: the analysis and the design verdicts.
+std::string render_check(const Analysis& a, ReportFormat format, const ReportOptions& opt);
+
+nlohmann::ordered_json generated_json(const std::vector<GeneratedObserver>& g);
+std::string render_generated_markdown(const std::vector<GeneratedObserver>& g);
+
+}  // namespace obsynth

@@ -1,0 +1,308 @@
+#include "designs/canonical.hpp"
+
+#include <fmt/format.h>
+
+#include "designs/options.hpp"
+#include "symbolic/expr_print.hpp"
+#include "symbolic/symbolic.hpp"
+
+namespace obsynth {
+
+using GiNaC::ex;
+using GiNaC::numeric;
+
+std::vector<numeric> default_poles(std::size_t n) {
+  std::vector<numeric> p;
+  for (std::size_t k = 0; k < n; ++k) p.push_back(-2 - numeric(static_cast<long>(k), 2));
+  return p;
+}
+
+std::vector<numeric> gains_from_poles(const std::vector<numeric>& poles) {
+  GiNaC::symbol s("s");
+  ex poly = 1;
+  for (const auto& q : poles) poly *= (s - q);
+  poly = GiNaC::expand(poly);
+  std::vector<numeric> K;
+  for (std::size_t i = 0; i < poles.size(); ++i)
+    K.push_back(GiNaC::ex_to<numeric>(poly.coeff(s, static_cast<int>(i))));  // K_{i+1} = c_i
+  return K;
+}
+
+ex output_at_base_point(const Analysis& a) {
+  const Model& m = a.model;
+  GiNaC::exmap at_x0;
+  for (std::size_t i = 0; i < m.n() && i < a.canonical.base_point.size(); ++i)
+    at_x0[m.states[i]] = a.canonical.base_point[i];
+  return simplify(m.h[0].subs(at_x0));
+}
+
+std::vector<std::string> canonical_form_failures(const Analysis& a) {
+  const CanonicalForm& cf = a.canonical;
+  if (!cf.applicable) return {cf.not_applicable};
+  std::vector<std::string> failing;
+  for (const auto& b : cf.drift)
+    if (!b.holds()) failing.push_back(fmt::format("[tau_{}, tau_{}] != 0", b.i, b.j));
+  for (const auto& b : cf.input)
+    if (!b.holds()) failing.push_back(fmt::format("[g, tau_{}] != 0", b.j));
+  if (!failing.empty())
+    return {fmt::format("not linearizable by output injection ({})", fmt::join(failing, ", "))};
+  if (cf.l_kind != Availability::symbolic) return {"l(u, y) has no closed form: " + cf.l_note};
+  return {};
+}
+
+namespace {
+
+enum class Realisation { z, x };
+
+struct Choices {
+  std::vector<numeric> poles, K;
+  Realisation realisation = Realisation::z;
+  std::string realisation_reason;
+  bool exact = true;  // z realisation: exact discretisation, else RK4
+};
+
+std::vector<numeric> chosen_poles(const DesignOptions& o, std::size_t n) {
+  std::vector<numeric> poles = real_list_option(o, "poles");
+  if (poles.empty()) return default_poles(n);
+  if (poles.size() != n)
+    throw UserError(SourceLoc{}, fmt::format("--poles: {} poles given, the model has n = {} states",
+                                             poles.size(), n));
+  for (const auto& q : poles)
+    if (!q.is_negative())
+      throw UserError(
+          SourceLoc{},
+          fmt::format("--poles: pole {} is not in the open left half-plane", to_string(q)));
+  return poles;
+}
+
+Choices choose(const Analysis& a, const DesignOptions& o) {
+  const CanonicalForm& cf = a.canonical;
+  Choices c;
+  c.poles = chosen_poles(o, a.model.n());
+  c.K = gains_from_poles(c.poles);
+  const bool T_closed = cf.T_kind == Availability::symbolic;
+  const bool Tinv_closed = cf.T_inverse_kind == Availability::symbolic;
+  if (const auto r = choice_option(o, "realisation", {"z", "x"})) {
+    c.realisation = *r == "z" ? Realisation::z : Realisation::x;
+    c.realisation_reason = "chosen with --realisation";
+    if (c.realisation == Realisation::z && !T_closed)
+      throw UserError(SourceLoc{}, "--realisation z needs T in closed form: " + cf.T_note);
+  } else if (T_closed && Tinv_closed) {
+    c.realisation_reason =
+        "T and T^-1 are closed-form: the z realisation integrates a linear system";
+  } else {
+    c.realisation = Realisation::x;
+    c.realisation_reason = T_closed
+                               ? "T^-1 has no closed form: the x realisation needs no inverse"
+                               : "T has no closed form: the x realisation needs neither T nor T^-1";
+  }
+  c.exact = choice_option(o, "integrator", {"exact", "rk4"}).value_or("exact") == "exact";
+  return c;
+}
+
+std::vector<GiNaC::symbol> numbered(const std::string& stem, std::size_t n) {
+  std::vector<GiNaC::symbol> s;
+  for (std::size_t i = 0; i < n; ++i) s.push_back(GiNaC::symbol(fmt::format("{}{}", stem, i + 1)));
+  return s;
+}
+
+GeneratedFunction fn(const std::string& name, const std::string& doc, std::vector<FunctionArg> args,
+                     ExVec out, std::size_t cols = 1, const std::string& out_type = "State") {
+  GeneratedFunction f;
+  f.name = name;
+  f.doc = doc;
+  f.args = std::move(args);
+  f.out_rows = out.size() / cols;
+  f.out_cols = cols;
+  f.outputs = std::move(out);
+  f.out_type = out_type;
+  return f;
+}
+
+// T, T^-1, l and the frame, as the realisation needs them.
+void add_canonical_maps(const Analysis& a, const Choices& c, ObserverSpec& s) {
+  const Model& m = a.model;
+  const CanonicalForm& cf = a.canonical;
+  const bool zreal = c.realisation == Realisation::z;
+  const bool Tinv_closed = cf.T_inverse_kind == Availability::symbolic;
+  const FunctionArg x = state_arg(m), u = input_arg(m), y = output_arg({cf.y});
+  if (cf.T_kind == Availability::symbolic)
+    s.functions.push_back(
+        fn("T", "Diffeomorphism z = T(x) to observer canonical form, T(x0) = 0.", {x}, cf.T));
+  if (Tinv_closed)
+    s.functions.push_back(fn("T_inverse", "Closed-form inverse x = T^-1(z).",
+                             {vector_arg("z", "State", cf.z)}, cf.T_inverse));
+  s.functions.push_back(
+      fn("l", "Output injection l(u, y) of the canonical form z' = A z + l(u, y).", {u, y}, cf.l));
+  if (!zreal || !Tinv_closed)
+    s.functions.push_back(fn("frame", "Frame [tau_1 ... tau_n](x) = (dT/dx)^-1, columns tau_k.",
+                             {x}, frame_column_major(cf), cf.frame.size(), "Frame"));
+}
+
+void build_z_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
+  const Model& m = a.model;
+  const CanonicalForm& cf = a.canonical;
+  const std::size_t n = m.n();
+  const ex y0 = output_at_base_point(a);
+  const auto zh = numbered("zh", n), cs = numbered("c", n);
+  ExVec step_constant, z_rhs;
+  for (std::size_t i = 0; i < n; ++i) {
+    step_constant.push_back(cf.l[i] + c.K[i] * (cf.y - y0));
+    z_rhs.push_back((i ? ex(zh[i - 1]) : ex(0)) - c.K[i] * zh[n - 1] + cs[i]);
+  }
+  s.functions.push_back(fn("step_constant", "c = l(u, y) + K (y - y0), constant over a step.",
+                           {input_arg(m), output_arg({cf.y})}, step_constant));
+  s.functions.push_back(fn("z_rhs", "zh' = A zh - K zh_n + c (the z-realisation right-hand side).",
+                           {vector_arg("z", "State", zh, FunctionArg::Kind::observer_state),
+                            vector_arg("c", "State", cs)},
+                           z_rhs));
+  s.state_name = "zh";
+  s.state_doc = "zh = T(xh), in canonical coordinates";
+  s.init = InitKind::function;
+  s.roles.init = "T";
+  s.update = UpdateKind::linear_exact;
+  s.rk4_for_linear = !c.exact;
+  s.roles.step_constant = "step_constant";
+  s.roles.rhs = "z_rhs";
+  s.closed_loop.assign(n, std::vector<numeric>(n, 0));
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i > 0) s.closed_loop[i][i - 1] = 1;
+    s.closed_loop[i][n - 1] -= c.K[i];
+  }
+  if (cf.T_inverse_kind == Availability::symbolic) {
+    s.estimate = EstimateKind::function;
+    s.roles.estimate = "T_inverse";
+  } else {
+    s.estimate = EstimateKind::newton;
+    s.roles.newton_map = "T";
+    s.roles.newton_inverse_jacobian = "frame";
+  }
+}
+
+void build_x_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
+  const Model& m = a.model;
+  const CanonicalForm& cf = a.canonical;
+  const std::size_t n = m.n();
+  const ex yhat = m.h[0];
+  const ExVec F = m.field();
+  const GiNaC::exmap y_to_yhat{{cf.y, yhat}};
+  std::vector<ex> v(n);
+  for (std::size_t i = 0; i < n; ++i)
+    v[i] = cf.l[i] - cf.l[i].subs(y_to_yhat) + c.K[i] * (cf.y - yhat);
+  ExVec rhs;
+  for (std::size_t r = 0; r < n; ++r) {
+    ex acc = F[r];
+    for (std::size_t k = 0; k < n; ++k) acc += cf.frame[k][r] * v[k];
+    rhs.push_back(acc);
+  }
+  s.functions.push_back(fn("x_rhs",
+                           "xh' = f + g + [tau](xh) (l(u,y) - l(u,h(xh)) + K (y - h(xh))).",
+                           {state_arg(m), input_arg(m), output_arg({cf.y})}, rhs));
+  s.state_name = "xh";
+  s.state_doc = "the estimate itself";
+  s.init = InitKind::identity;
+  s.update = UpdateKind::ode;
+  s.roles.rhs = "x_rhs";
+  s.estimate = EstimateKind::identity;
+}
+
+std::string numbers_text(const std::vector<numeric>& v) {
+  std::vector<std::string> s;
+  for (const auto& q : v) s.push_back(to_string(q));
+  return fmt::format("{}", fmt::join(s, ", "));
+}
+
+void describe(const Analysis& a, const Choices& c, ObserverSpec& s) {
+  const bool zreal = c.realisation == Realisation::z;
+  const bool newton = s.estimate == EstimateKind::newton;
+  s.title = zreal ? "Canonical-form Luenberger observer, realised in z coordinates"
+                  : "Canonical-form Luenberger observer, realised in the original coordinates";
+  s.description.push_back(
+      "Observer: canonical-form Luenberger observer (Krener-Isidori; seeds 001 §7, 003)");
+  s.description.push_back(fmt::format("Realisation: {} ({})",
+                                      zreal ? "z coordinates" : "original coordinates",
+                                      c.realisation_reason));
+  if (zreal)
+    s.description.push_back(fmt::format(
+        "T^-1: {}", newton ? "runtime Newton with [tau] as inverse Jacobian" : "closed form"));
+  const std::string integrator =
+      !zreal    ? "RK4 with u, y held over a step"
+      : c.exact ? "exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)"
+                : "RK4 with u, y held over a step";
+  s.description.push_back(fmt::format("Error poles: {}; K = [{}]; integrator {}",
+                                      numbers_text(c.poles), numbers_text(c.K), integrator));
+  if (zreal)
+    s.class_doc = {"  zh' = A zh + l(u, y) + K (y - y0 - zh_n),  xh = T^-1(zh)",
+                   fmt::format("The error z - zh obeys e' = (A - K e_n^T) e exactly: poles {}.",
+                               numbers_text(c.poles))};
+  else
+    s.class_doc = {
+        "  xh' = f(xh) + g(xh, u) + [tau](xh) (l(u, y) - l(u, h(xh)) + K (y - h(xh)))",
+        "needing neither T nor T^-1 at run time; in z = T(x) the error is exactly linear "
+        "with",
+        fmt::format("poles {}.", numbers_text(c.poles))};
+  s.constants.push_back({"poles", c.poles, "error poles of (A - K e_n^T)"});
+  s.constants.push_back({"K", c.K, "output-injection gain, K_i = c_{i-1} of prod (s - pole)"});
+  s.report = {{"realisation", fmt::format("{} ({})", zreal ? "z" : "x", c.realisation_reason)},
+              {"poles", numbers_text(c.poles)},
+              {"K", numbers_text(c.K)},
+              {"integrator", integrator}};
+  if (zreal)
+    s.report.push_back(
+        {"T^-1", newton ? "runtime Newton with [tau] as inverse Jacobian" : "closed form"});
+  s.summary = fmt::format("canonical-form observer, {} realisation ({}), poles {}, K = [{}]",
+                          zreal ? "z" : "x", c.realisation_reason, numbers_text(c.poles),
+                          numbers_text(c.K));
+  (void)a;
+}
+
+Verdict applies(const Analysis& a) {
+  Verdict v;
+  v.reasons = canonical_form_failures(a);
+  v.applies = v.reasons.empty();
+  if (v.applies)
+    v.reasons.push_back(
+        "the bracket conditions hold and l(u, y) is closed-form: the error dynamics in z are "
+        "exactly linear");
+  return v;
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Verdict v = applies(a);
+  if (!v.applies)
+    throw UserError(SourceLoc{a.model.file, 0, 0},
+                    "method 'canonical' does not apply: " + v.text());
+  const Choices c = choose(a, o);
+  ObserverSpec s;
+  s.method = "canonical";
+  s.class_suffix = "Canonical";
+  s.state_size = a.model.n();
+  s.params = runtime_params(a.model);
+  s.functions = model_functions(a.model);
+  add_canonical_maps(a, c, s);
+  if (c.realisation == Realisation::z)
+    build_z_realisation(a, c, s);
+  else
+    build_x_realisation(a, c, s);
+  describe(a, c, s);
+  return s;
+}
+
+}  // namespace
+
+Design canonical_design() {
+  Design d;
+  d.name = "canonical";
+  d.summary = "Luenberger observer in observer canonical form (seed 003; error exactly linear)";
+  d.options = {
+      {"poles", "canonical observer error poles, comma-separated negative reals",
+       "-2, -2.5, -3, ..."},
+      {"realisation", "canonical observer realisation: z or x", "z when T^-1 is closed-form"},
+      {"integrator", "canonical z realisation: exact (zero-order-hold Phi, Gamma) or rk4",
+       "exact"}};
+  d.applies = applies;
+  d.build = build;
+  return d;
+}
+
+}  // namespace obsynth

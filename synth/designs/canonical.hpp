@@ -1,0 +1,27 @@
+// Canonical-form Luenberger observer (Krener-Isidori; seeds 001 §7, 003; design.md §1):
+// error dynamics exactly linear in z = T(x).
+//  - z realisation: zh' = A zh + l(u, y) + K (y - y0 - zh_n), xh = T^-1(zh). With u and y
+//    held over a step this is w' = A_cl w + c, discretised exactly (Phi, Gamma) or by RK4.
+//  - x realisation: xh' = f + g + [tau](xh) (l(u, y) - l(u, h(xh)) + K (y - h(xh))), needing
+//    neither T nor T^-1 at run time.
+#pragma once
+
+#include <vector>
+
+#include "designs/registry.hpp"
+
+namespace obsynth {
+
+Design canonical_design();
+
+// Real poles -> K with the design.md convention (K_i = c_{i-1} of prod (s - pole)).
+std::vector<GiNaC::numeric> gains_from_poles(const std::vector<GiNaC::numeric>& poles);
+std::vector<GiNaC::numeric> default_poles(std::size_t n);
+
+// h(x0) at the canonical form's base point: z_n = y - y0.
+GiNaC::ex output_at_base_point(const Analysis& a);
+
+// The canonical form's failures as reasons (empty when it applies).
+std::vector<std::string> canonical_form_failures(const Analysis& a);
+
+}  // namespace obsynth

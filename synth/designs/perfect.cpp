@@ -1,0 +1,217 @@
+#include "designs/perfect.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+#include "designs/canonical.hpp"
+#include "designs/options.hpp"
+#include "symbolic/symbolic.hpp"
+
+namespace obsynth {
+
+using GiNaC::ex;
+
+namespace {
+
+struct Jets {
+  std::vector<GiNaC::symbol> y;               // y, y', ..., y^(n-1)
+  std::vector<std::vector<GiNaC::symbol>> u;  // per input: u, u', ..., u^(n-2)
+};
+
+Jets jet_symbols(const Model& m) {
+  Jets j;
+  const std::size_t n = m.n();
+  for (std::size_t k = 0; k < n; ++k) j.y.push_back(GiNaC::symbol(fmt::format("y_d{}", k)));
+  for (const auto& u : m.inputs) {
+    std::vector<GiNaC::symbol> jet;
+    for (std::size_t k = 0; k + 1 < std::max<std::size_t>(n, 2); ++k)
+      jet.push_back(GiNaC::symbol(fmt::format("{}_d{}", u.get_name(), k)));
+    j.u.push_back(jet);
+  }
+  return j;
+}
+
+// Total time derivative of a function of the jets.
+ex total_derivative(const ex& phi, const Jets& j) {
+  ex acc = 0;
+  for (std::size_t k = 0; k + 1 < j.y.size(); ++k) acc += phi.diff(j.y[k]) * j.y[k + 1];
+  for (const auto& jet : j.u)
+    for (std::size_t k = 0; k + 1 < jet.size(); ++k) acc += phi.diff(jet[k]) * jet[k + 1];
+  return simplify(acc);
+}
+
+// Procedure 1: z_n = y - y0, z_{i-1} = d/dt z_i - l_i(u, y).
+ExVec z_of_jets(const Analysis& a, const Jets& j) {
+  const Model& m = a.model;
+  const CanonicalForm& cf = a.canonical;
+  const std::size_t n = m.n();
+  GiNaC::exmap to_jets{{cf.y, j.y[0]}};
+  for (std::size_t k = 0; k < m.m(); ++k) to_jets[m.inputs[k]] = j.u[k][0];
+  ExVec z(n, 0);
+  z[n - 1] = j.y[0] - output_at_base_point(a);
+  for (std::size_t i = n - 1; i >= 1; --i)
+    z[i - 1] = simplify(total_derivative(z[i], j) - cf.l[i].subs(to_jets));
+  return z;
+}
+
+// Highest derivative order of each jet that the expressions use.
+void used_orders(const ExVec& used, const Jets& j, ObserverSpec& s) {
+  s.y_order_used = 0;
+  for (std::size_t k = 0; k < j.y.size(); ++k)
+    for (const auto& e : used)
+      if (e.has(j.y[k])) s.y_order_used = std::max(s.y_order_used, k);
+  s.u_orders_used.assign(j.u.size(), 0);
+  for (std::size_t q = 0; q < j.u.size(); ++q)
+    for (std::size_t k = 0; k < j.u[q].size(); ++k)
+      for (const auto& e : used)
+        if (e.has(j.u[q][k])) s.u_orders_used[q] = std::max(s.u_orders_used[q], k);
+}
+
+Verdict applies(const Analysis& a) {
+  Verdict v;
+  const CanonicalForm& cf = a.canonical;
+  if (!cf.applicable || !cf.linearizable) {
+    v.reasons.push_back(
+        "needs the observer canonical form (seed 003 Lemma 1): " +
+        (cf.applicable ? std::string("the bracket conditions fail") : cf.not_applicable));
+    return v;
+  }
+  if (cf.l_kind != Availability::symbolic || cf.T_kind != Availability::symbolic) {
+    v.reasons.push_back("needs T and l in closed form: " +
+                        (cf.T_kind != Availability::symbolic ? cf.T_note : cf.l_note));
+    return v;
+  }
+  v.applies = true;
+  v.reasons.push_back("T and l are closed-form: the state is a function of the output jets");
+  return v;
+}
+
+GeneratedFunction jet_function(const std::string& name, const std::string& doc, const Jets& j,
+                               const ExVec& out, std::size_t n, std::size_t uk) {
+  GeneratedFunction f;
+  f.name = name;
+  f.doc = doc;
+  FunctionArg yj = vector_arg("yj", "YJet", j.y);
+  FunctionArg uj;
+  uj.kind = FunctionArg::Kind::matrix;
+  uj.name = "uj";
+  uj.type = "UJet";
+  uj.rows = j.u.size();
+  uj.cols = uk;
+  for (std::size_t k = 0; k < uk; ++k)  // column-major
+    for (const auto& jet : j.u) uj.symbols.push_back(jet[k]);
+  f.args = {yj, uj};
+  f.outputs = out;
+  f.out_rows = n;
+  f.out_type = "State";
+  return f;
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Verdict v = applies(a);
+  if (!v.applies) throw UserError(SourceLoc{a.model.file, 0, 0}, "method 'perfect' " + v.text());
+  const Model& m = a.model;
+  const CanonicalForm& cf = a.canonical;
+  const std::size_t n = m.n(), uk = std::max<std::size_t>(n, 2) - 1;
+  ObserverSpec s;
+  s.method = "perfect";
+  s.class_suffix = "Perfect";
+  s.title = "Perfect observer (Slawinski, seed 003 Theorem 1, Procedure 1)";
+  s.state_size = n;
+  s.params = runtime_params(m);
+  s.update = UpdateKind::jets;
+  s.y_jet_order = n - 1;
+  s.u_jet_order = uk - 1;
+  if (const auto eps = real_option(o, "epsilon")) s.default_epsilon = eps->to_double();
+  s.functions = model_functions(m);
+  const bool newton = cf.T_inverse_kind != Availability::symbolic;
+  s.functions.push_back({"T",
+                         "Diffeomorphism z = T(x) to observer canonical form, T(x0) = 0.",
+                         {state_arg(m)},
+                         {},
+                         cf.T,
+                         n,
+                         1,
+                         "State"});
+  if (!newton)
+    s.functions.push_back({"T_inverse",
+                           "Closed-form inverse x = T^-1(z).",
+                           {vector_arg("z", "State", cf.z)},
+                           {},
+                           cf.T_inverse,
+                           n,
+                           1,
+                           "State"});
+  s.functions.push_back({"l",
+                         "Output injection l(u, y) of the canonical form z' = A z + l(u, y).",
+                         {input_arg(m), output_arg({cf.y})},
+                         {},
+                         cf.l,
+                         n,
+                         1,
+                         "State"});
+  const Jets j = jet_symbols(m);
+  const ExVec z = z_of_jets(a, j);
+  if (newton) {
+    s.functions.push_back({"frame",
+                           "Frame [tau_1 ... tau_n](x) = (dT/dx)^-1, columns tau_k.",
+                           {state_arg(m)},
+                           {},
+                           frame_column_major(cf),
+                           n,
+                           n,
+                           "Frame"});
+    s.functions.push_back(jet_function(
+        "z_of_jets", "Canonical coordinates z from the jets (Procedure 1).", j, z, n, uk));
+    s.roles.reconstruct = "z_of_jets";
+    s.estimate = EstimateKind::newton;
+    s.roles.newton_map = "T";
+    s.roles.newton_inverse_jacobian = "frame";
+    used_orders(z, j, s);
+  } else {
+    GiNaC::exmap zs;
+    for (std::size_t i = 0; i < n; ++i) zs[cf.z[i]] = z[i];
+    ExVec x;
+    for (const auto& e : cf.T_inverse) x.push_back(simplify(e.subs(zs)));
+    s.functions.push_back(jet_function(
+        "reconstruct", "The state x = T^-1(z(jets)) from the jets (Procedure 1).", j, x, n, uk));
+    s.roles.reconstruct = "reconstruct";
+    s.estimate = EstimateKind::identity;
+    used_orders(x, j, s);
+  }
+  std::string u_orders;
+  for (std::size_t q = 0; q < m.m(); ++q)
+    u_orders +=
+        fmt::format("{} (up to {}^({}))", q ? "," : "", m.inputs[q].get_name(), s.u_orders_used[q]);
+  s.description.push_back(
+      "Observer: perfect observer (Slawinski, seed 003 Theorem 1, Procedure 1)");
+  s.description.push_back(fmt::format("Needs y up to y^({}){}", s.y_order_used,
+                                      u_orders.empty() ? "" : " and the input jets" + u_orders));
+  s.description.push_back(fmt::format(
+      "T^-1: {}", newton ? "runtime Newton with [tau] as inverse Jacobian" : "closed form"));
+  s.report = {{"jets used", fmt::format("y up to y^({}){}", s.y_order_used,
+                                        u_orders.empty() ? "" : fmt::format(" and{}", u_orders))},
+              {"T^-1", newton ? "by runtime Newton" : "in closed form"},
+              {"differentiator time constant",
+               fmt::format("constructor argument epsilon (default 0.01; simulate uses {:g})",
+                           s.default_epsilon)}};
+  s.summary = fmt::format("perfect observer; needs y up to y^({}){}; T^-1 {}", s.y_order_used,
+                          u_orders.empty() ? "" : fmt::format(" and{}", u_orders),
+                          newton ? "by runtime Newton" : "in closed form");
+  return s;
+}
+
+}  // namespace
+
+Design perfect_design() {
+  Design d;
+  d.name = "perfect";
+  d.summary = "state from the jets of y and u (seed 003 Procedure 1)";
+  d.options = {{"epsilon", "perfect observer: differentiator time constant", "0.01"}};
+  d.applies = applies;
+  d.build = build;
+  return d;
+}
+
+}  // namespace obsynth

@@ -1,0 +1,40 @@
+// The design registry: one entry per observer design (design.md §3). The method list, the
+// command line's flags and help, --list-methods, `--method auto`, the CMake function and the
+// tests all read it. Adding a design: one file pair in synth/designs/ plus one line in
+// registry.cpp.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "analysis/analysis.hpp"
+#include "designs/spec.hpp"
+
+namespace obsynth {
+
+// Whether a design's theorem applies to an analysed model, and why (or why not).
+struct Verdict {
+  bool applies = false;
+  std::vector<std::string> reasons;
+  std::string text() const;  // reasons joined with "; "
+};
+
+struct Design {
+  std::string name;     // method name, e.g. "canonical"
+  std::string summary;  // one line for --list-methods and reports
+  std::vector<DesignOptionInfo> options;
+  Verdict (*applies)(const Analysis&) = nullptr;
+  // Throws UserError (why it does not apply, or a bad option) on failure.
+  ObserverSpec (*build)(const Analysis&, const DesignOptions&) = nullptr;
+};
+
+// Implemented designs, in the order `--method auto` tries them.
+const std::vector<Design>& design_registry();
+// Method names of design.md §3 that no registered design implements yet.
+const std::vector<std::string>& planned_methods();
+// nullptr when the name is not registered.
+const Design* find_design(const std::string& name);
+// Every option name any design declares, once, in registry order.
+std::vector<DesignOptionInfo> all_design_options();
+
+}  // namespace obsynth

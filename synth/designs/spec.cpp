@@ -1,0 +1,111 @@
+#include "designs/spec.hpp"
+
+#include <fmt/format.h>
+
+#include <cctype>
+
+#include "symbolic/expr_print.hpp"
+
+namespace obsynth {
+
+const char* update_kind_name(UpdateKind k) {
+  switch (k) {
+    case UpdateKind::ode:
+      return "ode";
+    case UpdateKind::linear_exact:
+      return "linear_exact";
+    case UpdateKind::jets:
+      return "jets";
+  }
+  return "ode";
+}
+
+const GeneratedFunction* ObserverSpec::function(const std::string& name) const {
+  for (const auto& f : functions)
+    if (f.name == name) return &f;
+  return nullptr;
+}
+
+FunctionArg vector_arg(const std::string& name, const std::string& type,
+                       const std::vector<GiNaC::symbol>& symbols, FunctionArg::Kind kind) {
+  FunctionArg a;
+  a.kind = kind;
+  a.name = name;
+  a.type = type;
+  a.symbols = symbols;
+  a.rows = symbols.size();
+  return a;
+}
+
+FunctionArg state_arg(const Model& m, const std::string& name) {
+  return vector_arg(name, "State", m.states, FunctionArg::Kind::state);
+}
+
+FunctionArg input_arg(const Model& m) {
+  return vector_arg("u", "Input", m.inputs, FunctionArg::Kind::input);
+}
+
+FunctionArg output_arg(const std::vector<GiNaC::symbol>& y) {
+  return vector_arg("y", "Output", y, FunctionArg::Kind::output);
+}
+
+namespace {
+
+GeneratedFunction map_function(const std::string& name, const std::string& doc,
+                               std::vector<FunctionArg> args, const ExVec& out,
+                               const std::string& out_type) {
+  GeneratedFunction f;
+  f.name = name;
+  f.doc = doc;
+  f.args = std::move(args);
+  f.outputs = out;
+  f.out_rows = out.size();
+  f.out_type = out_type;
+  return f;
+}
+
+}  // namespace
+
+std::vector<GeneratedFunction> model_functions(const Model& m) {
+  return {map_function("f", "Drift f(x).", {state_arg(m)}, m.f, "State"),
+          map_function("g", "Input part g(x, u), zero at u = 0.", {state_arg(m), input_arg(m)}, m.g,
+                       "State"),
+          map_function("h", "Output map h(x).", {state_arg(m)}, m.h, "Output")};
+}
+
+std::vector<RuntimeParam> runtime_params(const Model& m) {
+  std::vector<RuntimeParam> out;
+  for (const auto& s : m.free_params()) {
+    const Interval b = m.box(s);
+    RuntimeParam p;
+    p.symbol = s;
+    p.name = s.get_name();
+    p.default_value = (b.lo + b.hi) / 2;
+    p.default_reason = fmt::format("centre of its box [{}, {}]", to_string(b.lo), to_string(b.hi));
+    out.push_back(p);
+  }
+  return out;
+}
+
+ExVec resolved_outputs(const GeneratedFunction& f) {
+  ExVec out = f.outputs;
+  for (auto it = f.lets.rbegin(); it != f.lets.rend(); ++it)
+    for (auto& e : out) e = e.subs(GiNaC::exmap{{it->symbol, it->value}});
+  return out;
+}
+
+std::string pascal_case(const std::string& name) {
+  std::string out;
+  bool up = true;
+  for (char c : name) {
+    if (c == '_') {
+      up = true;
+      continue;
+    }
+    out += up ? static_cast<char>(std::toupper(static_cast<unsigned char>(c))) : c;
+    up = false;
+  }
+  return out;
+}
+
+}  // namespace obsynth

@@ -1,0 +1,180 @@
+// The observer description (IR) every design builds and every consumer reads: the generic
+// C++ and C emitters, the simulator, the report renderers, the CMake manifest and the tests.
+// A design fills an ObserverSpec once; no consumer re-derives gains, offsets or jet orders.
+//
+// An observer is a class with an internal state w (size `state_size`), started from an
+// estimate xh0 (`init`), advanced by step(dt, u, y) (`update`), and read through the
+// estimate map (`estimate`). Its maths lives in `functions`: symbolic vectors over named
+// arguments, emitted as straight-line code and evaluated by the simulator through the same
+// expression DAG.
+#pragma once
+
+#include <ginac/ginac.h>
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "front/model.hpp"
+
+namespace obsynth {
+
+// A vector argument of a generated function: element i is the symbol `symbols[i]`, read as
+// `name(i)` in the generated code. Runtime parameters are not listed: every function that
+// uses one receives the parameter struct (see ObserverSpec::params).
+struct FunctionArg {
+  enum class Kind {
+    state,           // an n-vector in the model's state coordinates ("x")
+    input,           // the m inputs ("u")
+    output,          // the p outputs ("y")
+    observer_state,  // the observer's own state w ("z", size state_size)
+    vector,          // another vector of the given size (e.g. "c", jets)
+    matrix,          // rows x cols, column-major symbols, read as name(r, c)
+  };
+  Kind kind = Kind::vector;
+  std::string name;  // C++ parameter name
+  std::vector<GiNaC::symbol> symbols;
+  std::size_t rows = 0, cols = 1;
+  std::string type;  // C++ type name inside the class (State, Input, Output, YJet, ...)
+};
+
+// One intermediate definition: `symbol = value`, evaluated in order before the outputs (an
+// elimination sequence such as T^-1 stays a sequence, never composed and expanded).
+struct LetStep {
+  GiNaC::symbol symbol;
+  GiNaC::ex value;
+};
+
+struct GeneratedFunction {
+  std::string name;  // e.g. "z_rhs"
+  std::string doc;   // one line
+  std::vector<FunctionArg> args;
+  std::vector<LetStep> lets;
+  ExVec outputs;  // column-major when out_cols > 1
+  std::size_t out_rows = 0, out_cols = 1;
+  std::string out_type;  // C++ type of the result (State, Frame, ...)
+};
+
+// How step(dt, u, y) advances the observer state.
+enum class UpdateKind {
+  ode,           // w' = rhs(w, u, y): one RK4 step with u, y held ("rhs")
+  linear_exact,  // w' = A_cl w + c(u, y): w <- Phi(dt) w + Gamma(dt) c, Phi and Gamma exact,
+                 // recomputed only when dt changes ("step_constant"; A_cl in closed_loop)
+  jets,          // w = jets of y and u from differentiators; x from "reconstruct"
+};
+const char* update_kind_name(UpdateKind k);
+
+enum class InitKind {
+  identity,  // w = xh0
+  function,  // w = init(xh0)  (function "init")
+};
+
+enum class EstimateKind {
+  identity,  // xh = w
+  function,  // xh = estimate(w)  (function "estimate")
+  newton,    // xh solves T(xh) = w: Newton seeded by the previous estimate, with the
+             // inverse Jacobian given by function "inverse_jacobian" (e.g. the frame [tau])
+};
+
+// A free parameter of the model, a run-time field of the generated class.
+struct RuntimeParam {
+  GiNaC::symbol symbol;
+  std::string name;
+  GiNaC::numeric default_value;
+  std::string default_reason;  // e.g. "centre of the domain box [1/2, 2]"
+};
+
+// A named design constant, reported and emitted as a class constant.
+struct DesignConstant {
+  std::string name;  // e.g. "poles"
+  std::vector<GiNaC::numeric> values;
+  std::string doc;
+};
+
+struct ReportRow {
+  std::string key, value;
+};
+
+// A design option (one command-line flag; later also a model-file entry).
+struct DesignOptionInfo {
+  std::string name;  // flag without dashes, e.g. "poles"
+  std::string help;
+  std::string default_text;  // shown in --help; empty: computed by the design
+};
+
+// Values of the options given for one run, by option name (strings as given).
+struct DesignOptions {
+  std::map<std::string, std::string> values;
+  const std::string* find(const std::string& name) const {
+    auto it = values.find(name);
+    return it == values.end() ? nullptr : &it->second;
+  }
+};
+
+struct ObserverSpec {
+  std::string method;                    // registry name, e.g. "canonical"
+  std::string class_suffix;              // class = PascalCase(model) + suffix
+  std::string title;                     // one line, e.g. "Canonical-form Luenberger observer"
+  std::vector<std::string> description;  // banner lines, each without the leading "// "
+  std::vector<std::string> class_doc;    // lines under the title in the class comment
+
+  std::size_t state_size = 0;
+  std::string state_name = "w";  // member name prefix, e.g. "zh" or "xh"
+  std::string state_doc;
+  InitKind init = InitKind::identity;
+  UpdateKind update = UpdateKind::ode;
+  EstimateKind estimate = EstimateKind::identity;
+  std::vector<GeneratedFunction> functions;
+  // Which function plays which part (names in `functions`; empty when not used).
+  struct Roles {
+    std::string init;                     // InitKind::function: w = init(x)
+    std::string rhs;                      // ode: rhs(w, u, y); linear_exact: rhs(w, c)
+    std::string step_constant;            // linear_exact: c = step_constant(u, y)
+    std::string estimate;                 // EstimateKind::function: x = estimate(w)
+    std::string newton_map;               // EstimateKind::newton: T(x) = w
+    std::string newton_inverse_jacobian;  // EstimateKind::newton: (dT/dx)^-1 at x
+    std::string reconstruct;              // jets: w(jets) (then estimate as above)
+  } roles;
+
+  // linear_exact: the closed-loop matrix of w' = A_cl w + c (rows of exact rationals).
+  std::vector<std::vector<GiNaC::numeric>> closed_loop;
+  bool rk4_for_linear = false;  // linear_exact realised by RK4 on the same ODE instead
+
+  // jets: orders of the differentiators (highest derivative estimated) and of what is used.
+  std::size_t y_jet_order = 0, u_jet_order = 0;
+  std::size_t y_order_used = 0;
+  std::vector<std::size_t> u_orders_used;
+  double default_epsilon = 0.01;
+
+  int newton_iterations = 8;
+
+  std::vector<RuntimeParam> params;
+  std::vector<DesignConstant> constants;
+  std::vector<ReportRow> report;
+  std::string summary;  // one paragraph for the report
+
+  const GeneratedFunction* function(const std::string& name) const;
+};
+
+// The model's own maps f, g, h as generated functions (every design emits them).
+std::vector<GeneratedFunction> model_functions(const Model& m);
+
+// Runtime parameters for the model's free parameters, default: centre of the domain box.
+std::vector<RuntimeParam> runtime_params(const Model& m);
+
+// Standard arguments.
+FunctionArg state_arg(const Model& m, const std::string& name = "x");
+FunctionArg input_arg(const Model& m);
+FunctionArg output_arg(const std::vector<GiNaC::symbol>& y);
+FunctionArg vector_arg(const std::string& name, const std::string& type,
+                       const std::vector<GiNaC::symbol>& symbols,
+                       FunctionArg::Kind kind = FunctionArg::Kind::vector);
+
+std::string pascal_case(const std::string& name);
+
+// A function's outputs with its let-steps substituted, unexpanded (subtrees stay shared, so
+// a DAG built from them evaluates each step once).
+ExVec resolved_outputs(const GeneratedFunction& f);
+
+}  // namespace obsynth
