@@ -8,6 +8,7 @@
 #include "analysis/budget.hpp"
 #include "analysis/observability.hpp"
 #include "front/parse.hpp"
+#include "symbolic/expr_print.hpp"
 #include "symbolic/lie.hpp"
 #include "symbolic/poly.hpp"
 #include "symbolic/symbolic.hpp"
@@ -151,6 +152,33 @@ TEST(PolyRing, AtomsOfLinearCombinationsDifferentiateByTheChainRule) {
   EXPECT_TRUE(same(ring->to_ex(ring->derivative(p, 0)), want));
   // tanh is odd: tanh(x1 - x2) is the same atom with the opposite sign.
   EXPECT_TRUE(ring->from_ex(GiNaC::tanh(f.x1 - f.x2) + th)->is_zero());
+}
+
+TEST(CanonicalAtoms, SimplifyCombinesAndCancelsExponentials) {
+  Fixture f;
+  const ex x = f.x1, y = f.x2;
+  EXPECT_TRUE(simplify(GiNaC::exp(-2 * x) * GiNaC::exp(2 * x) * y).is_equal(y));
+  EXPECT_TRUE(simplify(y + y * GiNaC::exp(x) * GiNaC::exp(-x)).is_equal(2 * y));
+  EXPECT_TRUE(
+      simplify(GiNaC::pow(GiNaC::exp(x), 2) * GiNaC::exp(y)).is_equal(GiNaC::exp(2 * x + y)));
+  // Across a fraction: (exp(x) + 1)/exp(-x) = exp(2x) + exp(x); a parameter in the exponent.
+  EXPECT_TRUE(
+      simplify((GiNaC::exp(x) + 1) / GiNaC::exp(-x)).is_equal(GiNaC::exp(2 * x) + GiNaC::exp(x)));
+  EXPECT_TRUE(simplify(GiNaC::exp(f.k * x) * GiNaC::exp(-f.k * x) / (1 + x)).is_equal(1 / (1 + x)));
+  // Outside the ring (atan) the exp factors still cancel.
+  EXPECT_TRUE(simplify(GiNaC::atan(x) * GiNaC::exp(x) * GiNaC::exp(-x)).is_equal(GiNaC::atan(x)));
+  // Multiple angles: sin(2x) cos(x) + sin(x) = 2 cos(x)^2 sin(x) + sin(x).
+  const ex s = GiNaC::sin(x), c = GiNaC::cos(x);
+  EXPECT_TRUE(GiNaC::expand(simplify(GiNaC::sin(2 * x) * c + s) - (2 * c * c * s + s)).is_zero());
+}
+
+TEST(CanonicalAtoms, PrintedProductsCarryOneExp) {
+  Fixture f;
+  const ex x = f.x1, y = f.x2;
+  EXPECT_EQ(to_string(GiNaC::exp(-2 * x) * GiNaC::exp(2 * x) * y), "x2");
+  EXPECT_EQ(to_string(y / GiNaC::exp(x)), "exp(-x1)*x2");
+  EXPECT_EQ(to_string(GiNaC::pow(GiNaC::exp(x), 3)), "exp(3*x1)");
+  EXPECT_EQ(to_string(GiNaC::exp(x) * GiNaC::exp(y) * f.k), "exp(x1+x2)*k");
 }
 
 TEST(PolyRing, ExpressionsOutsideTheRingAreDeclined) {
