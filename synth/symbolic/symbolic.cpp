@@ -178,6 +178,23 @@ GiNaC::ex normal_with_exponentials(const GiNaC::ex& e) {
   return num / den_rest;
 }
 
+// Whether e has exp atoms, and a denominator other than an exp power (which the ring holds
+// as a Laurent monomial).
+struct Shape {
+  bool exp = false, denominator = false;
+};
+
+void shape_of(const GiNaC::ex& e, Shape& shape) {
+  if (is_exp(e)) shape.exp = true;
+  if (GiNaC::is_a<GiNaC::power>(e) && !is_exp(e.op(0)) && GiNaC::is_a<GiNaC::numeric>(e.op(1)) &&
+      GiNaC::ex_to<GiNaC::numeric>(e.op(1)).is_negative() && !GiNaC::is_a<GiNaC::numeric>(e.op(0)))
+    shape.denominator = true;
+  if (GiNaC::is_a<GiNaC::function>(e) && GiNaC::ex_to<GiNaC::function>(e).get_name() == "tan")
+    shape.denominator = true;
+  for (std::size_t i = 0; i < e.nops() && !(shape.exp && shape.denominator); ++i)
+    shape_of(e.op(i), shape);
+}
+
 }  // namespace
 
 std::optional<std::vector<ArgumentTerm>> argument_terms(const GiNaC::ex& arg) {
@@ -238,9 +255,13 @@ GiNaC::ex combine_exponentials(const GiNaC::ex& e) {
 // much cheaper to reach on large Lie derivatives and brackets. The ring's form is canonical
 // for exp and multiple angles; outside it (atan, log, sqrt, exponents out of range) GiNaC's.
 GiNaC::ex simplify(const GiNaC::ex& e) {
-  if (const auto ring = PolyRing::for_expressions({e}, {})) return ring->to_ex(*ring->from_ex(e));
-  if (!has_symbolic_denominator(combine_exponentials(e)))
-    return combine_exponentials(GiNaC::expand(e));
+  Shape shape;
+  shape_of(e, shape);
+  if (!shape.denominator) {  // a polynomial, Laurent in exp: the ring's canonical form
+    if (const auto ring = PolyRing::for_expressions({e}, {})) return ring->to_ex(*ring->from_ex(e));
+  }
+  if (!shape.exp) return shape.denominator ? GiNaC::normal(e) : GiNaC::expand(e);
+  if (!shape.denominator) return combine_exponentials(GiNaC::expand(e));
   return normal_with_exponentials(e);
 }
 
