@@ -170,6 +170,11 @@ TEST(CanonicalAtoms, SimplifyCombinesAndCancelsExponentials) {
   // Multiple angles: sin(2x) cos(x) + sin(x) = 2 cos(x)^2 sin(x) + sin(x).
   const ex s = GiNaC::sin(x), c = GiNaC::cos(x);
   EXPECT_TRUE(GiNaC::expand(simplify(GiNaC::sin(2 * x) * c + s) - (2 * c * c * s + s)).is_zero());
+  // ... also outside the ring: over a denominator, and next to atan.
+  const ex double_angle = GiNaC::sin(2 * x) - 2 * s * c;
+  EXPECT_TRUE(simplify(double_angle / (1 + x * x)).is_zero());
+  EXPECT_TRUE(
+      simplify(GiNaC::atan(y) * double_angle + GiNaC::cos(-2 * x) - c * c + s * s).is_zero());
 }
 
 TEST(CanonicalAtoms, PrintedProductsCarryOneExp) {

@@ -92,6 +92,12 @@ bool is_exp(const GiNaC::ex& e) {
   return GiNaC::is_a<GiNaC::function>(e) && GiNaC::ex_to<GiNaC::function>(e).get_name() == "exp";
 }
 
+bool is_trig(const GiNaC::ex& e) {
+  if (!GiNaC::is_a<GiNaC::function>(e) || e.nops() != 1) return false;
+  const std::string& name = GiNaC::ex_to<GiNaC::function>(e).get_name();
+  return name == "sin" || name == "cos";
+}
+
 // exp(a)^k (k an integer, exp(a) itself for k = 1): adds k*a to `arg`.
 bool take_exponential(const GiNaC::ex& f, GiNaC::ex& arg) {
   if (is_exp(f)) {
@@ -181,18 +187,67 @@ GiNaC::ex normal_with_exponentials(const GiNaC::ex& e) {
 // Whether e has exp atoms, and a denominator other than an exp power (which the ring holds
 // as a Laurent monomial).
 struct Shape {
-  bool exp = false, denominator = false;
+  bool exp = false, denominator = false, trig = false;
 };
 
 void shape_of(const GiNaC::ex& e, Shape& shape) {
   if (is_exp(e)) shape.exp = true;
+  if (is_trig(e)) shape.trig = true;
   if (GiNaC::is_a<GiNaC::power>(e) && !is_exp(e.op(0)) && GiNaC::is_a<GiNaC::numeric>(e.op(1)) &&
       GiNaC::ex_to<GiNaC::numeric>(e.op(1)).is_negative() && !GiNaC::is_a<GiNaC::numeric>(e.op(0)))
     shape.denominator = true;
   if (GiNaC::is_a<GiNaC::function>(e) && GiNaC::ex_to<GiNaC::function>(e).get_name() == "tan")
     shape.denominator = true;
-  for (std::size_t i = 0; i < e.nops() && !(shape.exp && shape.denominator); ++i)
+  for (std::size_t i = 0; i < e.nops() && !(shape.exp && shape.denominator && shape.trig); ++i)
     shape_of(e.op(i), shape);
+}
+
+// sin/cos of several integer multiples of one angle as polynomials in that angle's sin and
+// cos (de Moivre), as the ring does, for the expressions that stay in GiNaC.
+struct Angle {
+  GiNaC::numeric unit, first;
+  bool several = false;
+};
+using AngleMap = std::map<GiNaC::ex, Angle, GiNaC::ex_is_less>;
+
+void note_angles(const GiNaC::ex& e, AngleMap& angles) {
+  if (is_trig(e))
+    if (const auto d = argument_direction(e.op(0))) {
+      auto [it, fresh] = angles.emplace(d->key, Angle{GiNaC::abs(d->multiple), d->multiple});
+      if (!fresh) {
+        it->second.unit = rational_gcd(it->second.unit, d->multiple);
+        it->second.several |= it->second.first != d->multiple;
+      }
+    }
+  for (std::size_t i = 0; i < e.nops(); ++i) note_angles(e.op(i), angles);
+}
+
+GiNaC::ex to_angle_bases(const GiNaC::ex& e, const AngleMap& angles) {
+  if (is_trig(e)) {
+    const auto d = argument_direction(e.op(0));
+    const auto it = d ? angles.find(d->key) : angles.end();
+    if (it == angles.end() || !it->second.several) return e;
+    const GiNaC::ex angle = it->second.unit * d->key;
+    const GiNaC::ex s = GiNaC::sin(angle), c = GiNaC::cos(angle);
+    const GiNaC::numeric k = d->multiple / it->second.unit;
+    GiNaC::ex cos_k = 0, sin_k = 0;  // (c + i s)^|k| = sum_j C(|k|, j) c^(|k|-j) (i s)^j
+    const long m = GiNaC::abs(k).to_long();
+    GiNaC::numeric binom = 1;
+    for (long j = 0; j <= m; ++j) {
+      const GiNaC::ex term = binom * GiNaC::pow(c, m - j) * GiNaC::pow(s, j);
+      (j % 2 == 0 ? cos_k : sin_k) += (j / 2) % 2 == 0 ? term : -term;
+      binom = binom * (m - j) / (j + 1);
+    }
+    if (GiNaC::ex_to<GiNaC::function>(e).get_name() == "cos") return cos_k;
+    return k.is_negative() ? -sin_k : sin_k;
+  }
+  if (e.nops() == 0) return e;
+  struct Recurse : GiNaC::map_function {
+    const AngleMap& angles;
+    explicit Recurse(const AngleMap& a) : angles(a) {}
+    GiNaC::ex operator()(const GiNaC::ex& op) override { return to_angle_bases(op, angles); }
+  } recurse(angles);
+  return e.map(recurse);
 }
 
 }  // namespace
@@ -260,9 +315,16 @@ GiNaC::ex simplify(const GiNaC::ex& e) {
   if (!shape.denominator) {  // a polynomial, Laurent in exp: the ring's canonical form
     if (const auto ring = PolyRing::for_expressions({e}, {})) return ring->to_ex(*ring->from_ex(e));
   }
-  if (!shape.exp) return shape.denominator ? GiNaC::normal(e) : GiNaC::expand(e);
-  if (!shape.denominator) return combine_exponentials(GiNaC::expand(e));
-  return normal_with_exponentials(e);
+  GiNaC::ex r = e;
+  if (shape.trig) {
+    AngleMap angles;
+    note_angles(e, angles);
+    if (std::any_of(angles.begin(), angles.end(), [](const auto& a) { return a.second.several; }))
+      r = to_angle_bases(e, angles);
+  }
+  if (!shape.exp) return shape.denominator ? GiNaC::normal(r) : GiNaC::expand(r);
+  if (!shape.denominator) return combine_exponentials(GiNaC::expand(r));
+  return normal_with_exponentials(r);
 }
 
 }  // namespace obsynth
