@@ -268,6 +268,19 @@ std::optional<PolyRing> PolyRing::for_expressions(const std::vector<ex>& exprs,
   return ring;
 }
 
+std::optional<ex> PolyRing::canonical_form(const ex& e) {
+  PolyRing ring;
+  try {
+    if (!ring.register_atoms(e) || !ring.create_bases() || ring.vars_.size() > kMaxPolyVariables)
+      return std::nullopt;  // (no derivatives: the ring only converts)
+    const auto p = ring.convert(e);
+    if (!p) return std::nullopt;
+    return ring.to_ex(*p);
+  } catch (const PolyOverflow&) {
+    return std::nullopt;
+  }
+}
+
 std::optional<Poly> PolyRing::convert(const ex& e) const {
   if (is_a<GiNaC::numeric>(e)) {
     const auto& v = GiNaC::ex_to<GiNaC::numeric>(e);

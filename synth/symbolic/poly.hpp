@@ -57,6 +57,9 @@ class PolyRing {
   // nullopt when some expression is not a polynomial in states, symbols and closed atoms.
   static std::optional<PolyRing> for_expressions(const std::vector<GiNaC::ex>& exprs,
                                                  const std::vector<GiNaC::symbol>& x);
+  // e with canonical atoms (to_ex of its polynomial in a ring of its own), converted once;
+  // nullopt when e is outside the ring.
+  static std::optional<GiNaC::ex> canonical_form(const GiNaC::ex& e);
 
   // e (any expression in the ring's variables) as a polynomial; nullopt outside the ring.
   std::optional<Poly> from_ex(const GiNaC::ex& e) const;

@@ -312,9 +312,10 @@ GiNaC::ex combine_exponentials(const GiNaC::ex& e) {
 GiNaC::ex simplify(const GiNaC::ex& e) {
   Shape shape;
   shape_of(e, shape);
-  if (!shape.denominator) {  // a polynomial, Laurent in exp: the ring's canonical form
-    if (const auto ring = PolyRing::for_expressions({e}, {})) return ring->to_ex(*ring->from_ex(e));
-  }
+  // A polynomial (Laurent in exp): the ring's canonical form, which also multiplies out
+  // nested products faster than expand() (dense chain family: 1.2 s against 2.4 s).
+  if (!shape.denominator)
+    if (const auto r = PolyRing::canonical_form(e)) return *r;
   GiNaC::ex r = e;
   if (shape.trig) {
     AngleMap angles;

@@ -40,11 +40,11 @@ std::optional<ArgumentDirection> argument_direction(const GiNaC::ex& arg);
 // gcd(p1/q1, p2/q2) = gcd(p1, p2) / lcm(q1, q2), positive.
 GiNaC::numeric rational_gcd(const GiNaC::numeric& a, const GiNaC::numeric& b);
 
-// Simplify for storage, with canonical atoms: polynomials in symbols and sin/cos/exp/tanh
-// atoms go through the polynomial ring (exp(a)*exp(b) -> exp(a+b), sin/cos of integer
-// multiples of one angle as powers of that angle's sin/cos); other polynomials are expanded
-// with their exp factors combined; rational expressions are normal()ized with exp
-// factors cancelled across numerator and denominator.
+// Simplify for storage, with canonical atoms: polynomials (in symbols and exp, sin/cos, tanh
+// atoms) go through the polynomial ring (exp(a)*exp(b) -> exp(a+b), exp Laurent, sin/cos of
+// integer multiples of one angle as powers of that angle's sin/cos); other polynomials are
+// expanded (with exp factors combined and multiple angles reduced); rational expressions are
+// normal()ized with exp factors cancelled across numerator and denominator.
 GiNaC::ex simplify(const GiNaC::ex& e);
 // Every product's exp factors (and integer powers of them) as one exp of the expanded sum
 // of their arguments, dropped when that sum is 0.
