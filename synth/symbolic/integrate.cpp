@@ -435,6 +435,45 @@ std::optional<ex> cleared(const ex& g, const ex& den, const Field& field,
   return GiNaC::expand(reduce_trig(nd.op(0), field) / nd.op(1));
 }
 
+// The ansatz: its functions (with derivatives in the field) and a common denominator that
+// clears every derivative and the integrand f.
+struct Ansatz {
+  std::vector<Candidate> basis;
+  ex common = 1;
+};
+
+Integral solve_ansatz(const Ansatz& a, const ex& f, const Field& field,
+                      const std::vector<GiNaC::symbol>& vars) {
+  Coefficients equations;
+  GiNaC::lst unknowns;
+  for (std::size_t k = 0; k < a.basis.size(); ++k) {
+    const GiNaC::symbol c("c" + std::to_string(k));
+    unknowns.append(c);
+    const auto g = cleared(a.basis[k].derivative, a.common, field, vars);
+    if (!g) return {std::nullopt, "the ansatz's derivatives are not cleared by its denominator"};
+    add_coefficients(*g, vars, c, equations);
+  }
+  const auto rhs = cleared(f, a.common, field, vars);
+  if (!rhs) return {std::nullopt, "the integrand is not cleared by the ansatz's denominator"};
+  add_coefficients(*rhs, vars, -1, equations);
+  GiNaC::lst eqs;
+  for (const auto& [text, mc] : equations) eqs.append(mc.second == 0);
+  const ex sol = GiNaC::lsolve(eqs, unknowns, GiNaC::solve_algo::gauss);
+  if (sol.nops() != unknowns.nops())
+    return {std::nullopt,
+            fmt::format("no antiderivative of the form P/Q + sum c log(v) with {} unknowns in "
+                        "y and the atoms of the integrand",
+                        a.basis.size())};
+  GiNaC::exmap free;  // unknowns left free (the constant of integration) are set to 0
+  for (std::size_t k = 0; k < unknowns.nops(); ++k) free[unknowns.op(k)] = 0;
+  ex F = 0;
+  for (std::size_t k = 0; k < a.basis.size(); ++k) {
+    const ex ck = unknowns.op(k).subs(sol).subs(free);
+    if (!ck.is_zero()) F += ck * a.basis[k].value;
+  }
+  return {F, ""};
+}
+
 Integral risch_norman(const ex& e, const GiNaC::symbol& y) {
   Field field(y);
   std::string why;
@@ -453,48 +492,22 @@ Integral risch_norman(const ex& e, const GiNaC::symbol& y) {
   if (size > kMaxUnknowns)
     return {std::nullopt,
             fmt::format("the ansatz would need {} unknowns (limit {})", size, kMaxUnknowns)};
-  ex Dq = 1, common = 1;
+  // F = P / Dq + logs, Dq = prod v^(k-1) over the denominator's factors v^k.
+  Ansatz a;
+  ex Dq = 1;
   for (const auto& [base, mult] : den.factors) {
     Dq *= GiNaC::pow(base, mult - 1);
-    common *= GiNaC::pow(base, mult);
+    a.common *= GiNaC::pow(base, mult);
   }
   for (std::size_t i = 0; i < field.generators().size(); ++i) {
     const Generator& g = field.generators()[i];
-    if (g.kind == Kind::atan) common *= 1 + g.key * g.key;
-    if (g.kind == Kind::log) common *= g.key;
-    if (g.kind == Kind::exp) common *= GiNaC::pow(g.sym, -ranges[i + 1].lo);
+    if (g.kind == Kind::atan) a.common *= 1 + g.key * g.key;
+    if (g.kind == Kind::log) a.common *= g.key;
+    if (g.kind == Kind::exp) a.common *= GiNaC::pow(g.sym, -ranges[i + 1].lo);
   }
-  std::vector<Candidate> basis = polynomial_part(ranges, Dq, vars, field);
-  for (auto& c : log_candidates(den, field)) basis.push_back(std::move(c));
-
-  Coefficients equations;
-  GiNaC::lst unknowns;
-  for (std::size_t k = 0; k < basis.size(); ++k) {
-    const GiNaC::symbol c("c" + std::to_string(k));
-    unknowns.append(c);
-    const auto g = cleared(basis[k].derivative, common, field, vars);
-    if (!g) return {std::nullopt, "the ansatz's derivatives are not cleared by its denominator"};
-    add_coefficients(*g, vars, c, equations);
-  }
-  const auto rhs = cleared(f, common, field, vars);
-  if (!rhs) return {std::nullopt, "the integrand is not cleared by the ansatz's denominator"};
-  add_coefficients(*rhs, vars, -1, equations);
-  GiNaC::lst eqs;
-  for (const auto& [text, mc] : equations) eqs.append(mc.second == 0);
-  const ex sol = GiNaC::lsolve(eqs, unknowns, GiNaC::solve_algo::gauss);
-  if (sol.nops() != unknowns.nops())
-    return {std::nullopt,
-            fmt::format("no antiderivative of the form P/Q + sum c log(v) with {} unknowns in "
-                        "y and the atoms of the integrand",
-                        basis.size())};
-  GiNaC::exmap free;  // unknowns left free (the constant of integration) are set to 0
-  for (std::size_t k = 0; k < unknowns.nops(); ++k) free[unknowns.op(k)] = 0;
-  ex F = 0;
-  for (std::size_t k = 0; k < basis.size(); ++k) {
-    const ex ck = unknowns.op(k).subs(sol).subs(free);
-    if (!ck.is_zero()) F += ck * basis[k].value;
-  }
-  return {F, ""};
+  a.basis = polynomial_part(ranges, Dq, vars, field);
+  for (auto& c : log_candidates(den, field)) a.basis.push_back(std::move(c));
+  return solve_ansatz(a, f, field, vars);
 }
 
 // ---------------------------------------------------------------------------------------
