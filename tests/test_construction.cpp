@@ -140,6 +140,7 @@ TEST_P(FamilyChain, FindsTInClosedFormWithDualFrame) {
   ASSERT_TRUE(cf.applicable) << cf.not_applicable;
   ASSERT_TRUE(cf.linearizable);
   ASSERT_EQ(cf.T_kind, Availability::symbolic) << cf.T_note;
+  EXPECT_EQ(cf.T_verdict, ZeroVerdict::proved) << cf.T_note;
   ASSERT_EQ(cf.T.size(), n);
   // dT/dx [tau] = I, and T is the constructed one (both vanish at the origin).
   for (const auto& at : points)
