@@ -3,12 +3,16 @@
 // deliberate perturbations must fail exactly the predicted bracket conditions.
 #include <gtest/gtest.h>
 
+#include <regex>
 #include <set>
 
 #include "analysis/analysis.hpp"
+#include "app/report.hpp"
+#include "front/parse.hpp"
 #include "support/construct.hpp"
 #include "support/expect.hpp"
 #include "symbolic/lie.hpp"
+#include "symbolic/symbolic.hpp"
 
 using namespace obsynth;
 using namespace obsynth::testing;
@@ -75,6 +79,192 @@ std::vector<ChainCase> chain_cases() {
 }
 
 INSTANTIATE_TEST_SUITE_P(ByConstruction, Chain, ::testing::ValuesIn(chain_cases()), case_name);
+
+// ---------------------------------------------------------------------------------------
+// Families whose T needs closed-form antiderivatives of tanh friction, cancelling exp factors,
+// polynomial*exp, polynomial*sin and atan. Identities are checked here by exact rational
+// points evaluated to 50 digits (independent of obsynth's zero test).
+
+// Exact rational points inside the model's domain box (states, inputs, free parameters).
+std::vector<GiNaC::exmap> test_points(const Model& m, int count) {
+  std::vector<GiNaC::exmap> out;
+  for (int p = 0; p < count; ++p) {
+    GiNaC::exmap at;
+    long i = 0;
+    for (const auto& s : m.all_symbols()) {
+      const Interval box = m.box(s);
+      const GiNaC::numeric t((7 * i++ + 11 * p) % 17 + 1, 19);  // in (0, 1)
+      at[s] = box.lo + t * (box.hi - box.lo);
+    }
+    out.push_back(at);
+  }
+  return out;
+}
+
+// |a - b| at the point, to 50 digits, relative to 1 + |a| + |b|.
+bool equal_at(const ex& a, const ex& b, const GiNaC::exmap& at) {
+  const long saved = GiNaC::Digits;
+  GiNaC::Digits = 50;
+  const ex av = GiNaC::evalf(a.subs(at)), bv = GiNaC::evalf(b.subs(at));
+  const ex rel = GiNaC::evalf(GiNaC::abs(av - bv) / (1 + GiNaC::abs(av) + GiNaC::abs(bv)));
+  GiNaC::Digits = saved;
+  return GiNaC::is_a<GiNaC::numeric>(rel) &&
+         GiNaC::ex_to<GiNaC::numeric>(rel) < GiNaC::numeric("1e-40");
+}
+
+struct FamilyCase {
+  std::size_t n;
+  Family family;
+};
+
+class FamilyChain : public ::testing::TestWithParam<FamilyCase> {};
+
+TEST_P(FamilyChain, FindsTInClosedFormWithDualFrame) {
+  const auto [n, family] = GetParam();
+  const Constructed c = linearizable_family(n, family);
+  const Model& m = c.model;
+  const auto& x = m.states;
+  const auto points = test_points(m, 3);
+  // The construction itself: dT/dx f = A T + l(0, h), dT/dx g = l(u, h) - l(0, h).
+  GiNaC::exmap y_is_h{{c.y, x[0]}}, u0{{m.inputs[0], 0}};
+  for (std::size_t i = 0; i < n; ++i)
+    for (const auto& at : points) {
+      ASSERT_TRUE(equal_at(lie_derivative(c.T[i], m.f, x),
+                           (i ? c.T[i - 1] : ex(0)) + c.l[i].subs(u0).subs(y_is_h), at));
+      ASSERT_TRUE(
+          equal_at(lie_derivative(c.T[i], m.g, x), (c.l[i] - c.l[i].subs(u0)).subs(y_is_h), at));
+    }
+
+  const Analysis a = analyse(m);
+  const CanonicalForm& cf = a.canonical;
+  ASSERT_TRUE(cf.applicable) << cf.not_applicable;
+  ASSERT_TRUE(cf.linearizable);
+  ASSERT_EQ(cf.T_kind, Availability::symbolic) << cf.T_note;
+  EXPECT_EQ(cf.T_verdict, ZeroVerdict::proved) << cf.T_note;
+  ASSERT_EQ(cf.T.size(), n);
+  // dT/dx [tau] = I, and T is the constructed one (both vanish at the origin).
+  for (const auto& at : points)
+    for (std::size_t i = 0; i < n; ++i) {
+      EXPECT_TRUE(equal_at(cf.T[i], c.T[i], at)) << "T_" << i + 1 << " = " << to_string(cf.T[i]);
+      for (std::size_t j = 0; j < n; ++j) {
+        ex acc = 0;
+        for (std::size_t k = 0; k < n; ++k) acc += cf.T[i].diff(x[k]) * cf.frame[j][k];
+        EXPECT_TRUE(equal_at(acc, i == j ? 1 : 0, at)) << "dT_" << i + 1 << " tau_" << j + 1;
+      }
+    }
+  // l is a function of (u, y) only, and the constructed one.
+  ASSERT_EQ(cf.l_kind, Availability::symbolic) << cf.l_note;
+  GiNaC::exmap rename{{c.y, cf.y}};
+  for (std::size_t i = 0; i < n; ++i) {
+    EXPECT_FALSE(depends_on(cf.l[i], x)) << to_string(cf.l[i]);
+    for (const auto& at : points)
+      EXPECT_TRUE(equal_at(cf.l[i].subs(cf.y == x[0]), c.l[i].subs(y_is_h), at))
+          << "l_" << i + 1 << " = " << to_string(cf.l[i]);
+  }
+}
+
+std::vector<FamilyCase> family_cases() {
+  std::vector<FamilyCase> v;
+  for (Family f : {Family::tanh_friction, Family::exp_cancel, Family::poly_exp, Family::poly_sin,
+                   Family::atan})
+    for (std::size_t n = 2; n <= 6; ++n) v.push_back({n, f});
+  return v;
+}
+
+std::string family_case_name(const ::testing::TestParamInfo<FamilyCase>& info) {
+  return std::string(family_name(info.param.family)) + "_n" + std::to_string(info.param.n);
+}
+
+INSTANTIATE_TEST_SUITE_P(ByConstruction, FamilyChain, ::testing::ValuesIn(family_cases()),
+                         family_case_name);
+
+// A product with two exp factors (or a power of one) anywhere in e.
+bool has_exp_product(const ex& e) {
+  auto is_exp = [](const ex& f) {
+    return GiNaC::is_a<GiNaC::function>(f) && GiNaC::ex_to<GiNaC::function>(f).get_name() == "exp";
+  };
+  if (GiNaC::is_a<GiNaC::power>(e) && is_exp(e.op(0))) return true;
+  if (GiNaC::is_a<GiNaC::mul>(e)) {
+    int exps = 0;
+    for (std::size_t i = 0; i < e.nops(); ++i) exps += is_exp(e.op(i));
+    if (exps > 1) return true;
+  }
+  for (std::size_t i = 0; i < e.nops(); ++i)
+    if (has_exp_product(e.op(i))) return true;
+  return false;
+}
+
+TEST(CanonicalAtoms, ExpFactorsCancelInTheFrameOfTheIssueModel) {
+  // Issue 6: a 4-state model with exp in T whose frame printed exp(-2*x1)*exp(2*x1)*x2 and
+  // whose T came out numeric. Written as the issue's model was: every exp a separate factor
+  // (exp(-x1)*exp(3*x1)*x2 rather than exp(2*x1)*x2).
+  Constructed c = linearizable_family(4, Family::exp_cancel);
+  const ex w = GiNaC::wild(0), k = GiNaC::wild(1);
+  for (ExVec* field : {&c.model.f, &c.model.g})
+    for (ex& e : *field)
+      e = GiNaC::expand(e).subs(GiNaC::pow(GiNaC::exp(w), k) == GiNaC::exp(k * w),
+                                GiNaC::subs_options::algebraic);
+  bool separate = false;
+  for (const ex& e : c.model.f) separate |= has_exp_product(e);
+  ASSERT_TRUE(separate) << "the model should carry products of exp factors";
+  const Analysis a = analyse(c.model);
+  const CanonicalForm& cf = a.canonical;
+  ASSERT_EQ(cf.T_kind, Availability::symbolic) << cf.T_note;
+  for (const auto& tau : cf.frame)
+    for (const ex& e : tau) EXPECT_FALSE(has_exp_product(e)) << to_string(e);
+  for (const ex& e : cf.T) EXPECT_FALSE(has_exp_product(e)) << to_string(e);
+  for (const ex& e : cf.l) EXPECT_FALSE(has_exp_product(e)) << to_string(e);
+  for (const auto& row : a.observability.lie)
+    for (const ex& e : row) EXPECT_FALSE(has_exp_product(e)) << to_string(e);
+  EXPECT_FALSE(has_exp_product(a.observability.det)) << to_string(a.observability.det);
+  // The frame is tau_3 = [0, exp(-2 x1), 0, 0] (the inverse of s_2 = exp(2 x1)).
+  const ex want = GiNaC::exp(-2 * c.model.states[0]);
+  EXPECT_TRUE(equal_at(cf.frame[2][1], want, test_points(c.model, 1)[0]));
+  // No printed expression of the report (model echo included) multiplies exp factors.
+  ReportOptions ro;
+  ro.timings = false;
+  const std::string text = render_report(a, ReportFormat::text, ro);
+  EXPECT_FALSE(std::regex_search(text, std::regex(R"(exp\([^()]*\)\*exp\()"))) << text;
+}
+
+// models/dc_motor.sym against the derivation in its header, and the same motor with every
+// parameter free (the issue's integrand -(Fc La kf - Fc La kf tanh(kf y)^2 + ...)/(Jm La)).
+TEST(DcMotor, TanhFrictionGivesTheHandDerivedLinearT) {
+  const Model m = load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/dc_motor.sym");
+  const Analysis a = analyse(m);
+  const CanonicalForm& cf = a.canonical;
+  ASSERT_EQ(cf.T_kind, Availability::symbolic) << cf.T_note;
+  ASSERT_EQ(cf.l_kind, Availability::symbolic) << cf.l_note;
+  const ex x1 = m.states[0], x2 = m.states[1], u = m.inputs[0], y = cf.y;
+  const ExVec T{2000 * x1 + 500 * x2, x1};
+  const ExVec l{500000 * u - 25200 * y - 100000 * GiNaC::tanh(50 * y),
+                -GiNaC::numeric(20001, 10) * y - 50 * GiNaC::tanh(50 * y)};
+  for (const auto& at : test_points(m, 3))
+    for (std::size_t i = 0; i < 2; ++i) {
+      EXPECT_TRUE(equal_at(cf.T[i], T[i], at)) << to_string(cf.T[i]);
+      EXPECT_TRUE(equal_at(cf.l[i].subs(y == x1), l[i].subs(y == x1), at)) << to_string(cf.l[i]);
+    }
+}
+
+TEST(DcMotor, FreeParametersKeepTSymbolic) {
+  const Model m = parse_model(
+      "model dc_motor_free\nstates x1 x2\ninputs u\nparams Ra, La, Km, Jm, b, Fc, kf\n"
+      "f = [ (Km*x2 - b*x1 - Fc*tanh(kf*x1))/Jm, -(Ra*x2 + Km*x1)/La ]\n"
+      "g = [ 0, u/La ]\nh = [ x1 ]\n"
+      "domain Ra in [1, 3], La in [1/2000, 1/500], Km in [1/50, 1/10], Jm in [1/20000, 1/5000], "
+      "b in [1/200000, 1/50000], Fc in [1/400, 1/100], kf in [10, 100]\n",
+      "dc_motor_free.sym");
+  const Analysis a = analyse(m);
+  const CanonicalForm& cf = a.canonical;
+  ASSERT_EQ(cf.T_kind, Availability::symbolic) << cf.T_note;
+  std::map<std::string, ex> p;
+  for (const auto& s : m.all_symbols()) p[s.get_name()] = s;
+  const ex T1 = p["Ra"] * p["x1"] / p["La"] + p["Km"] * p["x2"] / p["Jm"];
+  for (const auto& at : test_points(m, 3)) {
+    EXPECT_TRUE(equal_at(cf.T[0], T1, at)) << to_string(cf.T[0]);
+    EXPECT_TRUE(equal_at(cf.T[1], p["x1"], at)) << to_string(cf.T[1]);
+  }
+}
 
 class Unobservable : public ::testing::TestWithParam<std::size_t> {};
 

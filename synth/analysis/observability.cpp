@@ -288,7 +288,7 @@ Observability analyse_observability(const Model& m, Budget& budget,
           det *= ob.O[k][(*cols)[k]];
           if (k + 1 < ob.n) head *= ob.O[k][(*cols)[k]];
         }
-        ob.det = det;
+        ob.det = combine_exponentials(det);  // exp(a)*exp(b) as exp(a+b), still factored
         ob.last_row_cofactors.assign(ob.n, 0);
         ob.last_row_cofactors[cols->back()] = head;
         finish_determinant(ob, x);

@@ -164,11 +164,48 @@ class Printer {
     return {fmt::format("{}^{}", wrap(base, p_atom, style_), int_text(k)), p_pow};
   }
 
+  // The factors of a product with its exp factors (and integer powers of them) merged into
+  // one exp of the expanded sum of arguments, so that exp(a)*exp(-a) never prints.
+  static GiNaC::exvector merged_factors(const ex& e) {
+    GiNaC::exvector out;
+    ex arg = 0;
+    int exps = 0;
+    for (std::size_t i = 0; i < e.nops(); ++i) {
+      const ex f = e.op(i);
+      if (is_exp(f)) {
+        arg += f.op(0);
+        ++exps;
+      } else if (is_exp_power(f)) {
+        arg += f.op(1) * f.op(0).op(0);
+        exps += 2;
+      } else {
+        out.push_back(f);
+      }
+    }
+    if (exps < 2) {
+      out.clear();
+      for (std::size_t i = 0; i < e.nops(); ++i) out.push_back(e.op(i));
+      return out;
+    }
+    arg = GiNaC::expand(arg);
+    if (!arg.is_zero()) out.push_back(GiNaC::exp(arg));
+    return out;
+  }
+
+  static bool is_exp(const ex& e) {
+    return is_a<GiNaC::function>(e) && ex_to<GiNaC::function>(e).get_name() == "exp";
+  }
+  static bool is_exp_power(const ex& e) {
+    return is_a<GiNaC::power>(e) && is_exp(e.op(0)) && is_a<numeric>(e.op(1)) &&
+           ex_to<numeric>(e.op(1)).is_integer();
+  }
+
   Printed product(const ex& e) {
     numeric coeff = 1;
     std::vector<std::string> num, den;
-    for (std::size_t i = 0; i < e.nops(); ++i) {
-      ex f = e.op(i);
+    const GiNaC::exvector factors = merged_factors(e);
+    for (const ex& f0 : factors) {
+      ex f = f0;
       if (is_a<numeric>(f) && ex_to<numeric>(f).is_rational()) {
         coeff *= ex_to<numeric>(f);
         continue;
@@ -230,6 +267,8 @@ class Printer {
   }
 
   Printed power(const ex& base, const ex& expo) {
+    if (is_exp(base) && is_a<numeric>(expo) && ex_to<numeric>(expo).is_integer())
+      return call("exp", GiNaC::expand(expo * base.op(0)));  // exp(a)^k as exp(k*a)
     if (is_a<numeric>(expo)) {
       const numeric q = ex_to<numeric>(expo);
       if (q == numeric(1, 2)) return call("sqrt", base);

@@ -3,9 +3,16 @@
 // allocation and canonical reordering; a Lie derivative of a polynomial model is a sum of
 // products of terms, which a hash map of packed exponent vectors does an order of magnitude
 // faster. The "variables" are the states, other symbols (parameters) and function atoms
-// whose derivatives stay in the ring: sin/cos of a ring element (each other's companion),
-// exp and tanh. Anything else (denominators, sqrt, log, atan, tan) is outside the ring and
-// the caller keeps GiNaC's path.
+// whose derivatives stay in the ring, kept canonical so that identities between atoms are
+// identities of polynomials:
+//  - exp: one base exp(g*t) per monomial t of the arguments (g the rational gcd of t's
+//    coefficients); exp(c1*t1 + c2*t2) is the Laurent monomial base1^(c1/g1) base2^(c2/g2),
+//    so exp(a)*exp(-a) is 1 (exponents are signed; only exp bases take negative ones);
+//  - sin/cos: one pair of bases sin(g*B), cos(g*B) per direction B (the argument divided by
+//    its rational content, sign fixed); sin(k*g*B), cos(k*g*B) expand by de Moivre;
+//  - tanh of an argument with a fixed sign.
+// Anything else (denominators, sqrt, log, atan, tan) is outside the ring and the caller
+// keeps GiNaC's path.
 #pragma once
 
 #include <ginac/ginac.h>
@@ -22,7 +29,7 @@ namespace obsynth {
 inline constexpr std::size_t kMaxPolyVariables = 64;
 
 struct Monomial {
-  std::array<std::uint8_t, kMaxPolyVariables> e{};  // exponents
+  std::array<std::int8_t, kMaxPolyVariables> e{};  // exponents (negative for exp bases only)
   bool operator==(const Monomial& o) const { return e == o.e; }
 };
 
@@ -50,6 +57,9 @@ class PolyRing {
   // nullopt when some expression is not a polynomial in states, symbols and closed atoms.
   static std::optional<PolyRing> for_expressions(const std::vector<GiNaC::ex>& exprs,
                                                  const std::vector<GiNaC::symbol>& x);
+  // e with canonical atoms (to_ex of its polynomial in a ring of its own), converted once;
+  // nullopt when e is outside the ring.
+  static std::optional<GiNaC::ex> canonical_form(const GiNaC::ex& e);
 
   // e (any expression in the ring's variables) as a polynomial; nullopt outside the ring.
   std::optional<Poly> from_ex(const GiNaC::ex& e) const;
@@ -85,16 +95,38 @@ class PolyRing {
     Kind kind;
     GiNaC::ex arg;  // atom argument
   };
+  // A family of atoms sharing one base: exp(c*key) (key a monomial) or sin/cos(c*key) (key a
+  // direction), with c an integer multiple of `unit`. Bases are created once all units are
+  // known, in the order their families were first met (inner atoms first).
+  struct Family {
+    Kind kind;  // exp or sin (sin stands for the sin/cos pair)
+    GiNaC::ex key;
+    GiNaC::numeric unit;
+    std::size_t var = 0;  // the base (for sin: the sin base; cos is var + 1)
+  };
   std::size_t states_ = 0;
   std::vector<Variable> vars_;
+  std::vector<Family> families_;
+  // Families (index) and tanh atoms (argument) in order of discovery, inner atoms first.
+  struct Pending {
+    std::optional<std::size_t> family;
+    GiNaC::ex tanh_arg;
+  };
+  std::vector<Pending> pending_;
   // d var / d x_j for atoms: derivs_[v][j], empty poly when independent of x_j.
   std::vector<std::vector<Poly>> derivs_;
   std::vector<Growth> var_growth_;
 
   std::optional<std::size_t> find(const GiNaC::ex& v) const;
+  std::optional<std::size_t> find_family(Kind kind, const GiNaC::ex& key) const;
+  void note_family(Kind kind, const GiNaC::ex& key, const GiNaC::numeric& multiple);
   bool register_atoms(const GiNaC::ex& e);
+  bool register_function(const GiNaC::ex& e);
+  bool create_bases();
   bool build_derivatives();
   std::optional<Poly> convert(const GiNaC::ex& e) const;
+  std::optional<Poly> convert_function(const GiNaC::ex& e) const;
+  std::optional<Poly> convert_power(const GiNaC::ex& e) const;
 };
 
 }  // namespace obsynth

@@ -83,11 +83,6 @@ std::vector<Term> split_linear(const ex& arg) {
   return out;
 }
 
-numeric rational_gcd(const numeric& a, const numeric& b) {
-  // gcd(p1/q1, p2/q2) = gcd(p1, p2) / lcm(q1, q2)
-  return GiNaC::gcd(a.numer(), b.numer()) / GiNaC::lcm(a.denom(), b.denom());
-}
-
 struct Pair {  // cos and sin of an angle, as rational functions
   ex c, s;
 };

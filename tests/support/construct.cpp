@@ -131,6 +131,110 @@ Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation&
   return c;
 }
 
+namespace {
+
+struct FamilyParts {
+  std::function<ex(std::size_t k)> scale;  // s_k(x1), dT_{n-k}/dx_{k+1}
+  std::function<ex(std::size_t k)> psi;    // psi_k(x_1..x_k), zero at the origin
+  std::function<ex(std::size_t i)> l;      // l_{i+1}(0, y)
+};
+
+FamilyParts family_parts(Family family, const std::vector<GiNaC::symbol>& x, const ex& y) {
+  const ex b = x[0];
+  auto xk = [&x](std::size_t k) { return ex(x[k - 1]); };
+  switch (family) {
+    case Family::tanh_friction:
+      return {[](std::size_t) { return ex(1); },
+              [=](std::size_t k) { return k % 2 ? xk(k) * GiNaC::tanh(b) : xk(k) * xk(k) / 2; },
+              [=](std::size_t i) {
+                const ex terms[] = {-y / 2 - 3 * GiNaC::tanh(2 * y), y * y / 4 + GiNaC::tanh(y) / 2,
+                                    -y * GiNaC::tanh(y)};
+                return terms[i % 3];
+              }};
+    case Family::exp_cancel:
+      return {[=](std::size_t k) { return GiNaC::exp(ex(1 + k % 2) * b); },
+              [=](std::size_t k) { return k % 2 ? xk(k) * GiNaC::exp(-b) : ex(0); },
+              [=](std::size_t i) {
+                const ex terms[] = {-y / 2 + y * GiNaC::exp(-y), GiNaC::exp(2 * y) / 4,
+                                    GiNaC::sin(y) - y * y * GiNaC::exp(-y) / 2};
+                return terms[i % 3];
+              }};
+    case Family::poly_exp:
+      return {[](std::size_t) { return ex(1); },
+              [=](std::size_t k) { return b * b * GiNaC::exp(b) * xk(k); },
+              [=](std::size_t i) {
+                const ex terms[] = {-y / 2 + y * y * GiNaC::exp(y), y * GiNaC::exp(y) / 4,
+                                    -y * GiNaC::exp(-y)};
+                return terms[i % 3];
+              }};
+    case Family::poly_sin:
+      return {[](std::size_t) { return ex(1); },
+              [=](std::size_t k) { return b * GiNaC::sin(b) * xk(k); },
+              [=](std::size_t i) {
+                const ex terms[] = {-y / 2 + y * GiNaC::sin(y), y * y * GiNaC::cos(y) / 4,
+                                    -GiNaC::exp(2 * y) * GiNaC::cos(y)};
+                return terms[i % 3];
+              }};
+    case Family::atan:
+      return {[](std::size_t) { return ex(1); },
+              [=](std::size_t k) { return k % 2 ? GiNaC::atan(xk(k)) : xk(k) * GiNaC::atan(b); },
+              [=](std::size_t i) {
+                const ex terms[] = {-y / 2 + y * GiNaC::atan(y), GiNaC::atan(y) / 4,
+                                    -y * y / (1 + y * y)};
+                return terms[i % 3];
+              }};
+  }
+  return {};
+}
+
+}  // namespace
+
+const char* family_name(Family f) {
+  static const char* const names[] = {"tanh_friction", "exp_cancel", "poly_exp", "poly_sin",
+                                      "atan"};
+  return names[static_cast<int>(f)];
+}
+
+Constructed linearizable_family(std::size_t n, Family family) {
+  Constructed c;
+  Model& m = c.model;
+  m.name = fmt::format("{}{}", family_name(family), n);
+  m.file = m.name + ".sym";
+  for (std::size_t i = 0; i < n; ++i) m.states.push_back(GiNaC::symbol(fmt::format("x{}", i + 1)));
+  GiNaC::symbol u("u");
+  m.inputs.push_back(u);
+  c.y = GiNaC::symbol("y");
+  for (std::size_t i = 0; i < n; ++i) c.z.push_back(GiNaC::symbol(fmt::format("z{}", i + 1)));
+  const auto& x = m.states;
+  const FamilyParts parts = family_parts(family, x, c.y);
+  c.T.assign(n, 0);
+  c.T[n - 1] = x[0];
+  for (std::size_t k = 1; k < n; ++k) c.T[n - 1 - k] = parts.scale(k) * x[k] + parts.psi(k);
+  // Inverse: x1 = zn, x_{k+1} = (z_{n-k} - psi_k) / s_k with the earlier x substituted.
+  ExVec xs(n);
+  xs[0] = c.z[n - 1];
+  for (std::size_t k = 1; k < n; ++k) {
+    GiNaC::exmap sub;
+    for (std::size_t j = 0; j < k; ++j) sub[x[j]] = xs[j];
+    xs[k] = ((c.z[n - 1 - k] - parts.psi(k)) / parts.scale(k)).subs(sub);
+  }
+  c.T_inverse = xs;
+  for (std::size_t i = 0; i < n; ++i) c.l.push_back(parts.l(i));
+  c.l[0] += u * (1 + c.y * c.y);
+  GiNaC::exmap y_of_x{{c.y, x[0]}}, u0{{u, 0}};
+  ExVec wf(n), wg(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const ex li = c.l[i].subs(y_of_x);
+    wf[i] = (i == 0 ? ex(0) : c.T[i - 1]) + li.subs(u0);
+    wg[i] = li - li.subs(u0);
+  }
+  m.f = pull_back(c.T, x, wf);
+  m.g = pull_back(c.T, x, wg);
+  m.h = {x[0]};
+  for (const auto& s : x) m.domain[s.get_name()] = Interval{GiNaC::numeric(-1), GiNaC::numeric(1)};
+  return c;
+}
+
 std::string to_sym(const Model& m) {
   std::vector<std::string> xs, us;
   for (const auto& s : m.states) xs.push_back(s.get_name());

@@ -38,6 +38,18 @@ using Perturbation =
 Constructed linearizable_chain(std::size_t n, Flavor flavor, const Perturbation& extra_f_z = {},
                                const Perturbation& extra_g_z = {});
 
+// Families whose T and l exercise one kind of closed-form antiderivative each (n >= 2):
+// T_{n-k} = s_k(x1) x_{k+1} + psi_k(x_1..x_k), T_n = x1, l_1 with the input term u (1 + y^2).
+//  tanh_friction: psi with x_k tanh(x1), l with tanh(2y), tanh(y), y tanh(y);
+//  exp_cancel:    s_k = exp(x1) or exp(2 x1) (f carries exp(-x1), exp(-2 x1), so Lie
+//                 derivatives multiply exp(a) by exp(-a)), l with exp(-y), exp(2y);
+//  poly_exp:      psi with x1^2 exp(x1) x_k, l with y^2 exp(y), y exp(y), y exp(-y);
+//  poly_sin:      psi with x1 sin(x1) x_k, l with y sin(y), y^2 cos(y), exp(2y) cos(y);
+//  atan:          psi with atan(x_k) and x_k atan(x1), l with y atan(y), atan(y), y^2/(1+y^2).
+enum class Family { tanh_friction, exp_cancel, poly_exp, poly_sin, atan };
+const char* family_name(Family f);
+Constructed linearizable_family(std::size_t n, Family family);
+
 // The model as .sym text (parseable by obsynth's front end).
 std::string to_sym(const Model& m);
 
