@@ -62,6 +62,7 @@ void add_common(CLI::App* app, CommonOptions& c) {
                   fmt::format("memory budget (address space) of the analysis, e.g. 512M or 4G; "
                               "default: half of physical memory, {}",
                               format_memory_size(c.max_memory_bytes)))
+      ->type_name("SIZE")
       ->transform(memory_size());
   app->add_flag("--in-process", c.in_process, "run without the watchdog worker (for debugging)");
 }

@@ -60,13 +60,13 @@ class StageLog {
   const std::string& current() const { return current_; }
 
   void began(const std::string& stage) {
-    if (opt_.on_stage) opt_.on_stage(stage);
     current_ = stage;
     if (std::find(begun_.begin(), begun_.end(), stage) == begun_.end()) begun_.push_back(stage);
     // analyse_observability and analyse_canonical set fields up before their first stage
     // begins: a stop in that stage loses their whole result.
     before_.observability = stage == "lie" ? Observability{} : a_.observability;
     before_.canonical = stage == "frame" ? CanonicalForm{} : a_.canonical;
+    if (opt_.on_stage) opt_.on_stage(stage);
     if (!opt_.on_checkpoint) return;
     Analysis partial = a_;
     partial.observability = before_.observability;
