@@ -14,6 +14,7 @@
 #include "emit/cxx.hpp"
 #include "front/diagnostics.hpp"
 #include "front/parse.hpp"
+#include "symbolic/expr_print.hpp"
 
 #ifndef OBSYNTH_VERSION
 #define OBSYNTH_VERSION "0.0.0"
@@ -243,12 +244,15 @@ int run_check(const CheckCommand& c) {
     AnalysisOptions ao = analysis_options(c.common);
     ao.keep_partial = true;
     ao.checkpoint_reason = kStopReasonMarker;
+    PrintCache printed;  // checkpoints and the final report print each expression once
     ao.on_checkpoint = [&](const Analysis& partial) {
+      PrintCache::Use use(printed);
       publish_checkpoint(render_report(partial, format, ro));
     };
     const Analysis a = analyse(m, ao);
     publish_checkpoint("");
     publish_stage("report");
+    PrintCache::Use use(printed);
     std::fputs(render_report(a, format, ro).c_str(), stdout);
     if (const StageOutcome* stopped = a.stopped_stage()) {
       std::fflush(stdout);

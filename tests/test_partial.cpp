@@ -12,6 +12,7 @@
 #include "analysis/analysis.hpp"
 #include "app/report.hpp"
 #include "front/parse.hpp"
+#include "symbolic/expr_print.hpp"
 
 using namespace obsynth;
 
@@ -174,4 +175,23 @@ TEST(PartialReport, CompleteReportsAreUnchangedButForTheStageList) {
   const auto j = nlohmann::json::parse(render_report(a, ReportFormat::json, ro));
   EXPECT_EQ(j["complete"], true);
   for (const auto& s : j["stages"]) EXPECT_EQ(s["status"], "completed");
+}
+
+TEST(PrintCache, SameTextAsWithoutItEvenForShortLivedExpressions) {
+  const GiNaC::symbol x("x"), y("y");
+  std::vector<std::string> plain, latex;
+  for (int i = 0; i < 200; ++i) {
+    const GiNaC::ex e = GiNaC::pow(x, i) * y + i;  // a new object each time
+    plain.push_back(to_string(e));
+    latex.push_back(to_latex(e));
+  }
+  PrintCache cache;
+  PrintCache::Use use(cache);
+  for (int round = 0; round < 2; ++round)
+    for (int i = 0; i < 200; ++i) {
+      // Temporaries die after each call unless the cache holds them: a reused address must
+      // not return another expression's text.
+      EXPECT_EQ(to_string(GiNaC::pow(x, i) * y + i), plain[i]);
+      EXPECT_EQ(to_latex(GiNaC::pow(x, i) * y + i), latex[i]);
+    }
 }

@@ -77,8 +77,9 @@ std::size_t default_memory_budget() {
 void Budget::begin(const std::string& stage) {
   if (!stage_.empty()) end();
   stage_ = stage;
-  start_ = std::chrono::steady_clock::now();
+  // The listener may checkpoint a report: that is not the stage's time.
   if (on_stage_) on_stage_(stage);
+  start_ = std::chrono::steady_clock::now();
 }
 
 void Budget::end() {
