@@ -66,7 +66,20 @@ class StageLog {
     // begins: a stop in that stage loses their whole result.
     before_.observability = stage == "lie" ? Observability{} : a_.observability;
     before_.canonical = stage == "frame" ? CanonicalForm{} : a_.canonical;
+    checkpoint();
+    // Told after the checkpoint, so that a watchdog killing the process in between names the
+    // stage the last checkpoint says was stopped.
     if (opt_.on_stage) opt_.on_stage(stage);
+  }
+
+  // The running stage was stopped: back to the results from before it.
+  void restore() {
+    a_.observability = std::move(before_.observability);
+    a_.canonical = std::move(before_.canonical);
+  }
+
+  // The results before the running stage, offered as what to report should it never end.
+  void checkpoint() const {
     if (!opt_.on_checkpoint) return;
     Analysis partial = a_;
     partial.observability = before_.observability;
@@ -74,12 +87,6 @@ class StageLog {
     if (budget_) partial.timings_ms = budget_->timings_ms();
     partial.stages = outcomes(opt_.checkpoint_reason);
     opt_.on_checkpoint(partial);
-  }
-
-  // The running stage was stopped: back to the results from before it.
-  void restore() {
-    a_.observability = std::move(before_.observability);
-    a_.canonical = std::move(before_.canonical);
   }
 
   // Every stage's outcome; stop_reason non-empty: the running stage was stopped.
