@@ -41,6 +41,7 @@ std::size_t g_memory_limit = 0;      // RLIMIT_AS applied to this process
 bool g_in_process = false;
 std::string g_process_checkpoint, g_process_reason;
 alignas(16) char g_signal_stack[1 << 16];
+const std::size_t g_page_size = static_cast<std::size_t>(sysconf(_SC_PAGE_SIZE));
 
 long long now_ms() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(
@@ -67,7 +68,7 @@ std::size_t statm_bytes(const char* path, int field) {
       value = value * 10 + static_cast<std::size_t>(buf[i] - '0');
     }
   }
-  return value * static_cast<std::size_t>(sysconf(_SC_PAGE_SIZE));
+  return value * g_page_size;
 }
 
 void write_all(int fd, const char* p, std::size_t n) {
