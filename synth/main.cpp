@@ -49,7 +49,7 @@ CLI::Validator memory_size() {
         text = std::to_string(*bytes);
         return {};
       },
-      "SIZE");
+      "");
 }
 
 void add_common(CLI::App* app, CommonOptions& c) {
