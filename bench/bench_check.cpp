@@ -93,7 +93,7 @@ std::string probe(Family f, int n) {
         close(fds[1]);
         return code;
       },
-      g_config.stage_seconds);
+      obsynth::WorkerLimits{g_config.stage_seconds, obsynth::default_memory_budget()});
   close(fds[1]);
   std::string msg;
   char buf[512];
@@ -107,9 +107,11 @@ std::string probe(Family f, int n) {
     break;
   }
   close(fds[0]);
-  if (r.timed_out)
+  if (r.stop == obsynth::WorkerStop::time)
     return fmt::format("stage '{}' exceeded its time budget of {:g} s (stopped by the watchdog)",
                        r.stage, g_config.stage_seconds);
+  if (r.stop == obsynth::WorkerStop::memory)
+    return fmt::format("stage '{}' exceeded its memory budget (stopped by the watchdog)", r.stage);
   if (r.exit_code != 0)
     return msg.empty() ? fmt::format("analysis failed with exit code {}", r.exit_code) : msg;
   return {};

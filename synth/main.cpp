@@ -17,6 +17,7 @@
 #include "front/bind.hpp"
 #include "front/diagnostics.hpp"
 #include "front/parse.hpp"
+#include "symbolic/expr_print.hpp"
 
 #ifndef OBSYNTH_VERSION
 #define OBSYNTH_VERSION "0.0.0"
@@ -29,8 +30,30 @@ using namespace obsynth;
 struct CommonOptions {
   double stage_seconds = 60.0;
   std::size_t max_expression_size = 2000000;
+  std::size_t max_memory_bytes = default_memory_budget();
   bool in_process = false;
 };
+
+// --max-memory SIZE: a CLI11 transform that replaces the text by the number of bytes, or
+// returns the diagnostic.
+CLI::Validator memory_size() {
+  constexpr std::size_t minimum = std::size_t{32} << 20;
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        const auto bytes = parse_memory_size(text);
+        if (!bytes)
+          return fmt::format(
+              "'{}' is not a memory size: write a number and a unit K, M, G or T, "
+              "e.g. 512M or 4G",
+              text);
+        if (*bytes < minimum)
+          return fmt::format("'{}' is {} bytes, below the minimum of {}", text, *bytes,
+                             format_memory_size(minimum));
+        text = std::to_string(*bytes);
+        return {};
+      },
+      "");
+}
 
 void add_common(CLI::App* app, CommonOptions& c) {
   app->add_option("--stage-seconds", c.stage_seconds, "time budget per analysis stage, in seconds")
@@ -39,6 +62,12 @@ void add_common(CLI::App* app, CommonOptions& c) {
   app->add_option("--max-expression-size", c.max_expression_size,
                   "largest expression (tree nodes) a stage may store")
       ->capture_default_str();
+  app->add_option("--max-memory", c.max_memory_bytes,
+                  fmt::format("memory budget (address space) of the analysis, e.g. 512M or 4G; "
+                              "default: half of physical memory, {}",
+                              format_memory_size(c.max_memory_bytes)))
+      ->type_name("SIZE")
+      ->transform(memory_size());
   app->add_flag("--in-process", c.in_process, "run without the watchdog worker (for debugging)");
 }
 
@@ -46,15 +75,25 @@ AnalysisOptions analysis_options(const CommonOptions& c) {
   AnalysisOptions o;
   o.budget.stage_seconds = c.stage_seconds;
   o.budget.max_expression_size = c.max_expression_size;
+  o.budget.max_memory_bytes = c.max_memory_bytes;
   o.on_stage = publish_stage;
   return o;
 }
 
+void print_stop(const std::string& stage, const std::string& reason) {
+  std::fprintf(stderr, "obsynth: error: stage '%s' %s\n", stage.c_str(), reason.c_str());
+}
+
 // Runs a job, turning exceptions into diagnostics and exit codes, under the watchdog.
+// Every budget stop (time, size, memory; in the analysis, the worker or this process) ends in
+// "obsynth: error: stage 'X' <reason>" and exit 1, after the partial report a checkpoint left.
 int guarded(const CommonOptions& c, const std::function<int()>& job) {
   auto body = [&]() -> int {
     try {
       return job();
+    } catch (const BudgetExceeded& e) {
+      print_stop(e.stage(), e.reason());
+      return 1;
     } catch (const UserError& e) {
       for (const auto& d : e.diagnostics())
         std::fprintf(stderr, "%s\n", format_diagnostic(d).c_str());
@@ -63,19 +102,28 @@ int guarded(const CommonOptions& c, const std::function<int()>& job) {
       std::fprintf(stderr, "obsynth: %s\n", e.what());
       return 2;
     } catch (const std::exception& e) {
+      if (is_out_of_memory(e)) {
+        print_stop(current_stage(), memory_budget_reason(c.max_memory_bytes));
+        return 1;
+      }
       std::fprintf(stderr, "obsynth: internal error: %s\n", e.what());
       return 2;
     }
   };
-  if (c.in_process) return body();
-  const WorkerResult r = run_in_worker(body, c.stage_seconds);
-  if (r.timed_out) {
-    std::fprintf(stderr,
-                 "obsynth: error: stage '%s' exceeded its time budget of %g s (raise it with "
-                 "--stage-seconds)\n",
-                 r.stage.c_str(), c.stage_seconds);
+  if (c.in_process) return run_in_process(body, c.max_memory_bytes);
+  const WorkerResult r = run_in_worker(body, {c.stage_seconds, c.max_memory_bytes});
+  if (r.stop != WorkerStop::none) {
+    const std::string reason = r.stop == WorkerStop::time
+                                   ? time_budget_reason(c.stage_seconds)
+                                   : memory_budget_reason(c.max_memory_bytes);
+    std::fputs(fill_checkpoint(r.checkpoint, reason).c_str(), stdout);
+    std::fflush(stdout);
+    print_stop(r.stage, reason);
     return 1;
   }
+  if (r.signal != 0)
+    std::fprintf(stderr, "obsynth: internal error: the worker died of signal %d in stage '%s'\n",
+                 r.signal, r.stage.c_str());
   return r.exit_code;
 }
 
@@ -229,13 +277,35 @@ int list_methods() {
   return 0;
 }
 
+// A budget stop still prints the results of the completed stages (through checkpoints when
+// the worker has to be killed), then the diagnostic, exit 1: the report is partial. A
+// complete analysis also gets the design verdicts.
 int run_check(const CheckCommand& c) {
   return guarded(c.common, [&] {
     const Model m = load_bound_model(c.model, c.params);
-    const Analysis a = analyse(m, analysis_options(c.common));
     ReportOptions ro;
     ro.timings = !c.no_timings;
-    std::fputs(render_check(a, report_format(c.format), ro).c_str(), stdout);
+    const ReportFormat format = report_format(c.format);
+    AnalysisOptions ao = analysis_options(c.common);
+    ao.keep_partial = true;
+    ao.checkpoint_reason = kStopReasonMarker;
+    PrintCache printed;  // checkpoints and the final report print each expression once
+    ao.on_checkpoint = [&](const Analysis& partial) {
+      PrintCache::Use use(printed);
+      publish_checkpoint(render_report(partial, format, ro));
+    };
+    const Analysis a = analyse(m, ao);
+    publish_checkpoint("");
+    publish_stage("report");
+    PrintCache::Use use(printed);
+    const StageOutcome* stopped = a.stopped_stage();
+    std::fputs((stopped ? render_report(a, format, ro) : render_check(a, format, ro)).c_str(),
+               stdout);
+    if (stopped) {
+      std::fflush(stdout);
+      print_stop(stopped->name, stopped->reason);
+      return 1;
+    }
     return 0;
   });
 }

@@ -1,15 +1,178 @@
 #include "analysis/analysis.hpp"
 
+#include <algorithm>
+
 namespace obsynth {
 
+const char* stage_status_name(StageStatus s) {
+  switch (s) {
+    case StageStatus::completed:
+      return "completed";
+    case StageStatus::stopped:
+      return "stopped";
+    case StageStatus::not_run:
+      return "not run";
+    case StageStatus::not_needed:
+      return "not needed";
+  }
+  return "";
+}
+
+const std::vector<std::string>& pipeline_stages() {
+  static const std::vector<std::string> stages = {"lie", "observability", "frame", "conditions",
+                                                  "diffeomorphism"};
+  return stages;
+}
+
+bool Analysis::complete() const {
+  return stopped_stage() == nullptr;
+}
+
+const StageOutcome* Analysis::stopped_stage() const {
+  for (const auto& s : stages)
+    if (s.status == StageStatus::stopped) return &s;
+  return nullptr;
+}
+
+bool Analysis::completed(const std::string& stage) const {
+  for (const auto& s : stages)
+    if (s.name == stage) return s.status == StageStatus::completed;
+  return true;
+}
+
+bool Analysis::lost(const std::string& stage) const {
+  for (const auto& s : stages)
+    if (s.name == stage)
+      return s.status == StageStatus::stopped || s.status == StageStatus::not_run;
+  return false;
+}
+
+namespace {
+
+// Follows the stages as they begin. Keeps the results as they stood when the running stage
+// began (what a stop in it leaves: a stage's results are all or nothing), offers them to the
+// checkpoint, and finally says which stage completed, stopped, did not run or was not needed.
+class StageLog {
+ public:
+  StageLog(Analysis& a, const AnalysisOptions& opt) : a_(a), opt_(opt) {}
+
+  void attach(const Budget& budget) { budget_ = &budget; }
+  const std::string& current() const { return current_; }
+
+  void began(const std::string& stage) {
+    current_ = stage;
+    if (std::find(begun_.begin(), begun_.end(), stage) == begun_.end()) begun_.push_back(stage);
+    // analyse_observability and analyse_canonical set fields up before their first stage
+    // begins: a stop in that stage loses their whole result.
+    before_.observability = stage == "lie" ? Observability{} : a_.observability;
+    before_.canonical = stage == "frame" ? CanonicalForm{} : a_.canonical;
+    checkpoint();
+    // Told after the checkpoint, so that a watchdog killing the process in between names the
+    // stage the last checkpoint says was stopped.
+    if (opt_.on_stage) opt_.on_stage(stage);
+  }
+
+  // The running stage was stopped: back to the results from before it.
+  void restore() {
+    a_.observability = std::move(before_.observability);
+    a_.canonical = std::move(before_.canonical);
+  }
+
+  // The results before the running stage, offered as what to report should it never end.
+  void checkpoint() const {
+    if (!opt_.on_checkpoint) return;
+    Analysis partial = a_;
+    partial.observability = before_.observability;
+    partial.canonical = before_.canonical;
+    if (budget_) partial.timings_ms = budget_->timings_ms();
+    partial.stages = outcomes(opt_.checkpoint_reason);
+    opt_.on_checkpoint(partial);
+  }
+
+  // Every stage's outcome; stop_reason non-empty: the running stage was stopped.
+  std::vector<StageOutcome> outcomes(const std::string& stop_reason) const {
+    std::vector<StageOutcome> out;
+    bool after_stop = false;
+    for (const auto& name : order()) {
+      StageOutcome o{name, StageStatus::completed, {}};
+      const bool begun = std::find(begun_.begin(), begun_.end(), name) != begun_.end();
+      if (after_stop) {
+        o.status = StageStatus::not_run;
+        o.reason = "an earlier stage was stopped";
+      } else if (!stop_reason.empty() && name == current_) {
+        o.status = StageStatus::stopped;
+        o.reason = stop_reason;
+        after_stop = true;
+      } else if (!begun) {
+        o.status = StageStatus::not_needed;
+        o.reason = not_needed_reason();
+      }
+      out.push_back(std::move(o));
+    }
+    return out;
+  }
+
+ private:
+  // The pipeline's stages, with any other stage that began inserted after the one before it.
+  std::vector<std::string> order() const {
+    std::vector<std::string> order = pipeline_stages();
+    std::size_t at = 0;
+    for (const auto& s : begun_) {
+      auto it = std::find(order.begin(), order.end(), s);
+      if (it == order.end()) it = order.insert(order.begin() + static_cast<long>(at), s);
+      at = static_cast<std::size_t>(it - order.begin()) + 1;
+    }
+    return order;
+  }
+
+  std::string not_needed_reason() const {
+    const CanonicalForm& cf = a_.canonical;
+    if (!cf.applicable && !cf.not_applicable.empty()) return cf.not_applicable;
+    if (cf.applicable && !cf.linearizable) return "the bracket conditions fail";
+    return "the analysis ended before it";
+  }
+
+  Analysis& a_;
+  const AnalysisOptions& opt_;
+  const Budget* budget_ = nullptr;
+  std::string current_;
+  std::vector<std::string> begun_;
+  struct {
+    Observability observability;
+    CanonicalForm canonical;
+  } before_;
+};
+
+void run_stages(const Model& m, const AnalysisOptions& opt, Budget& budget, Analysis& a) {
+  analyse_observability(m, budget, opt.observability, &a.observability);
+  analyse_canonical(m, a.observability, budget, opt.canonical, &a.canonical);
+}
+
+}  // namespace
+
 Analysis analyse(const Model& m, const AnalysisOptions& opt) {
-  Budget budget(opt.budget, opt.on_stage);
   Analysis a;
   a.model = m;
-  a.observability = analyse_observability(m, budget, opt.observability);
-  a.canonical = analyse_canonical(m, a.observability, budget, opt.canonical);
+  StageLog log(a, opt);
+  Budget budget(opt.budget, [&](const std::string& stage) { log.began(stage); });
+  log.attach(budget);
+  std::string stop_reason;  // non-empty: a budget stopped the running stage
+  try {
+    run_stages(m, opt, budget, a);
+  } catch (const BudgetExceeded& e) {
+    if (log.current().empty()) throw;
+    stop_reason = e.reason();
+  } catch (const std::exception& e) {
+    if (!is_out_of_memory(e) || log.current().empty()) throw;
+    stop_reason = memory_budget_reason(opt.budget.max_memory_bytes);
+  }
   budget.end();
   a.timings_ms = budget.timings_ms();
+  if (!stop_reason.empty()) {
+    log.restore();
+    if (!opt.keep_partial) throw BudgetExceeded(log.current(), stop_reason);
+  }
+  a.stages = log.outcomes(stop_reason);
   return a;
 }
 

@@ -1,8 +1,13 @@
 // The analysis pipeline: model -> Lie derivatives -> observability -> canonical form.
+// Stages: lie, observability, frame, conditions, diffeomorphism. A budget stop (time,
+// expression size, memory) ends the pipeline but keeps the results of the stages that
+// completed; Analysis::stages says which did.
 #pragma once
 
+#include <functional>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "analysis/budget.hpp"
 #include "analysis/canonical.hpp"
@@ -11,11 +16,32 @@
 
 namespace obsynth {
 
+// completed: its results are in the Analysis. stopped: a budget ended it; its results and
+// those of every later stage are absent. not run: after a stopped stage. not needed: the
+// analysis ended before it (not observable, brackets fail).
+enum class StageStatus { completed, stopped, not_run, not_needed };
+const char* stage_status_name(StageStatus s);  // "completed", "stopped", "not run", "not needed"
+
+struct StageOutcome {
+  std::string name;
+  StageStatus status = StageStatus::not_run;
+  std::string reason;  // why it stopped, did not run, or was not needed; empty when completed
+};
+
+struct Analysis;
+
 struct AnalysisOptions {
   BudgetLimits budget;
   Budget::StageListener on_stage;  // e.g. the worker's publish_stage
   ObservabilityOptions observability;
   CanonicalOptions canonical;
+  // false: a budget stop throws BudgetExceeded (callers that need every stage, e.g. the main
+  // job). true: analyse returns the results of the completed stages, complete() false.
+  bool keep_partial = false;
+  // Called as each stage begins with the results of the stages before it, the beginning stage
+  // marked stopped with checkpoint_reason: what to report should the process die in it.
+  std::function<void(const Analysis&)> on_checkpoint;
+  std::string checkpoint_reason = "stopped";
 };
 
 struct Analysis {
@@ -23,7 +49,20 @@ struct Analysis {
   Observability observability;
   CanonicalForm canonical;
   std::map<std::string, double> timings_ms;
+  std::vector<StageOutcome> stages;  // every stage of the pipeline, in order
+
+  // No stage was stopped (stages that were not needed do not count).
+  bool complete() const;
+  // The stopped stage, or nullptr.
+  const StageOutcome* stopped_stage() const;
+  // Whether the stage's results are present. True for a stage not listed in `stages`.
+  bool completed(const std::string& stage) const;
+  // Whether the stage's results were lost to a stop (stopped or not run).
+  bool lost(const std::string& stage) const;
 };
+
+// The stages in pipeline order.
+const std::vector<std::string>& pipeline_stages();
 
 Analysis analyse(const Model& m, const AnalysisOptions& opt = {});
 

@@ -1,12 +1,16 @@
-// Per-stage time and expression-size budgets. Stages check cooperatively between GiNaC
-// calls (a single GiNaC call cannot be interrupted); the command line additionally runs the
-// job in a forked worker with a hard deadline (see worker.hpp).
+// Per-stage time, expression-size and memory budgets. Stages check time and size
+// cooperatively between GiNaC calls (a single GiNaC call cannot be interrupted); the command
+// line additionally runs the job in a forked worker with a hard deadline and an address-space
+// limit (see worker.hpp). Memory is not checked here: an allocation beyond the limit fails
+// (std::bad_alloc), and the analysis turns that into a stop of the running stage.
 #pragma once
 
 #include <chrono>
 #include <cstddef>
+#include <exception>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -17,7 +21,37 @@ namespace obsynth {
 struct BudgetLimits {
   double stage_seconds = 60.0;                // per stage
   std::size_t max_expression_size = 2000000;  // nodes in one stored expression
+  std::size_t max_memory_bytes = 0;  // the process's address-space limit (0: none set); the
+                                     // worker applies it, diagnostics quote it
 };
+
+// A stage ran out of one of its budgets. A UserError (exit 1) whose message is
+// "stage '<stage>' <reason>".
+class BudgetExceeded : public UserError {
+ public:
+  BudgetExceeded(const std::string& stage, const std::string& reason);
+  const std::string& stage() const { return stage_; }
+  const std::string& reason() const { return reason_; }
+
+ private:
+  std::string stage_, reason_;
+};
+
+// Reasons, as they follow "stage 'X' " in diagnostics and reports.
+std::string time_budget_reason(double stage_seconds);
+std::string memory_budget_reason(std::size_t max_memory_bytes);  // 0: "ran out of memory"
+
+// An allocation failed: std::bad_alloc, or CLN's "Out of virtual memory." exception.
+bool is_out_of_memory(const std::exception& e);
+
+// MiB below 1 GiB, else GiB, to three significant digits: "512 MiB", "1.5 GiB", "15.6 GiB".
+std::string format_memory_size(std::size_t bytes);
+// "512M", "4G", "1.5GiB", "300000K", "4096MB": a decimal number and an optional unit
+// K, M, G or T (binary multiples, case-insensitive, optionally followed by "iB" or "B");
+// no unit means bytes. nullopt when malformed or out of range.
+std::optional<std::size_t> parse_memory_size(const std::string& text);
+// Half of the machine's physical memory (the default memory budget).
+std::size_t default_memory_budget();
 
 class Budget {
  public:
@@ -32,7 +66,7 @@ class Budget {
   void begin(const std::string& stage);
   // Ends the current stage and records its time.
   void end();
-  // Throws UserError naming the stage if its time or the size limit is exceeded.
+  // Throws BudgetExceeded naming the stage if its time or the size limit is exceeded.
   void check(std::size_t expression_size = 0) const;
 
   const std::map<std::string, double>& timings_ms() const { return timings_; }

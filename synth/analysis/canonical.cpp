@@ -359,8 +359,9 @@ std::optional<ExVec> invert_map(const ExVec& T, const Symbols& x,
 }
 
 CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget& budget,
-                                const CanonicalOptions& opt) {
-  CanonicalForm cf;
+                                const CanonicalOptions& opt, CanonicalForm* progress) {
+  CanonicalForm local;
+  CanonicalForm& cf = progress ? *progress : local;
   const std::size_t n = m.n();
   const Symbols& x = m.states;
   for (std::size_t i = 0; i < n; ++i) cf.z.push_back(GiNaC::symbol(fmt::format("z{}", i + 1)));

@@ -64,8 +64,11 @@ struct CanonicalOptions {
   ZeroTestOptions zero;
 };
 
+// progress, when given, receives the results as they are found (so a caller that catches a
+// budget stop keeps those of the completed stages); the return value is a copy of it.
 CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget& budget,
-                                const CanonicalOptions& opt = {});
+                                const CanonicalOptions& opt = {},
+                                CanonicalForm* progress = nullptr);
 
 // e(x) written as a function of y = h(x) alone, if it is one (h must be linear in some
 // state); nullopt otherwise.

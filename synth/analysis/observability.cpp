@@ -242,9 +242,10 @@ int permutation_sign(const std::vector<std::size_t>& perm) {
 
 }  // namespace
 
-Observability analyse_observability(const Model& m, Budget& budget,
-                                    const ObservabilityOptions& opt) {
-  Observability ob;
+Observability analyse_observability(const Model& m, Budget& budget, const ObservabilityOptions& opt,
+                                    Observability* progress) {
+  Observability local;
+  Observability& ob = progress ? *progress : local;
   ob.n = m.n();
   ob.p = m.p();
   const Symbols& x = m.states;

@@ -47,8 +47,11 @@ struct Observability {
   ExVec undefined;  // x-dependent denominator factors (O undefined on their zeros)
 };
 
+// progress, when given, receives the results as they are found (so a caller that catches a
+// budget stop keeps those of the completed stages); the return value is a copy of it.
 Observability analyse_observability(const Model& m, Budget& budget,
-                                    const ObservabilityOptions& opt = {});
+                                    const ObservabilityOptions& opt = {},
+                                    Observability* progress = nullptr);
 
 // Rank of a numeric matrix: exact rational elimination, or scaled floating elimination
 // when `exact` is false.

@@ -2,6 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <map>
+
 #include "symbolic/expr_print.hpp"
 
 namespace obsynth {
@@ -82,6 +85,83 @@ std::string lie_name(std::size_t k, std::size_t i, std::size_t p) {
   return k == 0 ? h : (k == 1 ? fmt::format("L_f {}", h) : fmt::format("L_f^{} {}", k, h));
 }
 
+// Partial reports. Each renderer marks where a stage's section begins; a report is cut at the
+// first section whose stage a budget stop lost (its data is then empty), and the stage
+// statuses follow.
+class SectionMarks {
+ public:
+  explicit SectionMarks(const std::string& text) : text_(text) {}
+  void mark(const std::string& stage) { at_.emplace(stage, text_.size()); }
+  std::size_t cut_position(const Analysis& a) const {
+    std::size_t pos = text_.size();
+    for (const auto& [stage, at] : at_)
+      if (a.lost(stage)) pos = std::min(pos, at);
+    return pos;
+  }
+
+ private:
+  const std::string& text_;
+  std::map<std::string, std::size_t> at_;
+};
+
+std::string stage_line(const StageOutcome& s) {
+  return s.reason.empty()
+             ? fmt::format("{}: {}", s.name, stage_status_name(s.status))
+             : fmt::format("{}: {}: {}", s.name, stage_status_name(s.status), s.reason);
+}
+
+std::string incomplete_text(const Analysis& a) {
+  if (a.complete()) return {};
+  std::string s = "\nReport incomplete: a budget stopped the analysis\n";
+  for (const auto& st : a.stages) s += "  " + stage_line(st) + "\n";
+  return s;
+}
+
+std::string incomplete_markdown(const Analysis& a) {
+  if (a.complete()) return {};
+  std::string s = "\n## Report incomplete\n\nA budget stopped the analysis.\n\n";
+  s += "| stage | status | reason |\n|---|---|---|\n";
+  for (const auto& st : a.stages)
+    s += fmt::format("| {} | {} | {} |\n", st.name, stage_status_name(st.status), st.reason);
+  return s;
+}
+
+std::string latex_text(const std::string& t) {
+  std::string e;
+  for (char c : t) {
+    if (std::string("_%&#${}").find(c) != std::string::npos)
+      e += std::string("\\") + c;
+    else if (c == '~' || c == '^' || c == '\\')
+      e += fmt::format("\\char{}{{}}", static_cast<int>(c));
+    else
+      e += c;
+  }
+  return e;
+}
+
+std::string incomplete_latex(const Analysis& a) {
+  if (a.complete()) return {};
+  std::string s = "\\paragraph{Report incomplete.} A budget stopped the analysis.\n";
+  s += "\\begin{itemize}\n";
+  for (const auto& st : a.stages)
+    s += fmt::format("  \\item \\texttt{{{}}}: {}{}\n", latex_text(st.name),
+                     stage_status_name(st.status),
+                     st.reason.empty() ? "" : ": \\texttt{" + latex_text(st.reason) + "}");
+  return s + "\\end{itemize}\n";
+}
+
+// JSON keys holding each stage's results: null when a budget stop lost the stage.
+const std::vector<std::pair<const char*, std::vector<const char*>>>& stage_json_keys() {
+  static const std::vector<std::pair<const char*, std::vector<const char*>>> keys = {
+      {"lie", {"lie_derivatives"}},
+      {"observability", {"observability"}},
+      {"frame", {"canonical_applicable", "canonical_note", "r", "frame"}},
+      {"conditions", {"conditions", "linearizable"}},
+      {"diffeomorphism",
+       {"base_point", "T", "T_info", "T_inverse", "T_inverse_info", "l", "l_info"}}};
+  return keys;
+}
+
 }  // namespace
 
 ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
@@ -90,6 +170,7 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   const CanonicalForm& cf = a.canonical;
   ordered_json j;
   j["model"] = m.name;
+  j["complete"] = a.complete();
   j["states"] = names(m.states);
   j["inputs"] = names(m.inputs);
   ordered_json params = ordered_json::array();
@@ -171,6 +252,15 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   ordered_json t = ordered_json::object();
   for (const auto& [stage, ms] : a.timings_ms) t[stage] = opt.timings ? ms : 0.0;
   j["timings_ms"] = t;
+  ordered_json stages = ordered_json::array();
+  for (const auto& st : a.stages)
+    stages.push_back(
+        {{"name", st.name}, {"status", stage_status_name(st.status)}, {"reason", st.reason}});
+  j["stages"] = stages;
+  for (const auto& [stage, keys] : stage_json_keys())
+    if (a.lost(stage))
+      for (const char* key : keys)
+        if (j.contains(key)) j[key] = nullptr;
   return j;
 }
 
@@ -181,6 +271,7 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
   const Observability& ob = a.observability;
   const CanonicalForm& cf = a.canonical;
   std::string s;
+  SectionMarks marks(s);
   auto line = [&](const std::string& t) { s += t + "\n"; };
   line(fmt::format("model {}  (n = {} states: {}; m = {} inputs{}{}; p = {} output{})", m.name,
                    m.n(), fmt::join(names(m.states), ", "), m.m(), m.m() ? ": " : "",
@@ -188,11 +279,13 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
   line(fmt::format("  f = {}", vec_text(m.f)));
   line(fmt::format("  g = {}", vec_text(m.g)));
   line(fmt::format("  h = {}", vec_text(m.h)));
+  marks.mark("lie");
   line("");
   line("Lie derivatives");
   for (std::size_t i = 0; i < ob.p; ++i)
     for (std::size_t k = 0; k < ob.lie[i].size(); ++k)
       line(fmt::format("  {} = {}", lie_name(k, i, ob.p), to_string(ob.lie[i][k])));
+  marks.mark("observability");
   line("");
   line("Observability");
   for (std::size_t r = 0; r < ob.O.size(); ++r)
@@ -211,6 +304,7 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
   if (!ob.undefined.empty())
     line(fmt::format("  O is undefined where any of these vanish: {}",
                      fmt::join(to_strings(ob.undefined), "; ")));
+  marks.mark("frame");
   line("");
   line("Linearization by output injection (observer canonical form)");
   if (!cf.applicable) {
@@ -219,6 +313,7 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
     line(fmt::format("  r = {}", vec_text(cf.r)));
     for (std::size_t k = 0; k < cf.frame.size(); ++k)
       line(fmt::format("  tau_{} = {}", k + 1, vec_text(cf.frame[k])));
+    marks.mark("conditions");
     line(fmt::format("  C1 rank O = n                 holds"));
     for (const auto& b : cf.drift)
       line(fmt::format("  C2 [tau_{}, tau_{}] = 0{:>{}}{} ({}){}", b.i, b.j, "",
@@ -235,6 +330,7 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
     line(cf.linearizable ? "  => linearizable by output injection"
                          : "  => NOT linearizable by output injection");
     if (cf.linearizable) {
+      marks.mark("diffeomorphism");
       line("");
       line(fmt::format("Diffeomorphism z = T(x), T(x0) = 0 at x0 = {}", vec_text(cf.base_point)));
       if (cf.T_kind == Availability::symbolic) line(fmt::format("  T = {}", vec_text(cf.T)));
@@ -255,6 +351,8 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
       }
     }
   }
+  s.resize(marks.cut_position(a));
+  s += incomplete_text(a);
   if (opt.timings) {
     line("");
     line("timings: " + timings_text(a));
@@ -267,6 +365,7 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
   const Observability& ob = a.observability;
   const CanonicalForm& cf = a.canonical;
   std::string s;
+  SectionMarks marks(s);
   auto line = [&](const std::string& t) { s += t + "\n"; };
   line(fmt::format("# Observer analysis: `{}`", m.name));
   line("");
@@ -277,6 +376,7 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
   line(fmt::format("$$f = {}, \\quad g = {}, \\quad h = {}$$", vec_latex(m.f), vec_latex(m.g),
                    vec_latex(m.h)));
   line("");
+  marks.mark("lie");
   line("## Observability");
   line("");
   line("| Lie derivative | expression |");
@@ -289,6 +389,7 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
                  : fmt::format("L_f^{{{}}} h{}", k, ob.p == 1 ? "" : fmt::format("_{}", i + 1)),
           to_latex(ob.lie[i][k])));
   line("");
+  marks.mark("observability");
   line(fmt::format("$$O(x) = {}$$", matrix_latex(ob.O)));
   line("");
   line(fmt::format("- generic rank **{}** of $n = {}$ ({})", ob.generic_rank, ob.n,
@@ -300,6 +401,7 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
   }
   for (const auto& f : ob.undefined) line(fmt::format("- $O$ undefined on ${} = 0$", to_latex(f)));
   line("");
+  marks.mark("frame");
   line("## Linearization by output injection");
   line("");
   if (!cf.applicable) {
@@ -307,6 +409,7 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
   } else {
     line(fmt::format("$$r = {}$$", vec_latex(cf.r)));
     line("");
+    marks.mark("conditions");
     line("| condition | verdict | residual |");
     line("|---|---|---|");
     line("| C1: rank $O = n$ | holds | |");
@@ -327,6 +430,7 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
     line("");
     line(cf.linearizable ? "**Linearizable by output injection.**"
                          : "**Not linearizable by output injection.**");
+    marks.mark("diffeomorphism");
     if (cf.T_kind == Availability::symbolic) {
       line("");
       line(fmt::format("$$T(x) = {}, \\qquad T^{{-1}}(z) = {}$$", vec_latex(cf.T),
@@ -340,6 +444,8 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
                        cf.l.size(), vec_latex(cf.l)));
     }
   }
+  s.resize(marks.cut_position(a));
+  s += incomplete_markdown(a);
   if (opt.timings) {
     line("");
     line("_Timings: " + timings_text(a) + "._");
@@ -352,6 +458,7 @@ std::string render_latex(const Analysis& a) {
   const Observability& ob = a.observability;
   const CanonicalForm& cf = a.canonical;
   std::string s;
+  SectionMarks marks(s);
   auto line = [&](const std::string& t) { s += t + "\n"; };
   line(fmt::format("% obsynth analysis of model {} (needs amsmath)", m.name));
   line(fmt::format("\\subsection*{{Observer analysis of \\texttt{{{}}}}}", [&] {
@@ -359,6 +466,8 @@ std::string render_latex(const Analysis& a) {
     for (char c : m.name) e += c == '_' ? std::string("\\_") : std::string(1, c);
     return e;
   }()));
+  marks.mark("lie");  // O shares its environment with f, g, h
+  marks.mark("observability");
   line("\\begin{align*}");
   line(fmt::format("  f(x) &= {}, & g(x,u) &= {}, & h(x) &= {} \\\\", vec_latex(m.f),
                    vec_latex(m.g), vec_latex(m.h)));
@@ -366,12 +475,14 @@ std::string render_latex(const Analysis& a) {
                    ob.generic_rank));
   if (ob.generic_rank == ob.n) line(fmt::format("  , & \\det O &= {}", to_latex(ob.det)));
   line("\\end{align*}");
+  marks.mark("frame");
   if (cf.applicable) {
     line("\\begin{align*}");
     line(fmt::format("  r &= {}", vec_latex(cf.r)));
     for (std::size_t k = 1; k < cf.frame.size(); ++k)
       line(fmt::format("  \\\\ \\tau_{{{}}} &= {}", k + 1, vec_latex(cf.frame[k])));
     line("\\end{align*}");
+    marks.mark("conditions");
     line("\\begin{itemize}");
     for (const auto& b : cf.drift)
       line(fmt::format("  \\item $[\\tau_{{{}}}, \\tau_{{{}}}] {}$ ({})", b.i, b.j,
@@ -387,6 +498,7 @@ std::string render_latex(const Analysis& a) {
                        verdict_name(b.verdict)));
     line(fmt::format("  \\item completeness: {}", completeness_name(cf.complete)));
     line("\\end{itemize}");
+    marks.mark("diffeomorphism");
     if (cf.T_kind == Availability::symbolic && cf.l_kind == Availability::symbolic) {
       line("\\begin{align*}");
       line(fmt::format("  T(x) &= {}, & l(u,y) &= {}", vec_latex(cf.T), vec_latex(cf.l)));
@@ -397,6 +509,8 @@ std::string render_latex(const Analysis& a) {
   } else {
     line(cf.not_applicable);
   }
+  s.resize(marks.cut_position(a));
+  s += incomplete_latex(a);
   return s;
 }
 

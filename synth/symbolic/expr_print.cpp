@@ -309,11 +309,32 @@ class Printer {
 
 }  // namespace
 
+namespace {
+PrintCache* g_print_cache = nullptr;
+
+template <class Map>
+std::string print_cached(Map* texts, const ex& e, Style style) {
+  if (!texts) return Printer(style).print(e).text;
+  const GiNaC::basic* key = &ex_to<GiNaC::basic>(e);
+  auto it = texts->find(key);
+  if (it == texts->end())
+    it = texts->emplace(key, std::pair(e, Printer(style).print(e).text)).first;
+  return it->second.second;
+}
+}  // namespace
+
+PrintCache::Use::Use(PrintCache& cache) : previous_(g_print_cache) {
+  g_print_cache = &cache;
+}
+PrintCache::Use::~Use() {
+  g_print_cache = previous_;
+}
+
 std::string to_string(const ex& e) {
-  return Printer(Style::plain).print(e).text;
+  return print_cached(g_print_cache ? &g_print_cache->plain_ : nullptr, e, Style::plain);
 }
 std::string to_latex(const ex& e) {
-  return Printer(Style::latex).print(e).text;
+  return print_cached(g_print_cache ? &g_print_cache->latex_ : nullptr, e, Style::latex);
 }
 
 std::vector<std::string> to_strings(const std::vector<ex>& v) {

@@ -57,6 +57,77 @@ check "budget stops promptly (${elapsed}s)" test $elapsed -le 10
 check "size budget exit code 1" test $? -eq 1
 check "size budget diagnostic" grep -q "exceeded its expression-size budget" "$tmp/err"
 
+# A stop keeps what the completed stages found: the frame stage exceeds the size budget, and
+# the rank (decided in the observability stage) is still reported, in text and JSON.
+"$bin" check "$tmp/heavy.sym" --max-expression-size 100000 >"$tmp/out" 2>"$tmp/err"
+check "frame stop exit code 1" test $? -eq 1
+check "frame stop diagnostic" grep -q "stage 'frame' exceeded its expression-size budget" "$tmp/err"
+check "frame stop keeps the rank (text)" grep -q "generic rank 12 of n = 12" "$tmp/out"
+check "frame stop marks the stage (text)" grep -q "frame: stopped: exceeded its expression-size" "$tmp/out"
+check "later stages not run (text)" grep -q "diffeomorphism: not run" "$tmp/out"
+"$bin" check "$tmp/heavy.sym" --max-expression-size 100000 --format json >"$tmp/out.json" 2>"$tmp/err"
+check "frame stop exit code 1 (json)" test $? -eq 1
+check "frame stop keeps the rank (json)" grep -q '"generic_rank": 12' "$tmp/out.json"
+check "json says incomplete" grep -q '^  "complete": false' "$tmp/out.json"
+check "json stage statuses" sh -c "grep -A1 '\"name\": \"observability\"' '$tmp/out.json' | grep -q '\"status\": \"completed\"' && grep -A1 '\"name\": \"frame\"' '$tmp/out.json' | grep -q '\"status\": \"stopped\"' && grep -A1 '\"name\": \"conditions\"' '$tmp/out.json' | grep -q '\"status\": \"not run\"'"
+for fmt in markdown latex; do
+  "$bin" check "$tmp/heavy.sym" --max-expression-size 100000 --format $fmt >"$tmp/out" 2>/dev/null
+  check "frame stop keeps the rank ($fmt)" grep -Eq "generic rank \*\*12\*\*|rank\} O &= 12" "$tmp/out"
+done
+
+# A stage killed by the watchdog (one GiNaC call longer than the budget) still prints the
+# stages before it, from the worker's checkpoint.
+{
+  echo "model expchain"
+  echo "states $(seq -f 'x%g' -s ' ' 1 8)"
+  printf 'f = ['
+  for i in $(seq 1 7); do printf 'x%d + exp(x%d)*x1^2, ' $((i + 1)) "$i"; done
+  echo '-x1*x8/(1+x1^2) ]'
+  echo "h = [x1]"
+} >"$tmp/expchain.sym"
+"$bin" check "$tmp/expchain.sym" --stage-seconds 1 >"$tmp/out" 2>"$tmp/err"
+check "watchdog stop exit code 1" test $? -eq 1
+check "watchdog stop diagnostic" grep -q "stage 'frame' exceeded its time budget of 1 s" "$tmp/err"
+check "watchdog stop keeps the rank" grep -q "generic rank 8 of n = 8" "$tmp/out"
+check "watchdog stop marks the stage" grep -q "frame: stopped: exceeded its time budget of 1 s" "$tmp/out"
+
+# Memory budget: an exploding model ends with the memory diagnostic and exit 1, promptly, in
+# the worker and in-process, with the completed stages' results.
+start=$(date +%s)
+"$bin" check "$tmp/heavy.sym" --max-memory 256M >"$tmp/out" 2>"$tmp/err"
+code=$?
+elapsed=$(( $(date +%s) - start ))
+check "memory budget exit code 1" test $code -eq 1
+check "memory budget diagnostic" grep -Eq "^obsynth: error: stage '[a-z]+' exceeded its memory budget of 256 MiB" "$tmp/err"
+check "memory budget stops promptly (${elapsed}s)" test $elapsed -le 30
+check "memory stop keeps the rank" grep -q "generic rank 12 of n = 12" "$tmp/out"
+"$bin" check "$tmp/heavy.sym" --max-memory 256M --in-process --format json >"$tmp/out.json" 2>"$tmp/err"
+check "memory budget in-process exit code 1" test $? -eq 1
+check "memory budget in-process diagnostic" grep -q "exceeded its memory budget of 256 MiB" "$tmp/err"
+check "memory stop json incomplete" grep -q '"complete": false' "$tmp/out.json"
+for bad in 12X 1.2.3G -1G; do
+  "$bin" check "$src/models/lorenz.sym" --max-memory=$bad >"$tmp/out" 2>"$tmp/err"
+  check "malformed --max-memory $bad exits 1" test $? -eq 1
+  check "malformed --max-memory $bad diagnostic" grep -q "^--max-memory: '$bad' is not a memory size" "$tmp/err"
+done
+"$bin" check "$src/models/lorenz.sym" --max-memory 512 >"$tmp/out" 2>"$tmp/err"
+check "tiny --max-memory diagnostic" grep -q "'512' is 512 bytes, below the minimum of 32 MiB" "$tmp/err"
+"$bin" check "$src/models/lorenz.sym" --max-memory 1G >"$tmp/out" 2>"$tmp/err"
+check "--max-memory 1G runs" test $? -eq 0
+
+# The main job is atomic: a budget stop leaves no output directory.
+"$bin" "$tmp/heavy.sym" -o "$tmp/job_size" --max-expression-size 100000 >"$tmp/out" 2>"$tmp/err"
+check "main job size stop exits 1" test $? -eq 1
+check "main job size stop diagnostic" grep -q "^obsynth: error: stage 'frame' exceeded its expression-size" "$tmp/err"
+check "main job size stop writes nothing" test ! -e "$tmp/job_size"
+"$bin" "$tmp/heavy.sym" -o "$tmp/job_mem" --max-memory 256M >"$tmp/out" 2>"$tmp/err"
+check "main job memory stop exits 1" test $? -eq 1
+check "main job memory stop diagnostic" grep -q "exceeded its memory budget of 256 MiB" "$tmp/err"
+check "main job memory stop writes nothing" test ! -e "$tmp/job_mem"
+"$bin" "$tmp/expchain.sym" -o "$tmp/job_time" --stage-seconds 1 >"$tmp/out" 2>"$tmp/err"
+check "main job time stop exits 1" test $? -eq 1
+check "main job time stop writes nothing" test ! -e "$tmp/job_time"
+
 # Determinism: byte-identical JSON between runs.
 for m in slawinski17 triangular4 cstr lorenz flexible_joint; do
   "$bin" check "$src/models/$m.sym" --format json --no-timings >"$tmp/a.json"
