@@ -1,6 +1,8 @@
 // Linearization by output injection (seed 003 Lemma 1, Procedure 1; seed 001 Theorem 3):
 // the vector field r, the frame tau_k, conditions C1-C4, the diffeomorphism T to observer
-// canonical form (output last), its inverse, and the output injection l(u, y).
+// canonical form (output last), its inverse, and the output injection l(u, y). The stages
+// live in frame, conditions, diffeomorphism (T, l) and inverse (T^-1); analyse_canonical
+// runs them in order.
 #pragma once
 
 #include <ginac/ginac.h>
@@ -32,6 +34,14 @@ const char* completeness_name(Completeness c);
 enum class Availability { symbolic, numeric, none };
 const char* availability_name(Availability a);
 
+// One step of T^-1: x_state = value, where value is in z and the states solved in earlier
+// steps, obtained by solving equation T_equation(x) = z_equation (0-based indices).
+struct EliminationStep {
+  std::size_t state;
+  std::size_t equation;
+  GiNaC::ex value;
+};
+
 struct CanonicalForm {
   bool applicable = false;     // single output and generic rank n
   std::string not_applicable;  // why not, when !applicable
@@ -51,9 +61,14 @@ struct CanonicalForm {
   std::string T_note;
   ZeroVerdict T_verdict = ZeroVerdict::nonzero;  // dT/dx * [tau] == I
   Availability T_inverse_kind = Availability::none;
-  ExVec T_inverse;  // in z1..zn
+  // T^-1 as an elimination sequence (symbolic kind): what reports, JSON and emitters use.
+  std::vector<EliminationStep> T_inverse_steps;
+  // The composition of the steps, in z1..zn, by substitution only: GiNaC shares its subtrees,
+  // but as a tree it can be exponential in n (the nested chain family). Consume it only
+  // through the emitter's DAG; never print, expand, normal() or walk it as a tree.
+  ExVec T_inverse;
   std::string T_inverse_note;
-  ZeroVerdict T_inverse_verdict = ZeroVerdict::nonzero;  // T^-1(T(x)) == x
+  ZeroVerdict T_inverse_verdict = ZeroVerdict::nonzero;  // every step in its own equation
   Availability l_kind = Availability::none;
   ExVec l;  // in inputs and y
   std::string l_note;
@@ -67,21 +82,11 @@ struct CanonicalOptions {
 CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget& budget,
                                 const CanonicalOptions& opt = {});
 
-// e(x) written as a function of y = h(x) alone, if it is one (h must be linear in some
-// state); nullopt otherwise.
-std::optional<GiNaC::ex> express_in_output(const GiNaC::ex& e, const GiNaC::ex& h, const Symbols& x,
-                                           const GiNaC::symbol& y, const ExVec& base_point,
-                                           const SampleBoxes& boxes);
-
-// Solves T(x) = z for x by successive elimination of equations that are linear in one state
-// (or in exp/log/atan of it); nullopt when the structure does not allow it.
-std::optional<ExVec> invert_map(const ExVec& T, const Symbols& x,
-                                const std::vector<GiNaC::symbol>& z, const SampleBoxes& boxes);
-
 // The frame [tau_1 ... tau_n] as a flat column-major list (tau_1 first).
 ExVec frame_column_major(const CanonicalForm& cf);
 
-// Classifies completeness of a vector field: affine or globally Lipschitz => complete.
+// Classifies completeness of a vector field: affine or globally Lipschitz => complete
+// (conditions.cpp).
 Completeness classify_completeness(const ExVec& v, const Symbols& x, std::string& reason);
 
 }  // namespace obsynth

@@ -77,6 +77,32 @@ std::string rank_method(const Observability& ob) {
                        : "60-digit scaled elimination at random points (transcendental entries)";
 }
 
+// T^-1 as its elimination sequence: x_state = value (in z and earlier states).
+ordered_json inverse_steps_json(const Model& m, const CanonicalForm& cf) {
+  if (cf.T_inverse_kind != Availability::symbolic) return nullptr;
+  ordered_json steps = ordered_json::array();
+  for (const auto& s : cf.T_inverse_steps)
+    steps.push_back({{"state", m.states[s.state].get_name()},
+                     {"equation", s.equation + 1},
+                     {"value", to_string(s.value)}});
+  return steps;
+}
+
+std::vector<std::string> inverse_steps_text(const Model& m, const CanonicalForm& cf) {
+  std::vector<std::string> lines;
+  for (const auto& s : cf.T_inverse_steps)
+    lines.push_back(fmt::format("{} = {}   (from T_{} = z{})", m.states[s.state].get_name(),
+                                to_string(s.value), s.equation + 1, s.equation + 1));
+  return lines;
+}
+
+std::string inverse_steps_latex(const Model& m, const CanonicalForm& cf) {
+  std::vector<std::string> rows;
+  for (const auto& s : cf.T_inverse_steps)
+    rows.push_back(fmt::format("{} &= {}", to_latex(m.states[s.state]), to_latex(s.value)));
+  return "\\begin{aligned}" + fmt::format("{}", fmt::join(rows, " \\\\ ")) + "\\end{aligned}";
+}
+
 std::string lie_name(std::size_t k, std::size_t i, std::size_t p) {
   const std::string h = p == 1 ? "h" : fmt::format("h{}", i + 1);
   return k == 0 ? h : (k == 1 ? fmt::format("L_f {}", h) : fmt::format("L_f^{} {}", k, h));
@@ -89,6 +115,9 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   const Observability& ob = a.observability;
   const CanonicalForm& cf = a.canonical;
   ordered_json j;
+  // Schema 2: T_inverse is a list of elimination steps {state, equation (1-based), value}
+  // (schema 1, without this key, had T_inverse as a list of expressions in z).
+  j["schema"] = 2;
   j["model"] = m.name;
   j["states"] = names(m.states);
   j["inputs"] = names(m.inputs);
@@ -166,7 +195,8 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
         {"note", note}};
   };
   map_entry("T", cf.T_kind, cf.T, cf.T_verdict, cf.T_note);
-  map_entry("T_inverse", cf.T_inverse_kind, cf.T_inverse, cf.T_inverse_verdict, cf.T_inverse_note);
+  map_entry("T_inverse", cf.T_inverse_kind, {}, cf.T_inverse_verdict, cf.T_inverse_note);
+  j["T_inverse"] = inverse_steps_json(m, cf);
   map_entry("l", cf.l_kind, cf.l, cf.l_verdict, cf.l_note);
   ordered_json t = ordered_json::object();
   for (const auto& [stage, ms] : a.timings_ms) t[stage] = opt.timings ? ms : 0.0;
@@ -239,8 +269,10 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
       line(fmt::format("Diffeomorphism z = T(x), T(x0) = 0 at x0 = {}", vec_text(cf.base_point)));
       if (cf.T_kind == Availability::symbolic) line(fmt::format("  T = {}", vec_text(cf.T)));
       line(fmt::format("  T: {} ({})", availability_name(cf.T_kind), cf.T_note));
-      if (cf.T_inverse_kind == Availability::symbolic)
-        line(fmt::format("  T^-1(z) = {}", vec_text(cf.T_inverse)));
+      if (cf.T_inverse_kind == Availability::symbolic) {
+        line("  T^-1, in this order:");
+        for (const auto& t : inverse_steps_text(m, cf)) line("    " + t);
+      }
       line(fmt::format("  T^-1: {} ({})", availability_name(cf.T_inverse_kind), cf.T_inverse_note));
       if (cf.l_kind == Availability::symbolic) {
         line("");
@@ -331,7 +363,7 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
       line("");
       line(fmt::format("$$T(x) = {}, \\qquad T^{{-1}}(z) = {}$$", vec_latex(cf.T),
                        cf.T_inverse_kind == Availability::symbolic
-                           ? vec_latex(cf.T_inverse)
+                           ? inverse_steps_latex(m, cf)
                            : std::string("\\text{(Newton)}")));
     }
     if (cf.l_kind == Availability::symbolic) {
@@ -391,7 +423,7 @@ std::string render_latex(const Analysis& a) {
       line("\\begin{align*}");
       line(fmt::format("  T(x) &= {}, & l(u,y) &= {}", vec_latex(cf.T), vec_latex(cf.l)));
       if (cf.T_inverse_kind == Availability::symbolic)
-        line(fmt::format("  \\\\ T^{{-1}}(z) &= {}", vec_latex(cf.T_inverse)));
+        line(fmt::format("  \\\\ T^{{-1}}(z) &= {}", inverse_steps_latex(m, cf)));
       line("\\end{align*}");
     }
   } else {
