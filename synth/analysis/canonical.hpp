@@ -66,6 +66,10 @@ struct CanonicalForm {
   // The composition of the steps, in z1..zn, by substitution only: GiNaC shares its subtrees,
   // but as a tree it can be exponential in n (the nested chain family). Consume it only
   // through the emitter's DAG; never print, expand, normal() or walk it as a tree.
+  // Caution: GiNaC's power::eval pulls the content out of a power of a sum
+  // ((-z + w^2/2)^2 -> 1/4 (-2 z + w^2)^2); along nested squares these exact factors compound
+  // to 2^(+-2^k), which leave the double range at depth 11 (nested chain n >= 11: inf/NaN
+  // in double). Straight-line code from T_inverse_steps has no such factors.
   ExVec T_inverse;
   std::string T_inverse_note;
   ZeroVerdict T_inverse_verdict = ZeroVerdict::nonzero;  // every step in its own equation
