@@ -4,6 +4,7 @@
 #include <optional>
 #include <set>
 
+#include "analysis/flint_mpoly.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/poly.hpp"
 #include "symbolic/symbolic.hpp"
@@ -183,37 +184,82 @@ std::optional<std::vector<std::size_t>> triangular_columns(const ExMatrix& a) {
 
 namespace {
 
+// The Lie chain's gradients as ring polynomials, kept for the fraction-free determinant.
+struct RingRows {
+  std::optional<PolyRing> ring;
+  std::unique_ptr<MPolyContext> ctx;
+  std::vector<std::vector<std::vector<Poly>>> grads;  // [output][order][state]
+};
+
 // lie_chain_with_gradients in the polynomial ring, when f and h live in it: the same
-// (expanded) results, an order of magnitude faster.
+// (expanded) results, the products in FLINT (flint_mpoly.hpp) when no Laurent exponent occurs.
 bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
-                       std::vector<ExMatrix>& grads) {
+                       std::vector<ExMatrix>& grads, RingRows& rows) {
   ExVec all(m.f);
   all.insert(all.end(), m.h.begin(), m.h.end());
-  const auto ring = PolyRing::for_expressions(all, m.states);
-  if (!ring) return false;
+  rows.ring = PolyRing::for_expressions(all, m.states);
+  if (!rows.ring) return false;
+  const PolyRing& ring = *rows.ring;
   try {
     std::vector<Poly> field;
-    for (const auto& e : m.f) field.push_back(*ring->from_ex(e));
+    for (const auto& e : m.f) field.push_back(*ring.from_ex(e));
+    std::vector<Poly> outputs;
+    for (const auto& e : m.h) outputs.push_back(*ring.from_ex(e));
+    std::vector<const Poly*> seen;
+    for (const auto& p : field) seen.push_back(&p);
+    for (const auto& p : outputs) seen.push_back(&p);
+    rows.ctx = MPolyContext::for_polys(ring, seen);
+    std::vector<MPoly> flint_field;
+    if (rows.ctx)
+      for (const auto& p : field) flint_field.push_back(rows.ctx->to_flint(p));
     const std::size_t n = m.n();
+    rows.grads.assign(m.p(), {});
     for (std::size_t i = 0; i < m.p(); ++i) {
-      Poly phi = *ring->from_ex(m.h[i]);
-      ExVec chain{ring->to_ex(phi)};
+      Poly phi = outputs[i];
+      ExVec chain{ring.to_ex(phi)};
       for (std::size_t k = 0; k < n; ++k) {
         std::vector<Poly> grad;
         ExVec row;
         for (std::size_t j = 0; j < n; ++j) {
-          grad.push_back(ring->derivative(phi, j));
-          row.push_back(ring->to_ex(grad.back()));
+          grad.push_back(ring.derivative(phi, j));
+          row.push_back(ring.to_ex(grad.back()));
         }
         grads[i].push_back(std::move(row));
         if (k + 1 < n) {
-          phi = PolyRing::dot(grad, field);
+          phi = rows.ctx ? lie_derivative_flint(ring, *rows.ctx, phi, flint_field)
+                         : PolyRing::dot(grad, field);
           budget.check(phi.node_estimate());
-          chain.push_back(ring->to_ex(phi));
+          chain.push_back(ring.to_ex(phi));
         }
+        rows.grads[i].push_back(std::move(grad));
       }
       lie.push_back(std::move(chain));
     }
+  } catch (const PolyOverflow&) {
+    rows = RingRows{};
+    return false;
+  }
+  return true;
+}
+
+// det and adj(O) e_n of the selected rows by fraction-free elimination in FLINT, when the
+// rows are ring polynomials; false otherwise (the caller expands cofactors with GiNaC).
+bool determinant_in_ring(Observability& ob, const RingRows& rows) {
+  if (!rows.ctx) return false;
+  try {
+    std::vector<std::vector<MPoly>> a;
+    for (std::size_t r : ob.selected) {
+      const RowId id = ob.rows[r];
+      std::vector<MPoly> row;
+      for (const auto& p : rows.grads[id.output][id.order]) row.push_back(rows.ctx->to_flint(p));
+      a.push_back(std::move(row));
+    }
+    auto dc = det_and_last_row_cofactors(*rows.ctx, std::move(a));
+    if (!dc) return false;  // formally singular: leave it to the generic path
+    ob.det = rows.ring->to_ex(rows.ctx->from_flint(dc->det));
+    ob.last_row_cofactors.clear();
+    for (const auto& c : dc->cofactors)
+      ob.last_row_cofactors.push_back(rows.ring->to_ex(rows.ctx->from_flint(c)));
   } catch (const PolyOverflow&) {
     return false;
   }
@@ -250,9 +296,10 @@ Observability analyse_observability(const Model& m, Budget& budget,
   const Symbols& x = m.states;
   // Rows of O per output: the Lie chain's gradients (lie.hpp), in the ring when possible.
   std::vector<ExMatrix> grads(ob.p);
+  RingRows ring_rows;
   {
     StageScope stage(budget, "lie");
-    if (!lie_chain_in_ring(m, budget, ob.lie, grads)) {
+    if (!lie_chain_in_ring(m, budget, ob.lie, grads, ring_rows)) {
       ob.lie.clear();
       for (std::size_t i = 0; i < ob.p; ++i) {
         LieChain chain = lie_chain_with_gradients(m.h[i], m.f, x, ob.n, &budget);
@@ -345,7 +392,9 @@ Observability analyse_observability(const Model& m, Budget& budget,
     }
   }
 
-  if (ob.generic_rank == ob.n && ob.selected.size() == ob.n) {
+  if (ob.generic_rank == ob.n && ob.selected.size() == ob.n && determinant_in_ring(ob, ring_rows)) {
+    finish_determinant(ob, x);
+  } else if (ob.generic_rank == ob.n && ob.selected.size() == ob.n) {
     // det by cofactor expansion along the last selected row; the cofactors are adj(O) e_n.
     const std::size_t n = ob.n;
     ob.last_row_cofactors.assign(n, 0);
