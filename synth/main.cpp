@@ -27,6 +27,7 @@ struct CommonOptions {
   double stage_seconds = 60.0;
   std::size_t max_expression_size = 2000000;
   bool in_process = false;
+  std::string rank_method = "auto";
 };
 
 void add_common(CLI::App* app, CommonOptions& c) {
@@ -37,6 +38,11 @@ void add_common(CLI::App* app, CommonOptions& c) {
                   "largest expression (tree nodes) a stage may store")
       ->capture_default_str();
   app->add_flag("--in-process", c.in_process, "run without the watchdog worker (for debugging)");
+  app->add_option("--rank-method", c.rank_method,
+                  "observability rank: symbolic, jets (Taylor jets at random points), or auto "
+                  "(symbolic; jets when the Lie derivatives exceed their budget)")
+      ->check(CLI::IsMember({"auto", "symbolic", "jets"}))
+      ->capture_default_str();
 }
 
 AnalysisOptions analysis_options(const CommonOptions& c) {
@@ -44,6 +50,9 @@ AnalysisOptions analysis_options(const CommonOptions& c) {
   o.budget.stage_seconds = c.stage_seconds;
   o.budget.max_expression_size = c.max_expression_size;
   o.on_stage = publish_stage;
+  o.observability.rank_method = c.rank_method == "jets"       ? RankMethod::jets
+                                : c.rank_method == "symbolic" ? RankMethod::symbolic
+                                                              : RankMethod::automatic;
   return o;
 }
 

@@ -846,13 +846,16 @@ std::string method_text(const JetsRank& r) {
     return fmt::format("Taylor jets at {} random point{} modulo 62-bit primes; {}", r.points,
                        r.points == 1 ? "" : "s", bound);
   }
+  const std::string pts = fmt::format("{} random point{}", r.points, r.points == 1 ? "" : "s");
+  if (r.rank == r.n)
+    return fmt::format(
+        "Taylor jets in {}-bit ball arithmetic at {} of the domain; full rank, "
+        "proven by certified nonzero pivots",
+        r.precision_bits, pts);
   return fmt::format(
-      "Taylor jets in {}-bit ball arithmetic at {} random point{} of the domain; rank >= {} "
-      "proven (certified nonzero pivots){}",
-      r.precision_bits, r.points, r.points == 1 ? "" : "s", r.rank,
-      r.rank == r.n ? ""
-                    : fmt::format("; rank <= {} rests on {} independent point{} (no error bound)",
-                                  r.rank, r.points, r.points == 1 ? "" : "s"));
+      "Taylor jets in {}-bit ball arithmetic at {} of the domain; rank >= {} proven by certified "
+      "nonzero pivots, rank <= {} rests on the {} (no probability bound)",
+      r.precision_bits, pts, r.rank, r.rank, pts);
 }
 
 }  // namespace
@@ -867,7 +870,7 @@ JetsRank jets_rank(const Model& m, const JetsOptions& opt, const Budget* budget)
   out.n = m.n();
   out.p = m.p();
   out.dag_nodes = pb.dag.nodes().size();
-  if (pb.dag.rational()) {
+  if (pb.dag.rational() && !opt.force_ball) {
     out.arithmetic = JetsArithmetic::modular;
     modular_ranks(pb, inputs_from, opt, budget, out);
     const auto deg = degrees(pb.dag);

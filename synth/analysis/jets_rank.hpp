@@ -25,6 +25,7 @@ struct JetsOptions {
   long precision_bits = 128;       // ball arithmetic: first working precision
   long max_precision_bits = 4096;  // doubled until two precisions agree on the rank
   std::uint64_t seed = 0x0b5e7;
+  bool force_ball = false;  // balls even for a rational model (tests compare the two)
 };
 
 enum class JetsArithmetic { modular, ball };

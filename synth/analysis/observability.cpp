@@ -1,6 +1,9 @@
 #include "analysis/observability.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
+#include <new>
 #include <optional>
 #include <set>
 
@@ -288,25 +291,69 @@ int permutation_sign(const std::vector<std::size_t>& perm) {
 
 }  // namespace
 
+namespace {
+
+// The rank from Taylor jets; the symbolic results stay empty (`why` says why).
+Observability observability_from_jets(const Model& m, Budget& budget,
+                                      const ObservabilityOptions& opt, const std::string& why) {
+  Observability ob;
+  ob.n = m.n();
+  ob.p = m.p();
+  StageScope stage(budget, "jets");
+  JetsRank jr = jets_rank(m, opt.jets, &budget);
+  for (std::size_t k = 0; k < ob.n; ++k)
+    for (std::size_t i = 0; i < ob.p; ++i) ob.rows.push_back({i, k});
+  ob.generic_rank = jr.rank;
+  ob.rank_exact = jr.arithmetic == JetsArithmetic::modular;
+  ob.indices = jr.indices;
+  ob.selected = jr.selected;
+  ob.jets = std::move(jr);
+  ob.symbolic_skipped = why;
+  return ob;
+}
+
+// The Lie chain and its gradients (rows of O per output), in the ring when possible. In
+// automatic mode its own budget is a share of the stage's, so that the jets can take over.
+void lie_chain(const Model& m, Budget& budget, const ObservabilityOptions& opt, Observability& ob,
+               std::vector<ExMatrix>& grads, RingRows& ring_rows) {
+  StageScope stage(budget, "lie");
+  BudgetLimits share = budget.limits();
+  if (opt.rank_method == RankMethod::automatic) share.stage_seconds *= opt.symbolic_share;
+  Budget own(share);
+  own.begin("lie");
+  if (lie_chain_in_ring(m, own, ob.lie, grads, ring_rows)) return;
+  ob.lie.clear();
+  for (std::size_t i = 0; i < ob.p; ++i) {
+    LieChain chain = lie_chain_with_gradients(m.h[i], m.f, m.states, ob.n, &own);
+    ob.lie.push_back(std::move(chain.derivatives));
+    grads[i] = std::move(chain.gradients);
+  }
+}
+
+}  // namespace
+
 Observability analyse_observability(const Model& m, Budget& budget,
                                     const ObservabilityOptions& opt) {
+  if (opt.rank_method == RankMethod::jets)
+    return observability_from_jets(m, budget, opt,
+                                   "the jets rank was requested (--rank-method jets)");
   Observability ob;
   ob.n = m.n();
   ob.p = m.p();
   const Symbols& x = m.states;
-  // Rows of O per output: the Lie chain's gradients (lie.hpp), in the ring when possible.
   std::vector<ExMatrix> grads(ob.p);
   RingRows ring_rows;
-  {
-    StageScope stage(budget, "lie");
-    if (!lie_chain_in_ring(m, budget, ob.lie, grads, ring_rows)) {
-      ob.lie.clear();
-      for (std::size_t i = 0; i < ob.p; ++i) {
-        LieChain chain = lie_chain_with_gradients(m.h[i], m.f, x, ob.n, &budget);
-        ob.lie.push_back(std::move(chain.derivatives));
-        grads[i] = std::move(chain.gradients);
-      }
-    }
+  try {
+    lie_chain(m, budget, opt, ob, grads, ring_rows);
+  } catch (const UserError& e) {  // the time or size budget of the symbolic chain
+    if (opt.rank_method != RankMethod::automatic) throw;
+    return observability_from_jets(
+        m, budget, opt,
+        fmt::format("the symbolic Lie derivatives exceeded their budget ({})", e.what()));
+  } catch (const std::bad_alloc&) {
+    if (opt.rank_method != RankMethod::automatic) throw;
+    return observability_from_jets(m, budget, opt,
+                                   "the symbolic Lie derivatives ran out of memory");
   }
   StageScope stage(budget, "observability");
   for (std::size_t k = 0; k < ob.n; ++k)

@@ -68,6 +68,7 @@ const char* holds_word(bool h) {
 }
 
 std::string rank_method(const Observability& ob) {
+  if (ob.jets) return ob.jets->method;
   if (ob.triangular)
     return ob.rank_exact
                ? "O triangular up to a column permutation, its diagonal nonzero: decided exactly"
@@ -103,6 +104,46 @@ std::string inverse_steps_latex(const Model& m, const CanonicalForm& cf) {
   return "\\begin{aligned}" + fmt::format("{}", fmt::join(rows, " \\\\ ")) + "\\end{aligned}";
 }
 
+const char* jets_arithmetic_name(JetsArithmetic a) {
+  return a == JetsArithmetic::modular ? "modular" : "ball";
+}
+
+ordered_json jets_json(const Observability& ob) {
+  const JetsRank& r = *ob.jets;
+  const bool modular = r.arithmetic == JetsArithmetic::modular;
+  auto only = [](bool when, ordered_json v) { return when ? v : ordered_json(nullptr); };
+  return {{"arithmetic", jets_arithmetic_name(r.arithmetic)},
+          {"points", r.points},
+          {"primes", only(modular, r.primes)},
+          {"precision_bits", only(!modular, r.precision_bits)},
+          {"rank_with_inputs", r.rank_inputs},
+          {"degree_bound", only(modular, r.degree_bound)},
+          {"degree_bound_with_inputs", only(modular, r.degree_bound_inputs)},
+          {"error_bound", only(modular, r.error_bound)},
+          {"error_bound_with_inputs", only(modular, r.error_bound_inputs)},
+          {"method", r.method},
+          {"symbolic_skipped", ob.symbolic_skipped}};
+}
+
+// The symbolic stages a jets rank leaves out, and why.
+std::string jets_skipped_text(const Observability& ob) {
+  return fmt::format(
+      "skipped ({}): the Lie derivatives, O, det O and the rank-drop set need "
+      "symbolic expressions",
+      ob.symbolic_skipped);
+}
+
+std::string jets_inputs_text(const Observability& ob) {
+  const JetsRank& r = *ob.jets;
+  return fmt::format(
+      "rank {} under constant random inputs{}; rank {} of the drift (u = 0) is the rank of O",
+      r.rank_inputs,
+      r.arithmetic == JetsArithmetic::modular && r.rank_inputs < r.n
+          ? fmt::format(" (P(under-estimated) <= {:.2g})", r.error_bound_inputs)
+          : std::string(),
+      r.rank);
+}
+
 std::string lie_name(std::size_t k, std::size_t i, std::size_t p) {
   const std::string h = p == 1 ? "h" : fmt::format("h{}", i + 1);
   return k == 0 ? h : (k == 1 ? fmt::format("L_f {}", h) : fmt::format("L_f^{} {}", k, h));
@@ -130,7 +171,9 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   j["f"] = expr_list(m.f);
   j["g"] = expr_list(m.g);
   j["h"] = expr_list(m.h);
-  if (ob.p == 1) {
+  if (ob.jets) {
+    j["lie_derivatives"] = nullptr;
+  } else if (ob.p == 1) {
     j["lie_derivatives"] = expr_list(ob.lie[0]);
   } else {
     ordered_json l = ordered_json::array();
@@ -141,13 +184,17 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   o["n"] = ob.n;
   o["p"] = ob.p;
   o["generic_rank"] = ob.generic_rank;
-  o["rank_method"] = ob.triangular ? "triangular" : ob.rank_exact ? "exact" : "high-precision";
-  o["matrix"] = matrix_json(ob.O);
+  o["rank_method"] = ob.jets         ? "jets"
+                     : ob.triangular ? "triangular"
+                     : ob.rank_exact ? "exact"
+                                     : "high-precision";
+  if (ob.jets) o["jets"] = jets_json(ob);
+  o["matrix"] = ob.jets ? ordered_json(nullptr) : matrix_json(ob.O);
   o["indices"] = ob.indices;
   o["det"] = ob.generic_rank == ob.n && ob.selected.size() == ob.n ? ordered_json(to_string(ob.det))
                                                                    : ordered_json(nullptr);
-  o["rank_drop"] = expr_list(ob.rank_drop);
-  o["undefined"] = expr_list(ob.undefined);
+  o["rank_drop"] = ob.jets ? ordered_json(nullptr) : expr_list(ob.rank_drop);
+  o["undefined"] = ob.jets ? ordered_json(nullptr) : expr_list(ob.undefined);
   j["observability"] = o;
   const bool app = cf.applicable;
   j["canonical_applicable"] = app;
@@ -220,7 +267,8 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
   line(fmt::format("  h = {}", vec_text(m.h)));
   line("");
   line("Lie derivatives");
-  for (std::size_t i = 0; i < ob.p; ++i)
+  if (ob.jets) line("  " + jets_skipped_text(ob));
+  for (std::size_t i = 0; i < ob.lie.size(); ++i)
     for (std::size_t k = 0; k < ob.lie[i].size(); ++k)
       line(fmt::format("  {} = {}", lie_name(k, i, ob.p), to_string(ob.lie[i][k])));
   line("");
@@ -230,7 +278,12 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
                      vec_text(ob.O[r])));
   line(fmt::format("  generic rank {} of n = {}  ({})", ob.generic_rank, ob.n, rank_method(ob)));
   if (ob.p > 1) line(fmt::format("  observability indices {}", fmt::join(ob.indices, ", ")));
-  if (ob.generic_rank == ob.n) {
+  if (ob.jets) {
+    line("  " + jets_inputs_text(ob));
+    if (ob.generic_rank < ob.n)
+      line(fmt::format("  NOT observable: rank deficit {} everywhere", ob.n - ob.generic_rank));
+    line("  det O and the rank-drop set: not computed (they need the symbolic O)");
+  } else if (ob.generic_rank == ob.n) {
     line(fmt::format("  det O{} = {}", ob.p > 1 ? " (selected rows)" : "", to_string(ob.det)));
     line(ob.rank_drop.empty() ? "  the rank never drops"
                               : fmt::format("  the rank drops where any of these vanish: {}",
@@ -311,9 +364,10 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
   line("");
   line("## Observability");
   line("");
-  line("| Lie derivative | expression |");
-  line("|---|---|");
-  for (std::size_t i = 0; i < ob.p; ++i)
+  if (ob.jets) line("Lie derivatives and $O$: " + jets_skipped_text(ob) + ".");
+  if (!ob.jets) line("| Lie derivative | expression |");
+  if (!ob.jets) line("|---|---|");
+  for (std::size_t i = 0; i < ob.lie.size(); ++i)
     for (std::size_t k = 0; k < ob.lie[i].size(); ++k)
       line(fmt::format(
           "| ${}$ | ${}$ |",
@@ -321,11 +375,12 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
                  : fmt::format("L_f^{{{}}} h{}", k, ob.p == 1 ? "" : fmt::format("_{}", i + 1)),
           to_latex(ob.lie[i][k])));
   line("");
-  line(fmt::format("$$O(x) = {}$$", matrix_latex(ob.O)));
+  if (!ob.jets) line(fmt::format("$$O(x) = {}$$", matrix_latex(ob.O)));
   line("");
   line(fmt::format("- generic rank **{}** of $n = {}$ ({})", ob.generic_rank, ob.n,
                    rank_method(ob)));
-  if (ob.generic_rank == ob.n) {
+  if (ob.jets) line("- " + jets_inputs_text(ob));
+  if (!ob.jets && ob.generic_rank == ob.n) {
     line(fmt::format("- $\\det O = {}$", to_latex(ob.det)));
     if (ob.rank_drop.empty()) line("- the rank never drops");
     for (const auto& f : ob.rank_drop) line(fmt::format("- rank drops on ${} = 0$", to_latex(f)));
@@ -394,9 +449,14 @@ std::string render_latex(const Analysis& a) {
   line("\\begin{align*}");
   line(fmt::format("  f(x) &= {}, & g(x,u) &= {}, & h(x) &= {} \\\\", vec_latex(m.f),
                    vec_latex(m.g), vec_latex(m.h)));
-  line(fmt::format("  O(x) &= {}, & \\operatorname{{rank}} O &= {}", matrix_latex(ob.O),
-                   ob.generic_rank));
-  if (ob.generic_rank == ob.n) line(fmt::format("  , & \\det O &= {}", to_latex(ob.det)));
+  if (ob.jets)
+    line(fmt::format("  \\operatorname{{rank}} O &= {} & &\\text{{({})}}", ob.generic_rank,
+                     rank_method(ob)));
+  else
+    line(fmt::format("  O(x) &= {}, & \\operatorname{{rank}} O &= {}", matrix_latex(ob.O),
+                     ob.generic_rank));
+  if (!ob.jets && ob.generic_rank == ob.n)
+    line(fmt::format("  , & \\det O &= {}", to_latex(ob.det)));
   line("\\end{align*}");
   if (cf.applicable) {
     line("\\begin{align*}");
