@@ -279,11 +279,22 @@ struct ModField {
     return true;
   }
   bool nonzero(const T& a) const { return a != 0; }
+  // r += sum_{t < count} a_t b_t for duals a_t = a + t*as, b_t = b + t*bs (W entries each).
+  void convolve(T* r, const T* a, long as, const T* b, long bs, std::size_t count,
+                std::size_t W) const {
+    for (std::size_t t = 0; t < count; ++t, a += as, b += bs) {
+      addmul(r[0], a[0], b[0]);
+      for (std::size_t c = 1; c < W; ++c)
+        r[c] = nmod_add(r[c], nmod_add(nmod_mul(a[0], b[c], mod), nmod_mul(a[c], b[0], mod), mod),
+                        mod);
+    }
+  }
   // Rational models only: never called.
   bool function(Op, T&, T&, const T&) const { return false; }
   bool pow_rat(T&, T&, const T&, const numeric&) const { return false; }
 };
 
+// One arb_t: arrays of Ball are arrays of arb_struct (convolve relies on it).
 class Ball {
  public:
   Ball() { arb_init(v_); }
@@ -302,6 +313,8 @@ class Ball {
  private:
   arb_t v_;
 };
+
+static_assert(sizeof(Ball) == sizeof(arb_struct), "Ball must be one arb_struct");
 
 void set_fmpz_from(fmpz_t z, const numeric& v) {
   std::ostringstream s;
@@ -334,6 +347,17 @@ struct BallField {
     return arb_is_finite(r.get());
   }
   bool nonzero(const T& a) const { return !arb_contains_zero(a.get()); }
+  // As ModField::convolve, one arb_dot per entry (Ball is layout-compatible with arb_struct).
+  void convolve(T* r, const T* a, long as, const T* b, long bs, std::size_t count,
+                std::size_t W) const {
+    auto p = [](const T* v) { return reinterpret_cast<arb_srcptr>(v); };
+    const slong len = static_cast<slong>(count);
+    arb_dot(r[0].get(), r[0].get(), 0, p(a), as, p(b), bs, len, prec);
+    for (std::size_t c = 1; c < W; ++c) {
+      arb_dot(r[c].get(), r[c].get(), 0, p(a), as, p(b + c), bs, len, prec);
+      arb_dot(r[c].get(), r[c].get(), 0, p(a + c), as, p(b), bs, len, prec);
+    }
+  }
   // f(a) and f'(a) for the unary functions (sin: f' = cos, ...).
   bool function(Op op, T& f, T& df, const T& a) const {
     arb_srcptr x = a.get();
@@ -496,7 +520,7 @@ class Taylor {
   std::size_t n_, W_, N_;
   std::vector<T> data_, aux_;
   std::vector<long> aux_slot_;
-  std::vector<T> tmp_, tmp2_;
+  std::vector<T> tmp_, tmp2_, scaled_;
   const std::vector<T>* x0_ = nullptr;
   const std::vector<T>* symbols_ = nullptr;
   const std::vector<int>* field_ = nullptr;
@@ -577,13 +601,13 @@ bool Taylor<F>::coefficient(std::size_t i, std::size_t k) {
   // s = sum_{j=1..k} w_j a_j y_{k-j}
   auto weighted = [&](auto y, auto w) {
     zero(s);
-    for (std::size_t j = 1; j <= k; ++j) {
-      zero(tmp2_.data());
-      mul_add(tmp2_.data(), A(j), y(k - j));
+    if (scaled_.size() < k * W_) scaled_.resize(k * W_);
+    for (std::size_t j = 1; j <= k; ++j) {  // scaled_[j-1] = w_j a_j
       T wj;
       w(wj, j);
-      add_scaled(s, tmp2_.data(), wj);
+      scale(&scaled_[(j - 1) * W_], A(j), wj);
     }
+    f_.convolve(s, scaled_.data(), static_cast<long>(W_), y(k - 1), -static_cast<long>(W_), k, W_);
   };
   T inv_k;
   f_.set_si(inv_k, static_cast<long>(k));
@@ -607,7 +631,7 @@ bool Taylor<F>::coefficient(std::size_t i, std::size_t k) {
       return true;
     }
     case Op::mul:
-      for (std::size_t j = 0; j <= k; ++j) mul_add(r, A(j), at(nd.b, k - j));
+      f_.convolve(r, A(0), static_cast<long>(W_), at(nd.b, k), -static_cast<long>(W_), k + 1, W_);
       return true;
     case Op::inv: {  // a c = 1: c_k = -(sum_{j>=1} a_j c_{k-j}) / a_0
       weighted(self, [&](T& w, std::size_t) { f_.set_si(w, -1); });
@@ -763,6 +787,11 @@ std::optional<std::pair<PointRank, PointRank>> rank_at(const Problem& pb, const 
   return std::make_pair(row_rank(f, t, pb.outputs, n), with_inputs);
 }
 
+// Full rank is proven by one point: more points cannot change it.
+bool proven(const JetsRank& r) {
+  return r.points > 0 && r.rank == r.n && r.rank_inputs == r.n;
+}
+
 void keep_best(JetsRank& out, const std::pair<PointRank, PointRank>& r) {
   if (out.points == 0 || r.first.rank > out.rank) {
     out.rank = r.first.rank;
@@ -779,7 +808,8 @@ void modular_ranks(const Problem& pb, std::size_t inputs_from, const JetsOptions
   mp_limb_t prime = UWORD(1) << 62;
   const std::size_t n = pb.m.n();
   const std::size_t symbol_count = inputs_from + pb.m.m();
-  for (int attempt = 0; attempt < 8 * opt.points && out.points < opt.points; ++attempt) {
+  for (int attempt = 0; attempt < 8 * opt.points && out.points < opt.points && !proven(out);
+       ++attempt) {
     prime = n_nextprime(prime, 1);
     const ModField f(prime);
     std::vector<mp_limb_t> x0(n), symbols(symbol_count);
@@ -792,12 +822,14 @@ void modular_ranks(const Problem& pb, std::size_t inputs_from, const JetsOptions
   }
 }
 
-// Ball arithmetic at one point: the precision is doubled until two precisions agree.
+// Ball arithmetic at one point: the precision is doubled from `start` until two precisions
+// agree, or (settled) one run at `start`: a rank from certified pivots is a proven lower
+// bound whatever the precision, and the doubling only guards the claim that it is not higher.
 std::optional<std::pair<PointRank, PointRank>> ball_rank_at(
     const Problem& pb, const GiNaC::exmap& point, const Symbols& symbols, std::size_t inputs_from,
-    const JetsOptions& opt, const Budget* budget, long& prec_used) {
+    const JetsOptions& opt, const Budget* budget, long start, bool settled, long& prec_used) {
   std::optional<std::pair<PointRank, PointRank>> last;
-  for (long prec = opt.precision_bits; prec <= opt.max_precision_bits; prec *= 2) {
+  for (long prec = start; prec <= opt.max_precision_bits; prec *= 2) {
     BallField f{prec};
     std::vector<Ball> x0(pb.m.n()), vals(symbols.size());
     for (std::size_t i = 0; i < x0.size(); ++i)
@@ -815,6 +847,10 @@ std::optional<std::pair<PointRank, PointRank>> ball_rank_at(
       return r;
     }
     if (r) last = r;
+    if (r && settled) {
+      prec_used = prec;
+      return r;
+    }
   }
   if (last) prec_used = opt.max_precision_bits;
   return last;
@@ -827,9 +863,11 @@ void ball_ranks(const Problem& pb, const Symbols& symbols, std::size_t inputs_fr
   const auto points =
       sample_points(sampled, SampleBoxes::from_model(pb.m), 8 * opt.points, opt.seed);
   for (const auto& pt : points) {
-    if (out.points >= opt.points) break;
+    if (out.points >= opt.points || proven(out)) break;
     long prec = 0;
-    const auto r = ball_rank_at(pb, pt, symbols, inputs_from, opt, budget, prec);
+    const bool settled = out.points > 0;
+    const auto r = ball_rank_at(pb, pt, symbols, inputs_from, opt, budget,
+                                settled ? out.precision_bits : opt.precision_bits, settled, prec);
     if (!r) continue;
     keep_best(out, *r);
     out.precision_bits = std::max(out.precision_bits, prec);
