@@ -127,10 +127,7 @@ ordered_json jets_json(const Observability& ob) {
 
 // The symbolic stages a jets rank leaves out, and why.
 std::string jets_skipped_text(const Observability& ob) {
-  return fmt::format(
-      "skipped ({}): the Lie derivatives, O, det O and the rank-drop set need "
-      "symbolic expressions",
-      ob.symbolic_skipped);
+  return "not computed: " + ob.symbolic_skipped;
 }
 
 std::string jets_inputs_text(const Observability& ob) {
@@ -364,7 +361,8 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
   line("");
   line("## Observability");
   line("");
-  if (ob.jets) line("Lie derivatives and $O$: " + jets_skipped_text(ob) + ".");
+  if (ob.jets)
+    line("Lie derivatives, $O$, $\\det O$ and the rank-drop set: " + jets_skipped_text(ob) + ".");
   if (!ob.jets) line("| Lie derivative | expression |");
   if (!ob.jets) line("|---|---|");
   for (std::size_t i = 0; i < ob.lie.size(); ++i)
