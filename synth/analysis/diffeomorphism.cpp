@@ -2,6 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <memory>
+
+#include "analysis/flint_products.hpp"
 #include "analysis/output_function.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/integrate.hpp"
@@ -87,10 +91,22 @@ struct RingFields {
   std::vector<Poly> f, F;                       // f and f + g
   const std::vector<std::vector<Poly>>& frame;  // tau_1..tau_n
   OutputFunction in_output;
+  std::shared_ptr<FlintProducts> flint;  // for products of two large operands
   Poly lie(const Poly& p, const std::vector<Poly>& field) const {
     std::vector<Poly> grad;
-    for (std::size_t j = 0; j < ring.states(); ++j) grad.push_back(ring.derivative(p, j));
-    return PolyRing::dot(grad, field);
+    std::size_t largest = 0;
+    for (std::size_t j = 0; j < ring.states(); ++j) {
+      grad.push_back(ring.derivative(p, j));
+      largest = std::max(largest, field[j].terms.size());
+    }
+    // The hash map costs one insertion per pair of terms; FLINT multiplies packed exponents.
+    if (p.terms.size() * largest < 100000) return PolyRing::dot(grad, field);
+    std::vector<FlintProducts::Handle> g, v;
+    for (std::size_t j = 0; j < grad.size(); ++j) {
+      g.push_back(flint->add(grad[j]));
+      v.push_back(flint->add(field[j]));
+    }
+    return flint->dot_difference(g, v, {}, {});
   }
 };
 
@@ -215,8 +231,12 @@ std::optional<RingFields> ring_fields(const Context& c, const FrameRing& fr) {
     PolyRing::add_to(F.back(), fr.fields[c.m.n()][i]);  // + g_i
   }
   return RingFields{
-      ring, std::move(f), std::move(F), fr.fields,
-      OutputFunction(ring, c.m.h[0], c.m.states, c.cf.y, c.cf.base_point, c.boxes, c.zero)};
+      ring,
+      std::move(f),
+      std::move(F),
+      fr.fields,
+      OutputFunction(ring, c.m.h[0], c.m.states, c.cf.y, c.cf.base_point, c.boxes, c.zero),
+      std::make_shared<FlintProducts>(ring.variables())};
 }
 
 void set_T(const Context& c, ExVec T, ZeroVerdict v, CanonicalForm& cf) {
