@@ -239,9 +239,8 @@ std::optional<RingFields> ring_fields(const Context& c, const FrameRing& fr) {
       std::make_shared<FlintProducts>(ring.variables())};
 }
 
-void set_T(const Context& c, ExVec T, ZeroVerdict v, CanonicalForm& cf) {
+void set_T(ExVec T, ZeroVerdict v, CanonicalForm& cf) {
   OBSYNTH_ASSERT(v != ZeroVerdict::nonzero, "constructed T does not satisfy dT/dx [tau] = I");
-  (void)c;
   cf.T = std::move(T);
   cf.T_verdict = v;
   cf.T_kind = Availability::symbolic;
@@ -260,7 +259,7 @@ bool ring_diffeomorphism(const Context& c, const FrameRing& fr, Budget& budget, 
     if (o == Outcome::no_closed_form) return true;
     ExVec Tx;
     for (const auto& p : T) Tx.push_back(r->ring.to_ex(p));
-    set_T(c, std::move(Tx), verify_T_ring(c, *r, T), cf);
+    set_T(std::move(Tx), verify_T_ring(c, *r, T), cf);
     ring_l(*r, T, cf);
   } catch (const PolyOverflow&) {
     cf.T_note.clear();
@@ -273,7 +272,7 @@ void ginac_diffeomorphism(const Context& c, Budget& budget, CanonicalForm& cf) {
   ExVec T;
   if (ginac_T(c, budget, T, cf.T_note) != Outcome::closed) return;
   const ZeroVerdict v = verify_T_ginac(c, T);
-  set_T(c, std::move(T), v, cf);
+  set_T(std::move(T), v, cf);
   ginac_l(c, cf);
 }
 
