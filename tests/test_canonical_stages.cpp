@@ -13,10 +13,12 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/analysis.hpp"
+#include "analysis/flint_products.hpp"
 #include "app/report.hpp"
 #include "emit/dag.hpp"
 #include "front/parse.hpp"
 #include "support/expect.hpp"
+#include "symbolic/poly.hpp"
 
 using namespace obsynth;
 using GiNaC::ex;
@@ -264,6 +266,26 @@ TEST(InverseSteps, JsonListsTheStepsAndIsByteIdentical) {
   EXPECT_EQ(j["T_inverse"][1]["state"], "x2");
   EXPECT_EQ(j["T_inverse"][1]["equation"], 5);
   EXPECT_EQ(j["T_inverse"][1]["value"], "x1^2/2-z5");
+}
+
+// FLINT's products agree with GiNaC's expand, with coefficients far beyond 64 bits (both signs)
+// and atoms as ring variables.
+TEST(FlintProducts, DotDifferenceMatchesExpand) {
+  GiNaC::symbol x1("x1"), x2("x2"), k("k");
+  const Symbols x{x1, x2};
+  const ex big = GiNaC::pow(numeric(2), 100) / GiNaC::pow(numeric(3), 41);
+  const ex a = big * x1 * x1 - GiNaC::sin(x1 + x2) * x2 + numeric(-7, 5) * k;
+  const ex b = -big * big * x2 + GiNaC::cos(x1 + x2) + 1;
+  const ex c = x1 * GiNaC::sin(x1 + x2) - numeric(123456789012345LL) * numeric(98765432109LL);
+  const ex d = GiNaC::pow(x1 + x2 + big, 3);
+  const auto ring = PolyRing::for_expressions({a, b, c, d}, x);
+  ASSERT_TRUE(ring);
+  FlintProducts flint(ring->variables());
+  auto handle = [&](const ex& e) { return flint.add(*ring->from_ex(e)); };
+  const Poly r = flint.dot_difference({handle(a), handle(c)}, {handle(b), handle(d)}, {handle(d)},
+                                      {handle(a)});
+  const ex expected = GiNaC::expand(a * b + c * d - d * a);
+  EXPECT_TRUE(GiNaC::expand(ring->to_ex(r) - expected).is_zero()) << to_string(ring->to_ex(r));
 }
 
 }  // namespace

@@ -23,7 +23,8 @@ struct BracketCheck {
   std::size_t i = 0, j = 0;  // 1-based frame indices; i = 0 for [g, tau_j]
   ZeroVerdict verdict = ZeroVerdict::proved;
   ExVec residual;             // the bracket itself, simplified (zero when it holds)
-  std::string residual_note;  // set when a failing residual is too large to print
+  std::string residual_note;  // why residual is empty: too large to print, or decided by exact
+                              // evaluation at random points (conditions.cpp)
   bool holds() const { return verdict != ZeroVerdict::nonzero; }
 };
 

@@ -3,7 +3,10 @@
 #include <fmt/format.h>
 
 #include <functional>
+#include <map>
+#include <memory>
 
+#include "analysis/flint_products.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/lie.hpp"
 #include "symbolic/symbolic.hpp"
@@ -224,67 +227,181 @@ void check_completeness(const Model& m, const FrameRing& fr, CanonicalForm& cf) 
 
 }  // namespace
 
+namespace {
+
+// Brackets of large ring fields decided by exact evaluation at random integer points, with
+// every ring variable (states, symbols and atoms alike) drawn independently and uniformly from
+// 2^32 integers: a nonzero polynomial of degree d vanishes at such a point with probability
+// <= d / 2^32 (Schwartz-Zippel), so three points bound the error by (d / 2^32)^3. Integers
+// keep the exact arithmetic free of gcds. A bracket that is zero only modulo an identity
+// between atoms (sin^2 + cos^2 = 1) does not vanish here and takes the symbolic path.
+class ExactScreen {
+ public:
+  static constexpr int kPoints = 3;
+  explicit ExactScreen(const FrameRing& fr) : fr_(fr), values_(kPoints) {
+    std::uint64_t state = 0x9e3779b97f4a7c15ULL;
+    for (auto& point : values_)
+      for (std::size_t v = 0; v < kMaxPolyVariables; ++v) {
+        state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+        point.push_back(numeric(static_cast<long>(state >> 32) - (1L << 31)));
+      }
+  }
+  // [a, b] = J_b a - J_a b vanishes at every point.
+  bool zero(std::size_t a, std::size_t b) {
+    for (int k = 0; k < kPoints; ++k) {
+      const Values& A = at(a, k);
+      const Values& B = at(b, k);
+      for (std::size_t i = 0; i < A.v.size(); ++i) {
+        numeric acc = 0;
+        for (std::size_t j = 0; j < A.v.size(); ++j) acc += B.J[i][j] * A.v[j] - A.J[i][j] * B.v[j];
+        if (!acc.is_zero()) return false;
+      }
+    }
+    return true;
+  }
+
+ private:
+  struct Values {
+    std::vector<numeric> v;
+    std::vector<std::vector<numeric>> J;
+  };
+  const Values& at(std::size_t field, int k) {
+    auto& slot = cache_[{field, k}];
+    if (slot.v.empty()) {
+      for (const auto& p : fr_.fields[field]) slot.v.push_back(PolyRing::evaluate(p, values_[k]));
+      for (const auto& row : fr_.jacobians[field]) {
+        slot.J.emplace_back();
+        for (const auto& p : row) slot.J.back().push_back(PolyRing::evaluate(p, values_[k]));
+      }
+    }
+    return slot;
+  }
+  const FrameRing& fr_;
+  std::vector<std::vector<numeric>> values_;
+  std::map<std::pair<std::size_t, int>, Values> cache_;
+};
+
+// Operands above this many GiNaC nodes are decided by the exact screen when it can (their
+// symbolic bracket costs products of dense polynomials) and their failing residuals are not
+// printed.
+constexpr std::size_t kLargeOperands = 4000;
+
+// One bracket check: [a, b] with a, b indexing tau_1..tau_n, g (index n).
+class BracketChecker {
+ public:
+  BracketChecker(const Model& m, FrameRing& fr, const CanonicalForm& cf, const SampleBoxes& boxes,
+                 const CanonicalOptions& opt)
+      : m_(m),
+        fr_(fr),
+        cf_(cf),
+        boxes_(boxes),
+        opt_(opt),
+        screen_(make_screen(m, fr, boxes, cf, opt, J_)),
+        exact_(fr) {
+    for (std::size_t k = 0; k <= m.n(); ++k) {
+      std::size_t size = 0;
+      for (const auto& e : k < m.n() ? cf.frame[k] : m.g) size += expression_size(e);
+      field_size_.push_back(size);
+    }
+  }
+
+  BracketCheck check(std::size_t a, std::size_t b) {
+    BracketCheck out;
+    const std::size_t size = field_size_[a] + field_size_[b];
+    if (screen_.nonzero(a, b)) {
+      out.verdict = ZeroVerdict::nonzero;
+      // The residual itself, unless its symbolic form would be unreasonably large.
+      if (size <= kLargeOperands)
+        out.residual = bracket(a, b);
+      else
+        out.residual_note =
+            fmt::format("residual not printed (operands have {} nodes); nonzero at {}", size,
+                        screen_.point_text());
+      return out;
+    }
+    if (fr_.ring && size > kLargeOperands && exact_.zero(a, b)) {
+      out.verdict = ZeroVerdict::numeric;
+      out.residual_note = fmt::format(
+          "zero at {} random integer points in exact arithmetic (operands have {} nodes; "
+          "Schwartz-Zippel: error probability below (degree / 2^32)^{})",
+          ExactScreen::kPoints, size, ExactScreen::kPoints);
+      return out;
+    }
+    out.residual = bracket(a, b);
+    out.verdict = vector_verdict(out.residual, boxes_, opt_.zero);
+    return out;
+  }
+
+ private:
+  ExVec bracket(std::size_t a, std::size_t b) {
+    const std::size_t n = m_.n();
+    const ExVec& va = a < n ? cf_.frame[a] : m_.g;
+    const ExVec& vb = b < n ? cf_.frame[b] : m_.g;
+    if (!fr_.ring) return lie_bracket(va, J_[a], vb, J_[b]);
+    const Handles& A = handles(a);
+    const Handles& B = handles(b);
+    ExVec out;
+    for (std::size_t i = 0; i < n; ++i)
+      out.push_back(fr_.ring->to_ex(flint_->dot_difference(B.J[i], A.v, A.J[i], B.v)));
+    return out;
+  }
+
+  // The ring fields converted to FLINT once, on first use.
+  struct Handles {
+    std::vector<FlintProducts::Handle> v;
+    std::vector<std::vector<FlintProducts::Handle>> J;
+  };
+  const Handles& handles(std::size_t field) {
+    if (!flint_) flint_ = std::make_unique<FlintProducts>(fr_.ring->variables());
+    auto& h = handles_[field];
+    if (h.v.empty()) {
+      for (const auto& p : fr_.fields[field]) h.v.push_back(flint_->add(p));
+      for (const auto& row : fr_.jacobians[field]) {
+        h.J.emplace_back();
+        for (const auto& p : row) h.J.back().push_back(flint_->add(p));
+      }
+    }
+    return h;
+  }
+  std::unique_ptr<FlintProducts> flint_;
+  std::map<std::size_t, Handles> handles_;
+
+  const Model& m_;
+  FrameRing& fr_;
+  const CanonicalForm& cf_;
+  const SampleBoxes& boxes_;
+  const CanonicalOptions& opt_;
+  std::vector<ExMatrix> J_;  // GiNaC path only
+  BracketScreen screen_;
+  ExactScreen exact_;
+  std::vector<std::size_t> field_size_;  // nodes of tau_1..tau_n and g
+};
+
+}  // namespace
+
 void check_conditions(const Model& m, FrameRing& fr, Budget& budget, const CanonicalOptions& opt,
                       CanonicalForm& cf) {
   StageScope stage(budget, "conditions");
   const std::size_t n = m.n();
   const SampleBoxes boxes = SampleBoxes::from_model(m);
-  // Numeric screen: every bracket evaluated at one point of the domain from the values of
-  // tau_k and their Jacobians. A clearly nonzero value proves failure without the symbolic
+  // Numeric screen first: every bracket evaluated at one point of the domain from the values
+  // of tau_k and their Jacobians. A clearly nonzero value proves failure without the symbolic
   // expansion (which dominates on large models); vanishing brackets get the full test.
-  std::vector<ExMatrix> J;  // GiNaC path only
-  const BracketScreen screen = make_screen(m, fr, boxes, cf, opt, J);
-  auto bracket = [&](std::size_t a, std::size_t b) {
-    const ExVec& va = a < n ? cf.frame[a] : m.g;
-    const ExVec& vb = b < n ? cf.frame[b] : m.g;
-    if (!fr.ring) return lie_bracket(va, J[a], vb, J[b]);
-    ExVec out;
-    for (std::size_t i = 0; i < n; ++i) {
-      Poly r = PolyRing::dot(fr.jacobians[b][i], fr.fields[a]);
-      PolyRing::subtract_from(r, PolyRing::dot(fr.jacobians[a][i], fr.fields[b]));
-      out.push_back(fr.ring->to_ex(r));
-    }
-    return out;
-  };
-  // Node counts of tau_1..tau_n and g, each counted once (pairs reuse them).
-  std::vector<std::size_t> field_size;
-  for (std::size_t k = 0; k <= n; ++k) {
-    std::size_t size = 0;
-    for (const auto& e : k < n ? cf.frame[k] : m.g) size += expression_size(e);
-    field_size.push_back(size);
-  }
-  auto check_pair = [&](std::size_t a, std::size_t b, BracketCheck& out) {
-    if (screen.nonzero(a, b)) {
-      out.verdict = ZeroVerdict::nonzero;
-      // The residual itself, unless its symbolic form would be unreasonably large.
-      const std::size_t size = field_size[a] + field_size[b];
-      if (size <= 4000)
-        out.residual = bracket(a, b);
-      else
-        out.residual_note =
-            fmt::format("residual not printed (operands have {} nodes); nonzero at {}", size,
-                        screen.point_text());
-      return;
-    }
-    out.residual = bracket(a, b);
-    out.verdict = vector_verdict(out.residual, boxes, opt.zero);
-  };
+  BracketChecker checker(m, fr, cf, boxes, opt);
   bool ok = true;
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t j = i + 1; j < n; ++j) {
-      BracketCheck b;
+      BracketCheck b = checker.check(i, j);
       b.i = i + 1;
       b.j = j + 1;
-      check_pair(i, j, b);
       ok &= b.holds();
       cf.drift.push_back(std::move(b));
       budget.check();
     }
   for (std::size_t j = 0; j + 1 < n; ++j) {
-    BracketCheck b;
+    BracketCheck b = checker.check(n, j);
     b.i = 0;
     b.j = j + 1;
-    check_pair(n, j, b);
     ok &= b.holds();
     cf.input.push_back(std::move(b));
     budget.check();

@@ -2,6 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <memory>
+
+#include "analysis/flint_products.hpp"
 #include "analysis/output_function.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/integrate.hpp"
@@ -87,10 +91,22 @@ struct RingFields {
   std::vector<Poly> f, F;                       // f and f + g
   const std::vector<std::vector<Poly>>& frame;  // tau_1..tau_n
   OutputFunction in_output;
+  std::shared_ptr<FlintProducts> flint;  // for products of two large operands
   Poly lie(const Poly& p, const std::vector<Poly>& field) const {
     std::vector<Poly> grad;
-    for (std::size_t j = 0; j < ring.states(); ++j) grad.push_back(ring.derivative(p, j));
-    return PolyRing::dot(grad, field);
+    std::size_t largest = 0;
+    for (std::size_t j = 0; j < ring.states(); ++j) {
+      grad.push_back(ring.derivative(p, j));
+      largest = std::max(largest, field[j].terms.size());
+    }
+    // The hash map costs one insertion per pair of terms; FLINT multiplies packed exponents.
+    if (p.terms.size() * largest < 100000) return PolyRing::dot(grad, field);
+    std::vector<FlintProducts::Handle> g, v;
+    for (std::size_t j = 0; j < grad.size(); ++j) {
+      g.push_back(flint->add(grad[j]));
+      v.push_back(flint->add(field[j]));
+    }
+    return flint->dot_difference(g, v, {}, {});
   }
 };
 
@@ -215,13 +231,16 @@ std::optional<RingFields> ring_fields(const Context& c, const FrameRing& fr) {
     PolyRing::add_to(F.back(), fr.fields[c.m.n()][i]);  // + g_i
   }
   return RingFields{
-      ring, std::move(f), std::move(F), fr.fields,
-      OutputFunction(ring, c.m.h[0], c.m.states, c.cf.y, c.cf.base_point, c.boxes, c.zero)};
+      ring,
+      std::move(f),
+      std::move(F),
+      fr.fields,
+      OutputFunction(ring, c.m.h[0], c.m.states, c.cf.y, c.cf.base_point, c.boxes, c.zero),
+      std::make_shared<FlintProducts>(ring.variables())};
 }
 
-void set_T(const Context& c, ExVec T, ZeroVerdict v, CanonicalForm& cf) {
+void set_T(ExVec T, ZeroVerdict v, CanonicalForm& cf) {
   OBSYNTH_ASSERT(v != ZeroVerdict::nonzero, "constructed T does not satisfy dT/dx [tau] = I");
-  (void)c;
   cf.T = std::move(T);
   cf.T_verdict = v;
   cf.T_kind = Availability::symbolic;
@@ -240,7 +259,7 @@ bool ring_diffeomorphism(const Context& c, const FrameRing& fr, Budget& budget, 
     if (o == Outcome::no_closed_form) return true;
     ExVec Tx;
     for (const auto& p : T) Tx.push_back(r->ring.to_ex(p));
-    set_T(c, std::move(Tx), verify_T_ring(c, *r, T), cf);
+    set_T(std::move(Tx), verify_T_ring(c, *r, T), cf);
     ring_l(*r, T, cf);
   } catch (const PolyOverflow&) {
     cf.T_note.clear();
@@ -253,7 +272,7 @@ void ginac_diffeomorphism(const Context& c, Budget& budget, CanonicalForm& cf) {
   ExVec T;
   if (ginac_T(c, budget, T, cf.T_note) != Outcome::closed) return;
   const ZeroVerdict v = verify_T_ginac(c, T);
-  set_T(c, std::move(T), v, cf);
+  set_T(std::move(T), v, cf);
   ginac_l(c, cf);
 }
 

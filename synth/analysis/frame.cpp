@@ -1,5 +1,6 @@
 #include "analysis/frame.hpp"
 
+#include "analysis/flint_products.hpp"
 #include "symbolic/lie.hpp"
 #include "symbolic/symbolic.hpp"
 
@@ -19,7 +20,8 @@ void FrameRing::add_field(std::vector<Poly> v) {
 
 namespace {
 
-// tau_{k+1} = [-f, tau_k] = J_f tau_k - J_tau_k f in the ring; throws PolyOverflow.
+// tau_{k+1} = [-f, tau_k] = J_f tau_k - J_tau_k f in the ring, the products by FLINT;
+// throws PolyOverflow.
 void ring_frame(const Model& m, const CanonicalForm& cf, Budget& budget, FrameRing& fr,
                 std::vector<ExVec>& frame) {
   const PolyRing& ring = *fr.ring;
@@ -27,15 +29,21 @@ void ring_frame(const Model& m, const CanonicalForm& cf, Budget& budget, FrameRi
   std::vector<Poly> f, tau;
   for (const auto& e : m.f) f.push_back(*ring.from_ex(e));
   for (const auto& e : cf.r) tau.push_back(*ring.from_ex(e));
-  const auto Jf = fr.jacobian(f);
+  FlintProducts flint(ring.variables());
+  std::vector<FlintProducts::Handle> f_h;
+  std::vector<std::vector<FlintProducts::Handle>> Jf_h(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    f_h.push_back(flint.add(f[i]));
+    for (std::size_t j = 0; j < n; ++j) Jf_h[i].push_back(flint.add(ring.derivative(f[i], j)));
+  }
   for (std::size_t k = 0; k < n; ++k) {
     if (k > 0) {
-      const auto& prev = fr.fields.back();
-      const auto& Jprev = fr.jacobians.back();
-      tau.assign(n, Poly{});
+      std::vector<FlintProducts::Handle> prev;
+      for (const auto& p : fr.fields.back()) prev.push_back(flint.add(p));
       for (std::size_t i = 0; i < n; ++i) {
-        tau[i] = PolyRing::dot(Jf[i], prev);
-        PolyRing::subtract_from(tau[i], PolyRing::dot(Jprev[i], f));
+        std::vector<FlintProducts::Handle> Jprev_i;
+        for (const auto& p : fr.jacobians.back()[i]) Jprev_i.push_back(flint.add(p));
+        tau[i] = flint.dot_difference(Jf_h[i], prev, Jprev_i, f_h);
       }
     }
     std::size_t estimate = 0;

@@ -107,7 +107,10 @@ std::optional<std::vector<EliminationStep>> substituted_elimination(const ExVec&
           if (const auto v = solve_for(eqs[i], x[k])) pick = EliminationStep{k, i, *v};
     if (!pick) return std::nullopt;
     used[pick->equation] = solved[pick->state] = true;
-    for (auto& s : steps) s.value = simplify(s.value.subs(x[pick->state] == pick->value));
+    for (auto& s : steps) {
+      s.value = simplify(s.value.subs(x[pick->state] == pick->value));
+      if (expression_size(s.value) > max_size) return std::nullopt;
+    }
     for (std::size_t q = 0; q < n; ++q) {
       if (used[q]) continue;
       eqs[q] = simplify(eqs[q].subs(x[pick->state] == pick->value));
@@ -164,15 +167,16 @@ void build_inverse(const Model& m, Budget& budget, const CanonicalOptions& opt, 
   const bool triangular = steps.has_value();
   std::string how = "triangular elimination";
   if (!triangular) {
-    steps = substituted_elimination(cf.T, x, cf.z, 5000);
+    steps = substituted_elimination(cf.T, x, cf.z, 2000);
     how = "elimination with substitution (no triangular order)";
   }
   budget.check();
   cf.T_inverse_kind = Availability::numeric;
   if (!steps) {
     cf.T_inverse_note =
-        "no elimination order solves T(x) = z one state at a time; runtime Newton solve with "
-        "[tau] as inverse Jacobian";
+        "no triangular elimination order, and elimination with substitution gave up (no "
+        "solvable equation, or expressions beyond 2000 nodes); runtime Newton solve with [tau] "
+        "as inverse Jacobian";
     return;
   }
   cf.T_inverse_verdict =

@@ -95,6 +95,10 @@ class PolyRing {
   bool register_atoms(const GiNaC::ex& e);
   bool build_derivatives();
   std::optional<Poly> convert(const GiNaC::ex& e) const;
+
+ public:
+  // Number of ring variables (states first, then symbols and atoms): exponent slots in use.
+  std::size_t variables() const { return vars_.size(); }
 };
 
 }  // namespace obsynth
