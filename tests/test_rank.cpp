@@ -180,55 +180,101 @@ TEST(JetsRank, Deterministic) {
   EXPECT_EQ(a.method, b.method);
 }
 
-// The dense family (a constructed chain seen through x = M w, M_ij = min(i, j), det M = 1):
-// det O and adj(O) e_n come from fraction-free elimination in FLINT. Independently: det O_w(w)
-// = det O_x(M w) det M, with det O_x from the triangular path of the x model; and
-// O adj(O) e_n = det O e_n checked at exact random points.
-TEST(GeneralPath, DenseDeterminantAndCofactors) {
-  for (std::size_t n = 2; n <= 5; ++n) {
-    const Model mx = testing::linearizable_chain(n, testing::Flavor::polynomial).model;
-    Model mw = mx;
-    mw.states.clear();
-    GiNaC::exmap x_of_w;
-    for (std::size_t i = 0; i < n; ++i) mw.states.emplace_back("w" + std::to_string(i + 1));
-    for (std::size_t i = 0; i < n; ++i) {
-      ex xi = 0;
-      for (std::size_t j = 0; j < n; ++j)
-        xi += static_cast<long>(std::min(i, j) + 1) * mw.states[j];
-      x_of_w[mx.states[i]] = xi;
-    }
-    // M^-1 is tridiagonal: 2 on the diagonal (1 in the last row), -1 beside it.
-    auto pull = [&](const ExVec& v) {
-      ExVec out(n);
-      for (std::size_t i = 0; i < n; ++i) {
-        ex s = (i + 1 < n ? 2 : 1) * v[i].subs(x_of_w);
-        if (i > 0) s -= v[i - 1].subs(x_of_w);
-        if (i + 1 < n) s -= v[i + 1].subs(x_of_w);
-        out[i] = s;
-      }
-      return out;
-    };
-    mw.f = pull(mx.f);
-    mw.g = pull(mx.g);
-    for (auto& h : mw.h) h = h.subs(x_of_w);
-    const Observability ox = symbolic(mx), ow = symbolic(mw);
-    ASSERT_TRUE(ox.triangular);
-    ASSERT_FALSE(ow.triangular) << "n = " << n;
-    ASSERT_EQ(ow.generic_rank, n);
-    EXPECT_EQ(jets(mw).rank, n);
-    EXPECT_TRUE(GiNaC::expand(ow.det - ox.det.subs(x_of_w)).is_zero()) << "n = " << n;
-    // O c = det e_n at random rational points.
-    for (int k = 1; k <= 3; ++k) {
-      GiNaC::exmap pt;
-      for (std::size_t i = 0; i < n; ++i) pt[mw.states[i]] = numeric(k * 7 + 3 * i, 11 + 2 * k);
-      for (std::size_t r = 0; r < n; ++r) {
-        ex acc = 0;
-        for (std::size_t c = 0; c < n; ++c)
-          acc += ow.O[ow.selected[r]][c].subs(pt) * ow.last_row_cofactors[c].subs(pt);
-        EXPECT_EQ(acc, r + 1 == n ? ow.det.subs(pt) : ex(0)) << "n = " << n << " row " << r;
-      }
-    }
+// mx seen through x = M w, M_ij = min(i, j) (det M = 1, M^-1 tridiagonal): O is dense.
+struct DenseView {
+  Model mw;
+  GiNaC::exmap x_of_w;
+};
+DenseView dense_view(const Model& mx) {
+  const std::size_t n = mx.n();
+  DenseView d{mx, {}};
+  d.mw.states.clear();
+  for (std::size_t i = 0; i < n; ++i) d.mw.states.emplace_back("w" + std::to_string(i + 1));
+  for (std::size_t i = 0; i < n; ++i) {
+    ex xi = 0;
+    for (std::size_t j = 0; j < n; ++j)
+      xi += static_cast<long>(std::min(i, j) + 1) * d.mw.states[j];
+    d.x_of_w[mx.states[i]] = xi;
   }
+  // M^-1: 2 on the diagonal (1 in the last row), -1 beside it.
+  auto pull = [&](const ExVec& v) {
+    ExVec out(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      ex s = (i + 1 < n ? 2 : 1) * v[i].subs(d.x_of_w);
+      if (i > 0) s -= v[i - 1].subs(d.x_of_w);
+      if (i + 1 < n) s -= v[i + 1].subs(d.x_of_w);
+      out[i] = s;
+    }
+    return out;
+  };
+  d.mw.f = pull(mx.f);
+  d.mw.g = pull(mx.g);
+  for (auto& h : d.mw.h) h = h.subs(d.x_of_w);
+  return d;
+}
+
+// x_i' = x_{i+1} (2 + x_i) + x_i^2 x_1, x_n' = -sum x_i^3, y = x1: O is lower triangular with
+// diagonal prod_{i<k} (2 + x_i), so the rank drops on 2 + x_i = 0, i < n (by hand).
+Model weighted_chain(std::size_t n) {
+  std::string f;
+  for (std::size_t i = 1; i < n; ++i)
+    f += "x" + std::to_string(i + 1) + "*(2 + x" + std::to_string(i) + ") + x" + std::to_string(i) +
+         "^2*x1, ";
+  std::string cubes, states;
+  for (std::size_t i = 1; i <= n; ++i) {
+    cubes += (i > 1 ? " + x" : "x") + std::to_string(i) + "^3";
+    states += " x" + std::to_string(i);
+  }
+  return parse_model("model wc\nstates" + states + "\nf = [" + f + "-(" + cubes + ")]\nh = [x1]\n",
+                     "wc.sym");
+}
+
+// The general path with det and adj(O) e_n by fraction-free elimination in FLINT, r in lowest
+// terms and the factors of det O. Independently: det O_w(w) = det O_x(M w) det M with det O_x
+// from the triangular path of the x model; O adj(O) e_n = det O e_n and O r = e_n at exact
+// random points; the rank-drop factors are those of the x model (by hand for weighted_chain)
+// pulled back through M.
+TEST(GeneralPath, DenseDeterminantCofactorsAndFactors) {
+  for (std::size_t n = 2; n <= 5; ++n)
+    for (bool weighted : {false, true}) {
+      const Model mx = weighted ? weighted_chain(n)
+                                : testing::linearizable_chain(n, testing::Flavor::polynomial).model;
+      const auto [mw, x_of_w] = dense_view(mx);
+      const Observability ox = symbolic(mx), ow = symbolic(mw);
+      const std::string tag = (weighted ? "weighted n = " : "chain n = ") + std::to_string(n);
+      ASSERT_TRUE(ox.triangular) << tag;
+      ASSERT_FALSE(ow.triangular) << tag;
+      ASSERT_EQ(ow.generic_rank, n) << tag;
+      ASSERT_EQ(ow.r.size(), n) << tag;
+      EXPECT_EQ(jets(mw).rank, n) << tag;
+      EXPECT_TRUE(GiNaC::expand(ow.det - ox.det.subs(x_of_w)).is_zero()) << tag;
+      for (int k = 1; k <= 3; ++k) {
+        GiNaC::exmap pt;
+        for (std::size_t i = 0; i < n; ++i) pt[mw.states[i]] = numeric(k * 7 + 3 * i, 11 + 2 * k);
+        for (std::size_t r = 0; r < n; ++r) {
+          ex acc = 0, acc_r = 0;
+          for (std::size_t c = 0; c < n; ++c) {
+            const ex o = ow.O[ow.selected[r]][c].subs(pt);
+            acc += o * ow.last_row_cofactors[c].subs(pt);
+            acc_r += o * ow.r[c].subs(pt);
+          }
+          EXPECT_EQ(acc, r + 1 == n ? ow.det.subs(pt) : ex(0)) << tag << " row " << r;
+          EXPECT_EQ(acc_r, r + 1 == n ? 1 : 0) << tag << " row " << r;
+        }
+      }
+      // Rank-drop set: 2 + x_i (i < n) in w, each once, up to a constant factor.
+      const std::size_t expected = weighted ? n - 1 : 0;
+      ASSERT_EQ(ow.rank_drop.size(), expected) << tag;
+      for (std::size_t i = 1; i <= expected; ++i) {
+        const ex form = GiNaC::expand(2 + ex(mx.states[i - 1]).subs(x_of_w));
+        bool found = false;
+        for (const auto& f : ow.rank_drop) {
+          const ex q = GiNaC::normal(f / form);
+          found |= GiNaC::is_a<numeric>(q);
+        }
+        EXPECT_TRUE(found) << tag << ": 2 + x" << i;
+      }
+    }
 }
 
 }  // namespace

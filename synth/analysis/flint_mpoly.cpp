@@ -1,6 +1,7 @@
 #include "analysis/flint_mpoly.hpp"
 
 #include <flint/fmpq.h>
+#include <flint/fmpq_mpoly_factor.h>
 
 #include <cln/integer.h>
 #include <cln/integer_io.h>
@@ -238,6 +239,64 @@ std::optional<DetCofactors> det_and_last_row_cofactors(const MPolyContext& ctx,
     out.cofactors.push_back(std::move(v));
   }
   return out;
+}
+
+namespace {
+
+// p / content(p), its leading coefficient made positive.
+void make_primitive(const MPolyContext& ctx, MPoly& p) {
+  const auto* c = ctx.ctx();
+  if (p.is_zero()) return;
+  fmpq_t g;
+  fmpq_init(g);
+  fmpq_mpoly_content(g, p.get(), c);
+  fmpq_mpoly_scalar_div_fmpq(p.get(), p.get(), g, c);
+  fmpq_mpoly_get_term_coeff_fmpq(g, p.get(), 0, c);
+  if (fmpq_sgn(g) < 0) fmpq_mpoly_neg(p.get(), p.get(), c);
+  fmpq_clear(g);
+}
+
+}  // namespace
+
+std::optional<std::vector<MPoly>> irreducible_factors(const MPolyContext& ctx, const MPoly& p) {
+  const auto* c = ctx.ctx();
+  fmpq_mpoly_factor_t f;
+  fmpq_mpoly_factor_init(f, c);
+  std::optional<std::vector<MPoly>> out;
+  if (fmpq_mpoly_factor(f, p.get(), c)) {
+    out.emplace();
+    for (slong i = 0; i < fmpq_mpoly_factor_length(f, c); ++i) {
+      MPoly b(ctx);
+      fmpq_mpoly_factor_get_base(b.get(), f, i, c);
+      if (fmpq_mpoly_is_fmpq(b.get(), c)) continue;
+      make_primitive(ctx, b);
+      out->push_back(std::move(b));
+    }
+  }
+  fmpq_mpoly_factor_clear(f, c);
+  return out;
+}
+
+Quotient reduced_quotient(const MPolyContext& ctx, const MPoly& a, const MPoly& b) {
+  const auto* c = ctx.ctx();
+  Quotient q{MPoly(ctx), MPoly(ctx)};
+  MPoly g(ctx);
+  if (!fmpq_mpoly_gcd(g.get(), a.get(), b.get(), c) || g.is_zero()) fmpq_mpoly_one(g.get(), c);
+  if (!fmpq_mpoly_divides(q.num.get(), a.get(), g.get(), c) ||
+      !fmpq_mpoly_divides(q.den.get(), b.get(), g.get(), c))
+    throw std::logic_error("reduced quotient: the gcd does not divide");
+  // Scale so that den is primitive with a positive leading coefficient.
+  fmpq_t k, lead;
+  fmpq_init(k);
+  fmpq_init(lead);
+  fmpq_mpoly_content(k, q.den.get(), c);
+  fmpq_mpoly_get_term_coeff_fmpq(lead, q.den.get(), 0, c);
+  if (fmpq_sgn(lead) < 0) fmpq_neg(k, k);
+  fmpq_mpoly_scalar_div_fmpq(q.num.get(), q.num.get(), k, c);
+  fmpq_mpoly_scalar_div_fmpq(q.den.get(), q.den.get(), k, c);
+  fmpq_clear(k);
+  fmpq_clear(lead);
+  return q;
 }
 
 }  // namespace obsynth

@@ -71,4 +71,15 @@ struct DetCofactors {
 std::optional<DetCofactors> det_and_last_row_cofactors(const MPolyContext& ctx,
                                                        std::vector<std::vector<MPoly>> a);
 
+// The distinct non-constant irreducible factors of p (FLINT's multivariate factorisation), each
+// scaled to integer coefficients with content 1; nullopt when FLINT cannot factor it.
+std::optional<std::vector<MPoly>> irreducible_factors(const MPolyContext& ctx, const MPoly& p);
+
+// a / b in lowest terms: num / den with gcd 1, den with integer coefficients, content 1 and a
+// positive leading coefficient. b must be nonzero.
+struct Quotient {
+  MPoly num, den;
+};
+Quotient reduced_quotient(const MPolyContext& ctx, const MPoly& a, const MPoly& b);
+
 }  // namespace obsynth

@@ -82,7 +82,7 @@ FrameRing compute_frame(const Model& m, const Observability& ob, Budget& budget,
   StageScope stage(budget, "frame");
   // r = adj(O) e_n / det O: the cofactors of O's last row.
   for (std::size_t i = 0; i < m.n(); ++i)
-    cf.r.push_back(simplify(ob.last_row_cofactors[i] / ob.det));
+    cf.r.push_back(ob.r.empty() ? simplify(ob.last_row_cofactors[i] / ob.det) : ob.r[i]);
   ExVec all(m.f);
   all.insert(all.end(), m.g.begin(), m.g.end());
   all.insert(all.end(), cf.r.begin(), cf.r.end());

@@ -53,13 +53,11 @@ std::size_t numeric_rank(std::vector<std::vector<numeric>> a, bool exact) {
   return rank;
 }
 
-ExVec dependent_factors(const ex& e, const Symbols& x) {
-  GiNaC::exmap repl;
-  const ex num = GiNaC::numer(GiNaC::normal(e));
-  const ex poly = num.to_polynomial(repl);
-  ex fac = GiNaC::factor(poly);
-  GiNaC::exmap back;
-  for (const auto& [k, v] : repl) back[k] = v;
+namespace {
+
+// The x-dependent ones of the factors `fac` (a product or one factor; atoms frozen as the
+// symbols of `back`), without multiplicity, integer content or sign; exp(.) factors dropped.
+ExVec normalised_factors(const ex& fac, const GiNaC::exmap& back, const Symbols& x) {
   std::vector<ex> parts;
   auto add = [&](const ex& f) {
     ex g = f;
@@ -97,6 +95,17 @@ ExVec dependent_factors(const ex& e, const Symbols& x) {
   return out;
 }
 
+}  // namespace
+
+ExVec dependent_factors(const ex& e, const Symbols& x) {
+  GiNaC::exmap repl;
+  const ex num = GiNaC::numer(GiNaC::normal(e));
+  const ex poly = num.to_polynomial(repl);
+  GiNaC::exmap back;
+  for (const auto& [k, v] : repl) back[k] = v;
+  return normalised_factors(GiNaC::factor(poly), back, x);
+}
+
 namespace {
 
 ExVec denominators(const ExMatrix& O, const Symbols& x) {
@@ -111,8 +120,10 @@ ExVec denominators(const ExMatrix& O, const Symbols& x) {
   return out;
 }
 
-// Rank-drop set and the poles of det O.
-void finish_determinant(Observability& ob, const Symbols& x) {
+// Rank-drop set and the poles of det O; `factored`: det O is a ring polynomial (no poles)
+// whose factors FLINT already found.
+void finish_determinant(Observability& ob, const Symbols& x, bool factored = false) {
+  if (factored) return;
   ob.rank_drop = dependent_factors(ob.det, x);
   for (const auto& f : dependent_factors(GiNaC::denom(GiNaC::normal(ob.det)), x)) {
     const std::string s = to_string(f);
@@ -246,8 +257,11 @@ bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
 }
 
 // det and adj(O) e_n of the selected rows by fraction-free elimination in FLINT, when the
-// rows are ring polynomials; false otherwise (the caller expands cofactors with GiNaC).
-bool determinant_in_ring(Observability& ob, const RingRows& rows) {
+// rows are ring polynomials, with r = adj(O) e_n / det O in lowest terms and the factors of det
+// O (`factored` when FLINT factored it); false otherwise (the caller expands cofactors with
+// GiNaC).
+bool determinant_in_ring(Observability& ob, const RingRows& rows, const Symbols& x,
+                         bool& factored) {
   if (!rows.ctx) return false;
   try {
     std::vector<std::vector<MPoly>> a;
@@ -259,10 +273,22 @@ bool determinant_in_ring(Observability& ob, const RingRows& rows) {
     }
     auto dc = det_and_last_row_cofactors(*rows.ctx, std::move(a));
     if (!dc) return false;  // formally singular: leave it to the generic path
-    ob.det = rows.ring->to_ex(rows.ctx->from_flint(dc->det));
+    const PolyRing& ring = *rows.ring;
+    const MPolyContext& ctx = *rows.ctx;
+    ob.det = ring.to_ex(ctx.from_flint(dc->det));
     ob.last_row_cofactors.clear();
-    for (const auto& c : dc->cofactors)
-      ob.last_row_cofactors.push_back(rows.ring->to_ex(rows.ctx->from_flint(c)));
+    ob.r.clear();
+    for (const auto& c : dc->cofactors) {
+      ob.last_row_cofactors.push_back(ring.to_ex(ctx.from_flint(c)));
+      const Quotient q = reduced_quotient(ctx, c, dc->det);
+      ob.r.push_back(ring.to_ex(ctx.from_flint(q.num)) / ring.to_ex(ctx.from_flint(q.den)));
+    }
+    if (const auto fs = irreducible_factors(ctx, dc->det)) {
+      GiNaC::exvector parts;
+      for (const auto& f : *fs) parts.push_back(ring.to_ex(ctx.from_flint(f)));
+      ob.rank_drop = normalised_factors(GiNaC::mul(parts), {}, x);
+      factored = true;
+    }
   } catch (const PolyOverflow&) {
     return false;
   }
@@ -439,8 +465,10 @@ Observability analyse_observability(const Model& m, Budget& budget,
     }
   }
 
-  if (ob.generic_rank == ob.n && ob.selected.size() == ob.n && determinant_in_ring(ob, ring_rows)) {
-    finish_determinant(ob, x);
+  bool factored = false;
+  if (ob.generic_rank == ob.n && ob.selected.size() == ob.n &&
+      determinant_in_ring(ob, ring_rows, x, factored)) {
+    finish_determinant(ob, x, factored);
   } else if (ob.generic_rank == ob.n && ob.selected.size() == ob.n) {
     // det by cofactor expansion along the last selected row; the cofactors are adj(O) e_n.
     const std::size_t n = ob.n;

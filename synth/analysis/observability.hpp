@@ -54,6 +54,9 @@ struct Observability {
   // (adj(O_sel) e_n, reused to solve O r = e_n without a second elimination).
   GiNaC::ex det;
   ExVec last_row_cofactors;
+  // r = adj(O) e_n / det O, each component in lowest terms (gcd in FLINT), when det and the
+  // cofactors were computed in the polynomial ring; empty otherwise.
+  ExVec r;
   ExVec rank_drop;  // x-dependent factors of det (its zeros are where the rank drops)
   ExVec undefined;  // x-dependent denominator factors (O undefined on their zeros)
   // Set when the rank came from Taylor jets: then lie, O, det, rank_drop and undefined are
