@@ -171,6 +171,21 @@ TEST(JetsRank, AutomaticFallbackOnBudget) {
   EXPECT_THROW(analyse(m, opt), UserError);
 }
 
+// Outside the ring one normal() can outlast any budget checked between calls (ident_mm: 21 s
+// for L_f^2 h): the GiNaC chain is tried in a child process, which is stopped at the deadline.
+TEST(JetsRank, AutomaticFallbackFromAnUninterruptibleChain) {
+  const Model m = load_model(source("tests/models/ident_mm.sym"));
+  AnalysisOptions opt;
+  opt.budget.stage_seconds = 4;  // the symbolic chain gets 1 s
+  const auto t0 = std::chrono::steady_clock::now();
+  const Analysis a = analyse(m, opt);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 4.0);
+  ASSERT_TRUE(a.observability.jets.has_value());
+  EXPECT_EQ(a.observability.generic_rank, m.n() - 1);  // q r: by construction
+  EXPECT_NE(a.observability.symbolic_skipped.find("not complete within 1 s"), std::string::npos)
+      << a.observability.symbolic_skipped;
+}
+
 // Deterministic: the same seed gives the same points, primes and results.
 TEST(JetsRank, Deterministic) {
   const Model m = load_model(source("tests/models/ident_hiv_plain.sym"));

@@ -3,7 +3,14 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
 #include <new>
+#include <thread>
+
+#include <sys/wait.h>
+#include <unistd.h>
 #include <optional>
 #include <set>
 
@@ -338,22 +345,63 @@ Observability observability_from_jets(const Model& m, Budget& budget,
   return ob;
 }
 
+// GiNaC's Lie chain, for every output.
+void ginac_lie_chain(const Model& m, const Budget* budget, std::vector<ExVec>& lie,
+                     std::vector<ExMatrix>& grads) {
+  lie.clear();
+  for (std::size_t i = 0; i < m.p(); ++i) {
+    LieChain chain = lie_chain_with_gradients(m.h[i], m.f, m.states, m.n(), budget);
+    lie.push_back(std::move(chain.derivatives));
+    grads[i] = std::move(chain.gradients);
+  }
+}
+
+// Whether GiNaC's Lie chain completes within `seconds`, tried in a child process: one
+// normal() of a swelling expression cannot be interrupted (21 s for the second derivative of
+// tests/models/ident_mm.sym), so a budget checked between calls cannot hand over in time.
+bool ginac_chain_completes(const Model& m, double seconds) {
+  std::fflush(nullptr);
+  const pid_t pid = fork();
+  if (pid < 0) return true;  // no probe: run it here, under the budget
+  if (pid == 0) {
+    int status = 0;
+    try {
+      std::vector<ExVec> lie;
+      std::vector<ExMatrix> grads(m.p());
+      ginac_lie_chain(m, nullptr, lie, grads);
+    } catch (...) {
+      status = 1;
+    }
+    _exit(status);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  int status = 0;
+  while (waitpid(pid, &status, WNOHANG) == 0) {
+    if (std::chrono::steady_clock::now() > deadline) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      return false;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
 // The Lie chain and its gradients (rows of O per output), in the ring when possible. In
-// automatic mode its own budget is a share of the stage's, so that the jets can take over.
+// automatic mode its own budget is a share of the stage's, so that the jets can take over; the
+// GiNaC chain is first tried in a child process with that deadline.
 void lie_chain(const Model& m, Budget& budget, const ObservabilityOptions& opt, Observability& ob,
                std::vector<ExMatrix>& grads, RingRows& ring_rows) {
   StageScope stage(budget, "lie");
   BudgetLimits share = budget.limits();
-  if (opt.rank_method == RankMethod::automatic) share.stage_seconds *= opt.symbolic_share;
+  const bool automatic = opt.rank_method == RankMethod::automatic;
+  if (automatic) share.stage_seconds *= opt.symbolic_share;
   Budget own(share);
   own.begin("lie");
   if (lie_chain_in_ring(m, own, ob.lie, grads, ring_rows)) return;
-  ob.lie.clear();
-  for (std::size_t i = 0; i < ob.p; ++i) {
-    LieChain chain = lie_chain_with_gradients(m.h[i], m.f, m.states, ob.n, &own);
-    ob.lie.push_back(std::move(chain.derivatives));
-    grads[i] = std::move(chain.gradients);
-  }
+  if (automatic && !ginac_chain_completes(m, share.stage_seconds))
+    throw UserError(SourceLoc{}, fmt::format("not complete within {:g} s", share.stage_seconds));
+  ginac_lie_chain(m, &own, ob.lie, grads);
 }
 
 }  // namespace
@@ -373,9 +421,10 @@ Observability analyse_observability(const Model& m, Budget& budget,
     lie_chain(m, budget, opt, ob, grads, ring_rows);
   } catch (const UserError& e) {  // the time or size budget of the symbolic chain
     if (opt.rank_method != RankMethod::automatic) throw;
+    const std::string why = e.diagnostics().empty() ? e.what() : e.diagnostics()[0].message;
     return observability_from_jets(
         m, budget, opt,
-        fmt::format("the symbolic Lie derivatives exceeded their budget ({})", e.what()));
+        fmt::format("the symbolic Lie derivatives exceeded their budget ({})", why));
   } catch (const std::bad_alloc&) {
     if (opt.rank_method != RankMethod::automatic) throw;
     return observability_from_jets(m, budget, opt,
