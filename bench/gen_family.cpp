@@ -1,6 +1,7 @@
 // gen_family: writes the benchmark model families as .sym files.
 //
-//   gen_family OUT_DIR                       all families, n = 2, 4, 8, 12, 16
+//   gen_family OUT_DIR                       all families at their sizes (family_sizes:
+//                                            2, 4, 8, 12, 16; nested and dense 2..16)
 //   gen_family OUT_DIR FAMILY N [N ...]      one family, the given sizes
 //   gen_family --print FAMILY N              the text on stdout
 //
@@ -25,7 +26,7 @@ int usage() {
   std::fprintf(stderr,
                "usage: gen_family OUT_DIR [FAMILY N...]\n"
                "       gen_family --print FAMILY N\n"
-               "families: chain, cubic, sine\n");
+               "families: chain, cubic, sine, nested, dense\n");
   return 1;
 }
 
@@ -67,7 +68,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   std::vector<Family> families = all_families();
-  std::vector<int> sizes = default_sizes();
+  std::vector<int> sizes;  // empty: each family's own sizes
   if (argc >= 3) {
     const auto f = parse_family(argv[2]);
     if (!f) {
@@ -95,7 +96,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   for (Family f : families)
-    for (int n : sizes) {
+    for (int n : sizes.empty() ? family_sizes(f) : sizes) {
       const fs::path p = dir / model_file_name(f, n);
       if (!write_if_changed(p, family_model(f, n))) {
         std::fprintf(stderr, "gen_family: cannot write %s\n", p.c_str());

@@ -5,6 +5,14 @@
 #
 #   bench/run_check_bench.sh [--build DIR] [--stage-seconds S] [--families "chain cubic sine"]
 #                            [--sizes "2 4 8 12 16"] [--mem-limit-mib M] [--out DIR]
+#   bench/run_check_bench.sh --compare [--families "nested dense"] [--sizes "2 4 8 12 16"]
+#                            [--repeats R] [--sympy-repeats R] [--sympy-timeout S] [...]
+#
+# --compare: obsynth check and bench/sympy_check.py (a straightforward SymPy script of the
+# same pipeline) side by side on the issue 6 families (nested: the chain family; dense: the
+# same through x = M w), each under /usr/bin/time -v: median wall time and median peak RSS
+# over the repeats (defaults 3 for obsynth, 1 for SymPy), and the ratio SymPy / obsynth.
+# SymPy runs under --sympy-timeout (default 300 s) per model; a timeout shows as "> S".
 #
 # Defaults: --build build, --stage-seconds 30, --mem-limit-mib 8192 (address-space limit per
 # run, so a runaway expression swell fails cleanly instead of exhausting the machine),
@@ -31,6 +39,10 @@ families="chain cubic sine"
 sizes="2 4 8 12 16"
 mem_limit_mib=8192
 out=""
+compare=0
+repeats=3
+sympy_repeats=1
+sympy_timeout=300
 
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -40,7 +52,11 @@ while [ $# -gt 0 ]; do
     --sizes) sizes="$2"; shift 2 ;;
     --mem-limit-mib) mem_limit_mib="$2"; shift 2 ;;
     --out) out="$2"; shift 2 ;;
-    -h|--help) sed -n '2,25p' "$0"; exit 0 ;;
+    --compare) compare=1; shift ;;
+    --repeats) repeats="$2"; shift 2 ;;
+    --sympy-repeats) sympy_repeats="$2"; shift 2 ;;
+    --sympy-timeout) sympy_timeout="$2"; shift 2 ;;
+    -h|--help) sed -n '2,36p' "$0"; exit 0 ;;
     *) echo "run_check_bench.sh: unknown argument '$1'" >&2; exit 1 ;;
   esac
 done
@@ -64,6 +80,80 @@ if [ ! -x "$timebin" ]; then
 fi
 mkdir -p "$out"
 "$gen" "$models"
+
+# timed TIME_FILE OUT_FILE ERR_FILE COMMAND...: runs the command under /usr/bin/time -v (and
+# the address-space limit); prints "<wall s> <peak RSS MiB> <exit status>". Wall time from
+# bash's EPOCHREALTIME (time -v rounds it to 10 ms), peak RSS from time -v.
+timed() {
+  local tfile="$1" ofile="$2" efile="$3"; shift 3
+  local t0="$EPOCHREALTIME"
+  set +e
+  (
+    ulimit -v $((mem_limit_mib * 1024))
+    exec "$timebin" -v -o "$tfile" "$@" >"$ofile" 2>"$efile"
+  )
+  local rc=$?
+  local t1="$EPOCHREALTIME"
+  set -e
+  awk -v rc="$rc" -v t0="$t0" -v t1="$t1" '
+    /Maximum resident set size/ { m = $NF / 1024 }
+    END { printf "%.3f %.0f %d\n", t1 - t0, m, rc }' "$tfile"
+}
+
+median() {  # numbers on stdin -> their median
+  sort -g | awk '{ v[NR] = $1 } END { if (NR == 0) print "-"; else if (NR % 2) print v[(NR + 1) / 2]; else printf "%.3f\n", (v[NR / 2] + v[NR / 2 + 1]) / 2 }'
+}
+
+if [ "$compare" = 1 ]; then
+  [ "$families" = "chain cubic sine" ] && families="nested dense"
+  sympy_script="$here/sympy_check.py"
+  echo "## obsynth check vs SymPy (bench/sympy_check.py)"
+  echo
+  echo "- $(date -u '+%Y-%m-%d %H:%M UTC'), $(nproc) cores, load average at start: $(cut -d' ' -f1-3 /proc/loadavg)"
+  echo "- medians over $repeats obsynth runs and $sympy_repeats SymPy runs; SymPy timeout ${sympy_timeout} s per model; obsynth --stage-seconds $stage_seconds"
+  echo
+  echo "| family | n | obsynth s | obsynth RSS MiB | obsynth result | SymPy s | SymPy RSS MiB | SymPy result | SymPy / obsynth |"
+  echo "|---|---:|---:|---:|---|---:|---:|---|---:|"
+  for f in $families; do
+    for n in $sizes; do
+      model="$models/${f}_n${n}.sym"
+      [ -f "$model" ] || "$gen" "$models" "$f" "$n"
+      walls=(); rsss=(); rc=0
+      for ((r = 0; r < repeats; ++r)); do
+        read -r w m rc < <(timed "$out/${f}_n${n}.otime" "$out/${f}_n${n}.json" \
+          "$out/${f}_n${n}.stderr" "$obsynth" check "$model" --format json \
+          --stage-seconds "$stage_seconds")
+        walls+=("$w"); rsss+=("$m")
+      done
+      ow=$(printf '%s\n' "${walls[@]}" | median); orss=$(printf '%s\n' "${rsss[@]}" | median)
+      if [ "$rc" = 0 ]; then
+        oresult=$("$summary" "$out/${f}_n${n}.json" | cut -f1)
+      else
+        oresult="exit $rc: $(head -n 1 "$out/${f}_n${n}.stderr" | cut -c1-80)"
+      fi
+      walls=(); rsss=(); src=0
+      for ((r = 0; r < sympy_repeats; ++r)); do
+        read -r w m src < <(timed "$out/${f}_n${n}.stime" "$out/${f}_n${n}.sympy" \
+          "$out/${f}_n${n}.sympy_stderr" timeout "$((sympy_timeout + 10))" \
+          python3 "$sympy_script" "$model" --timeout "$sympy_timeout")
+        walls+=("$w"); rsss+=("$m")
+      done
+      sw=$(printf '%s\n' "${walls[@]}" | median); srss=$(printf '%s\n' "${rsss[@]}" | median)
+      sresult=$(sed -n 's/.*"result": "\([^"]*\)".*/\1/p' "$out/${f}_n${n}.sympy" | head -n 1)
+      [ -n "$sresult" ] || sresult="exit $src"
+      if [ "$src" = 0 ]; then
+        ratio=$(awk -v s="$sw" -v o="$ow" 'BEGIN { if (o > 0) printf "%.0fx", s / o; else print "-" }')
+      else
+        sw="> $sympy_timeout"
+        ratio=$(awk -v s="$sympy_timeout" -v o="$ow" 'BEGIN { if (o > 0) printf "> %.0fx", s / o; else print "-" }')
+      fi
+      echo "| $f | $n | $ow | $orss | $oresult | $sw | $srss | $sresult | $ratio |"
+    done
+  done
+  echo
+  echo "- load average at end: $(cut -d' ' -f1-3 /proc/loadavg); raw output in $out"
+  exit 0
+fi
 
 target_for() {  # family n -> target description and limit in seconds ("" = no time target)
   local f="$1" n="$2"

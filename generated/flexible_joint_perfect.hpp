@@ -128,8 +128,8 @@ struct PerfectFunctions {
     const Scalar y_d3 = yj(3);
     out(0) = y_d0;
     out(1) = y_d1;
-    out(2) = y_d0 + y_d2 + std::sin(y_d0) * Scalar(2);
-    out(3) = y_d1 + std::cos(y_d0) * y_d1 * Scalar(2) + y_d3;
+    out(2) = -y_d0 + (y_d2 + y_d0 * Scalar(2) + std::sin(y_d0) * Scalar(2));
+    out(3) = -y_d1 + (y_d1 * Scalar(2) + std::cos(y_d0) * y_d1 * Scalar(2) + y_d3);
   }
 };
 

@@ -99,7 +99,7 @@ struct CanonicalFunctions {
     out(1) = x1;
   }
 
-  /// Closed-form inverse x = T^-1(z).
+  /// Closed-form inverse x = T^-1(z), as its elimination sequence.
   static void T_inverse(const State& z, const Params& prm, State& out) noexcept {
     const Scalar J = prm.J;
     const Scalar b = prm.b;

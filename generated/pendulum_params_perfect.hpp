@@ -124,11 +124,13 @@ struct PerfectFunctions {
   /// The state x = T^-1(z(jets)) from the jets (Procedure 1).
   static void reconstruct(const YJet& yj, const UJet& uj, const Params& prm, State& out) noexcept {
     static_cast<void>(uj);
-    static_cast<void>(prm);
+    const Scalar J = prm.J;
+    const Scalar b = prm.b;
     const Scalar y_d0 = yj(0);
     const Scalar y_d1 = yj(1);
+    const Scalar t0 = b * y_d0;
     out(0) = y_d0;
-    out(1) = y_d1;
+    out(1) = (-t0 + J * ((y_d1 * J + t0) / J)) / J;
   }
 };
 

@@ -107,8 +107,9 @@ struct PerfectFunctions {
     const Scalar u_d0 = uj(0, 0);
     const Scalar y_d0 = yj(0);
     const Scalar y_d1 = yj(1);
+    const Scalar t0 = Scalar(0.5) * (y_d0 * y_d0);
     out(0) = y_d0;
-    out(1) = u_d0 - y_d1 + u_d0 * y_d0;
+    out(1) = t0 - (y_d1 - u_d0 * y_d0 + t0 - u_d0);
   }
 };
 

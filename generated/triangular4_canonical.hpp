@@ -96,17 +96,17 @@ struct CanonicalFunctions {
     out(3) = x1;
   }
 
-  /// Closed-form inverse x = T^-1(z).
+  /// Closed-form inverse x = T^-1(z), as its elimination sequence.
   static void T_inverse(const State& z, State& out) noexcept {
     const Scalar z1 = z(0);
     const Scalar z2 = z(1);
     const Scalar z3 = z(2);
     const Scalar z4 = z(3);
-    const Scalar t0 = z4 * z4;
+    const Scalar t0 = z3 + (z4 * z4) * Scalar(0.5);
     out(0) = z4;
-    out(1) = z3 + t0 * Scalar(0.5);
-    out(2) = z2 + Scalar(0.5) * (z4 * z4 * z4) + z4 * z3;
-    out(3) = Scalar(0.5) * (z3 * z3) + Scalar(0.125) * (z4 * z4 * z4 * z4) + z3 * t0 * Scalar(0.5) + z1;
+    out(1) = t0;
+    out(2) = z2 + z4 * t0;
+    out(3) = Scalar(0.5) * (t0 * t0) + z1;
   }
 
   /// Output injection l(u, y) of the canonical form z' = A z + l(u, y).

@@ -104,10 +104,11 @@ struct PerfectFunctions {
     const Scalar z3 = z(2);
     const Scalar z4 = z(3);
     const Scalar t0 = z4 * z4;
+    const Scalar t1 = t0 + z3 * Scalar(2);
     out(0) = z4;
     out(1) = z3 + t0 * Scalar(0.5);
-    out(2) = z2 + Scalar(0.5) * (z4 * z4 * z4) + z4 * z3;
-    out(3) = Scalar(0.5) * (z3 * z3) + Scalar(0.125) * (z4 * z4 * z4 * z4) + z3 * t0 * Scalar(0.5) + z1;
+    out(2) = z2 + z4 * Scalar(0.5) * t1;
+    out(3) = (t1 * t1) * Scalar(0.125) + z1;
   }
 
   /// Output injection l(u, y) of the canonical form z' = A z + l(u, y).
@@ -129,10 +130,12 @@ struct PerfectFunctions {
     const Scalar y_d1 = yj(1);
     const Scalar y_d2 = yj(2);
     const Scalar y_d3 = yj(3);
+    const Scalar t0 = Scalar(0.5) * (y_d0 * y_d0);
+    const Scalar t1 = y_d1 - t0 + t0;
     out(0) = y_d0;
-    out(1) = y_d1;
-    out(2) = y_d2;
-    out(3) = y_d0 - Scalar(0.5) * (y_d1 * y_d1) - y_d0 * y_d2 + y_d3;
+    out(1) = t1;
+    out(2) = -(y_d0 * y_d1) + y_d2 + y_d0 * t1;
+    out(3) = Scalar(0.5) * (t1 * t1) + (y_d0 - y_d0 * y_d2 - y_d1 * y_d1 + y_d3);
   }
 };
 

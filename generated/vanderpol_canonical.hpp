@@ -83,7 +83,7 @@ struct CanonicalFunctions {
     out(1) = x1;
   }
 
-  /// Closed-form inverse x = T^-1(z).
+  /// Closed-form inverse x = T^-1(z), as its elimination sequence.
   static void T_inverse(const State& z, State& out) noexcept {
     const Scalar z1 = z(0);
     const Scalar z2 = z(1);

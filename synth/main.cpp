@@ -32,6 +32,7 @@ struct CommonOptions {
   std::size_t max_expression_size = 2000000;
   std::size_t max_memory_bytes = default_memory_budget();
   bool in_process = false;
+  std::string rank_method = "auto";
 };
 
 // --max-memory SIZE: a CLI11 transform that replaces the text by the number of bytes, or
@@ -69,6 +70,11 @@ void add_common(CLI::App* app, CommonOptions& c) {
       ->type_name("SIZE")
       ->transform(memory_size());
   app->add_flag("--in-process", c.in_process, "run without the watchdog worker (for debugging)");
+  app->add_option("--rank-method", c.rank_method,
+                  "observability rank: symbolic, jets (Taylor jets at random points), or auto "
+                  "(symbolic; jets when the Lie derivatives exceed their budget)")
+      ->check(CLI::IsMember({"auto", "symbolic", "jets"}))
+      ->capture_default_str();
 }
 
 AnalysisOptions analysis_options(const CommonOptions& c) {
@@ -77,6 +83,9 @@ AnalysisOptions analysis_options(const CommonOptions& c) {
   o.budget.max_expression_size = c.max_expression_size;
   o.budget.max_memory_bytes = c.max_memory_bytes;
   o.on_stage = publish_stage;
+  o.observability.rank_method = c.rank_method == "jets"       ? RankMethod::jets
+                                : c.rank_method == "symbolic" ? RankMethod::symbolic
+                                                              : RankMethod::automatic;
   return o;
 }
 

@@ -145,7 +145,11 @@ class StageLog {
 
 void run_stages(const Model& m, const AnalysisOptions& opt, Budget& budget, Analysis& a) {
   analyse_observability(m, budget, opt.observability, &a.observability);
-  analyse_canonical(m, a.observability, budget, opt.canonical, &a.canonical);
+  if (a.observability.jets)  // no symbolic Lie derivatives: nothing for r, the frame, T
+    a.canonical.not_applicable = "skipped: " + a.observability.symbolic_skipped +
+                                 "; r, the frame, the brackets, T and l need them";
+  else
+    analyse_canonical(m, a.observability, budget, opt.canonical, &a.canonical);
 }
 
 }  // namespace

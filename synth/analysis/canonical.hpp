@@ -1,6 +1,8 @@
 // Linearization by output injection (seed 003 Lemma 1, Procedure 1; seed 001 Theorem 3):
 // the vector field r, the frame tau_k, conditions C1-C4, the diffeomorphism T to observer
-// canonical form (output last), its inverse, and the output injection l(u, y).
+// canonical form (output last), its inverse, and the output injection l(u, y). The stages
+// live in frame, conditions, diffeomorphism (T, l) and inverse (T^-1); analyse_canonical
+// runs them in order.
 #pragma once
 
 #include <ginac/ginac.h>
@@ -21,7 +23,8 @@ struct BracketCheck {
   std::size_t i = 0, j = 0;  // 1-based frame indices; i = 0 for [g, tau_j]
   ZeroVerdict verdict = ZeroVerdict::proved;
   ExVec residual;             // the bracket itself, simplified (zero when it holds)
-  std::string residual_note;  // set when a failing residual is too large to print
+  std::string residual_note;  // why residual is empty: too large to print, or decided by exact
+                              // evaluation at random points (conditions.cpp)
   bool holds() const { return verdict != ZeroVerdict::nonzero; }
 };
 
@@ -31,6 +34,14 @@ const char* completeness_name(Completeness c);
 // How a map is available to later stages.
 enum class Availability { symbolic, numeric, none };
 const char* availability_name(Availability a);
+
+// One step of T^-1: x_state = value, where value is in z and the states solved in earlier
+// steps, obtained by solving equation T_equation(x) = z_equation (0-based indices).
+struct EliminationStep {
+  std::size_t state;
+  std::size_t equation;
+  GiNaC::ex value;
+};
 
 struct CanonicalForm {
   bool applicable = false;     // single output and generic rank n
@@ -51,9 +62,18 @@ struct CanonicalForm {
   std::string T_note;
   ZeroVerdict T_verdict = ZeroVerdict::nonzero;  // dT/dx * [tau] == I
   Availability T_inverse_kind = Availability::none;
-  ExVec T_inverse;  // in z1..zn
+  // T^-1 as an elimination sequence (symbolic kind): what reports, JSON and emitters use.
+  std::vector<EliminationStep> T_inverse_steps;
+  // The composition of the steps, in z1..zn, by substitution only: GiNaC shares its subtrees,
+  // but as a tree it can be exponential in n (the nested chain family). Consume it only
+  // through the emitter's DAG; never print, expand, normal() or walk it as a tree.
+  // Caution: GiNaC's power::eval pulls the content out of a power of a sum
+  // ((-z + w^2/2)^2 -> 1/4 (-2 z + w^2)^2); along nested squares these exact factors compound
+  // to 2^(+-2^k), which leave the double range at depth 11 (nested chain n >= 11: inf/NaN
+  // in double). Straight-line code from T_inverse_steps has no such factors.
+  ExVec T_inverse;
   std::string T_inverse_note;
-  ZeroVerdict T_inverse_verdict = ZeroVerdict::nonzero;  // T^-1(T(x)) == x
+  ZeroVerdict T_inverse_verdict = ZeroVerdict::nonzero;  // every step in its own equation
   Availability l_kind = Availability::none;
   ExVec l;  // in inputs and y
   std::string l_note;
@@ -70,21 +90,11 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
                                 const CanonicalOptions& opt = {},
                                 CanonicalForm* progress = nullptr);
 
-// e(x) written as a function of y = h(x) alone, if it is one (h must be linear in some
-// state); nullopt otherwise.
-std::optional<GiNaC::ex> express_in_output(const GiNaC::ex& e, const GiNaC::ex& h, const Symbols& x,
-                                           const GiNaC::symbol& y, const ExVec& base_point,
-                                           const SampleBoxes& boxes);
-
-// Solves T(x) = z for x by successive elimination of equations that are linear in one state
-// (or in exp/log/atan of it); nullopt when the structure does not allow it.
-std::optional<ExVec> invert_map(const ExVec& T, const Symbols& x,
-                                const std::vector<GiNaC::symbol>& z, const SampleBoxes& boxes);
-
 // The frame [tau_1 ... tau_n] as a flat column-major list (tau_1 first).
 ExVec frame_column_major(const CanonicalForm& cf);
 
-// Classifies completeness of a vector field: affine or globally Lipschitz => complete.
+// Classifies completeness of a vector field: affine or globally Lipschitz => complete
+// (conditions.cpp).
 Completeness classify_completeness(const ExVec& v, const Symbols& x, std::string& reason);
 
 }  // namespace obsynth

@@ -1,9 +1,20 @@
 #include "analysis/observability.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <new>
+#include <thread>
+
+#include <sys/wait.h>
+#include <unistd.h>
 #include <optional>
 #include <set>
 
+#include "analysis/flint_mpoly.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/poly.hpp"
 #include "symbolic/symbolic.hpp"
@@ -49,13 +60,11 @@ std::size_t numeric_rank(std::vector<std::vector<numeric>> a, bool exact) {
   return rank;
 }
 
-ExVec dependent_factors(const ex& e, const Symbols& x) {
-  GiNaC::exmap repl;
-  const ex num = GiNaC::numer(GiNaC::normal(e));
-  const ex poly = num.to_polynomial(repl);
-  ex fac = GiNaC::factor(poly);
-  GiNaC::exmap back;
-  for (const auto& [k, v] : repl) back[k] = v;
+namespace {
+
+// The x-dependent ones of the factors `fac` (a product or one factor; atoms frozen as the
+// symbols of `back`), without multiplicity, integer content or sign; exp(.) factors dropped.
+ExVec normalised_factors(const ex& fac, const GiNaC::exmap& back, const Symbols& x) {
   std::vector<ex> parts;
   auto add = [&](const ex& f) {
     ex g = f;
@@ -93,6 +102,17 @@ ExVec dependent_factors(const ex& e, const Symbols& x) {
   return out;
 }
 
+}  // namespace
+
+ExVec dependent_factors(const ex& e, const Symbols& x) {
+  GiNaC::exmap repl;
+  const ex num = GiNaC::numer(GiNaC::normal(e));
+  const ex poly = num.to_polynomial(repl);
+  GiNaC::exmap back;
+  for (const auto& [k, v] : repl) back[k] = v;
+  return normalised_factors(GiNaC::factor(poly), back, x);
+}
+
 namespace {
 
 ExVec denominators(const ExMatrix& O, const Symbols& x) {
@@ -107,8 +127,10 @@ ExVec denominators(const ExMatrix& O, const Symbols& x) {
   return out;
 }
 
-// Rank-drop set and the poles of det O.
-void finish_determinant(Observability& ob, const Symbols& x) {
+// Rank-drop set and the poles of det O; `factored`: det O is a ring polynomial (no poles)
+// whose factors FLINT already found.
+void finish_determinant(Observability& ob, const Symbols& x, bool factored = false) {
+  if (factored) return;
   ob.rank_drop = dependent_factors(ob.det, x);
   for (const auto& f : dependent_factors(GiNaC::denom(GiNaC::normal(ob.det)), x)) {
     const std::string s = to_string(f);
@@ -183,36 +205,96 @@ std::optional<std::vector<std::size_t>> triangular_columns(const ExMatrix& a) {
 
 namespace {
 
+// The Lie chain's gradients as ring polynomials, kept for the fraction-free determinant.
+struct RingRows {
+  std::optional<PolyRing> ring;
+  std::unique_ptr<MPolyContext> ctx;
+  std::vector<std::vector<std::vector<Poly>>> grads;  // [output][order][state]
+};
+
 // lie_chain_with_gradients in the polynomial ring, when f and h live in it: the same
-// (expanded) results, an order of magnitude faster.
+// (expanded) results, the products in FLINT (flint_mpoly.hpp) when no Laurent exponent occurs.
 bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
-                       std::vector<ExMatrix>& grads) {
+                       std::vector<ExMatrix>& grads, RingRows& rows) {
   ExVec all(m.f);
   all.insert(all.end(), m.h.begin(), m.h.end());
-  const auto ring = PolyRing::for_expressions(all, m.states);
-  if (!ring) return false;
+  rows.ring = PolyRing::for_expressions(all, m.states);
+  if (!rows.ring) return false;
+  const PolyRing& ring = *rows.ring;
   try {
     std::vector<Poly> field;
-    for (const auto& e : m.f) field.push_back(*ring->from_ex(e));
+    for (const auto& e : m.f) field.push_back(*ring.from_ex(e));
+    std::vector<Poly> outputs;
+    for (const auto& e : m.h) outputs.push_back(*ring.from_ex(e));
+    std::vector<const Poly*> seen;
+    for (const auto& p : field) seen.push_back(&p);
+    for (const auto& p : outputs) seen.push_back(&p);
+    rows.ctx = MPolyContext::for_polys(ring, seen);
+    std::vector<MPoly> flint_field;
+    if (rows.ctx)
+      for (const auto& p : field) flint_field.push_back(rows.ctx->to_flint(p));
     const std::size_t n = m.n();
+    rows.grads.assign(m.p(), {});
     for (std::size_t i = 0; i < m.p(); ++i) {
-      Poly phi = *ring->from_ex(m.h[i]);
-      ExVec chain{ring->to_ex(phi)};
+      Poly phi = outputs[i];
+      ExVec chain{ring.to_ex(phi)};
       for (std::size_t k = 0; k < n; ++k) {
         std::vector<Poly> grad;
         ExVec row;
         for (std::size_t j = 0; j < n; ++j) {
-          grad.push_back(ring->derivative(phi, j));
-          row.push_back(ring->to_ex(grad.back()));
+          grad.push_back(ring.derivative(phi, j));
+          row.push_back(ring.to_ex(grad.back()));
         }
         grads[i].push_back(std::move(row));
         if (k + 1 < n) {
-          phi = PolyRing::dot(grad, field);
+          phi = rows.ctx ? lie_derivative_flint(ring, *rows.ctx, phi, flint_field)
+                         : PolyRing::dot(grad, field);
           budget.check(phi.node_estimate());
-          chain.push_back(ring->to_ex(phi));
+          chain.push_back(ring.to_ex(phi));
         }
+        rows.grads[i].push_back(std::move(grad));
       }
       lie.push_back(std::move(chain));
+    }
+  } catch (const PolyOverflow&) {
+    rows = RingRows{};
+    return false;
+  }
+  return true;
+}
+
+// det and adj(O) e_n of the selected rows by fraction-free elimination in FLINT, when the
+// rows are ring polynomials, with r = adj(O) e_n / det O in lowest terms and the factors of det
+// O (`factored` when FLINT factored it); false otherwise (the caller expands cofactors with
+// GiNaC).
+bool determinant_in_ring(Observability& ob, const RingRows& rows, const Symbols& x,
+                         bool& factored) {
+  if (!rows.ctx) return false;
+  try {
+    std::vector<std::vector<MPoly>> a;
+    for (std::size_t r : ob.selected) {
+      const RowId id = ob.rows[r];
+      std::vector<MPoly> row;
+      for (const auto& p : rows.grads[id.output][id.order]) row.push_back(rows.ctx->to_flint(p));
+      a.push_back(std::move(row));
+    }
+    auto dc = det_and_last_row_cofactors(*rows.ctx, std::move(a));
+    if (!dc) return false;  // formally singular: leave it to the generic path
+    const PolyRing& ring = *rows.ring;
+    const MPolyContext& ctx = *rows.ctx;
+    ob.det = ring.to_ex(ctx.from_flint(dc->det));
+    ob.last_row_cofactors.clear();
+    ob.r.clear();
+    for (const auto& c : dc->cofactors) {
+      ob.last_row_cofactors.push_back(ring.to_ex(ctx.from_flint(c)));
+      const Quotient q = reduced_quotient(ctx, c, dc->det);
+      ob.r.push_back(ring.to_ex(ctx.from_flint(q.num)) / ring.to_ex(ctx.from_flint(q.den)));
+    }
+    if (const auto fs = irreducible_factors(ctx, dc->det)) {
+      GiNaC::exvector parts;
+      for (const auto& f : *fs) parts.push_back(ring.to_ex(ctx.from_flint(f)));
+      ob.rank_drop = normalised_factors(GiNaC::mul(parts), {}, x);
+      factored = true;
     }
   } catch (const PolyOverflow&) {
     return false;
@@ -242,25 +324,112 @@ int permutation_sign(const std::vector<std::size_t>& perm) {
 
 }  // namespace
 
+namespace {
+
+// The rank from Taylor jets; the symbolic results stay empty (`why` says why).
+Observability observability_from_jets(const Model& m, Budget& budget,
+                                      const ObservabilityOptions& opt, const std::string& why) {
+  Observability ob;
+  ob.n = m.n();
+  ob.p = m.p();
+  StageScope stage(budget, "jets");
+  JetsRank jr = jets_rank(m, opt.jets, &budget);
+  for (std::size_t k = 0; k < ob.n; ++k)
+    for (std::size_t i = 0; i < ob.p; ++i) ob.rows.push_back({i, k});
+  ob.generic_rank = jr.rank;
+  ob.rank_exact = jr.arithmetic == JetsArithmetic::modular;
+  ob.indices = jr.indices;
+  ob.selected = jr.selected;
+  ob.jets = std::move(jr);
+  ob.symbolic_skipped = why;
+  return ob;
+}
+
+// GiNaC's Lie chain, for every output.
+void ginac_lie_chain(const Model& m, const Budget* budget, std::vector<ExVec>& lie,
+                     std::vector<ExMatrix>& grads) {
+  lie.clear();
+  for (std::size_t i = 0; i < m.p(); ++i) {
+    LieChain chain = lie_chain_with_gradients(m.h[i], m.f, m.states, m.n(), budget);
+    lie.push_back(std::move(chain.derivatives));
+    grads[i] = std::move(chain.gradients);
+  }
+}
+
+// Whether GiNaC's Lie chain completes within `seconds`, tried in a child process: one
+// normal() of a swelling expression cannot be interrupted (21 s for the second derivative of
+// tests/models/ident_mm.sym), so a budget checked between calls cannot hand over in time.
+bool ginac_chain_completes(const Model& m, double seconds) {
+  std::fflush(nullptr);
+  const pid_t pid = fork();
+  if (pid < 0) return true;  // no probe: run it here, under the budget
+  if (pid == 0) {
+    int status = 0;
+    try {
+      std::vector<ExVec> lie;
+      std::vector<ExMatrix> grads(m.p());
+      ginac_lie_chain(m, nullptr, lie, grads);
+    } catch (...) {
+      status = 1;
+    }
+    _exit(status);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  int status = 0;
+  while (waitpid(pid, &status, WNOHANG) == 0) {
+    if (std::chrono::steady_clock::now() > deadline) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      return false;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+// The Lie chain and its gradients (rows of O per output), in the ring when possible. In
+// automatic mode its own budget is a share of the stage's, so that the jets can take over; the
+// GiNaC chain is first tried in a child process with that deadline.
+void lie_chain(const Model& m, Budget& budget, const ObservabilityOptions& opt, Observability& ob,
+               std::vector<ExMatrix>& grads, RingRows& ring_rows) {
+  StageScope stage(budget, "lie");
+  BudgetLimits share = budget.limits();
+  const bool automatic = opt.rank_method == RankMethod::automatic;
+  if (automatic) share.stage_seconds *= opt.symbolic_share;
+  Budget own(share);
+  own.begin("lie");
+  if (lie_chain_in_ring(m, own, ob.lie, grads, ring_rows)) return;
+  if (automatic && !ginac_chain_completes(m, share.stage_seconds))
+    throw UserError(SourceLoc{}, fmt::format("not complete within {:g} s", share.stage_seconds));
+  ginac_lie_chain(m, &own, ob.lie, grads);
+}
+
+}  // namespace
+
 Observability analyse_observability(const Model& m, Budget& budget, const ObservabilityOptions& opt,
                                     Observability* progress) {
   Observability local;
-  Observability& ob = progress ? *progress : local;
+  Observability& ob = progress ? *progress : local;  // partial results survive a budget stop
+  if (opt.rank_method == RankMethod::jets)
+    return ob = observability_from_jets(m, budget, opt,
+                                        "the jets rank was requested (--rank-method jets)");
   ob.n = m.n();
   ob.p = m.p();
   const Symbols& x = m.states;
-  // Rows of O per output: the Lie chain's gradients (lie.hpp), in the ring when possible.
   std::vector<ExMatrix> grads(ob.p);
-  {
-    StageScope stage(budget, "lie");
-    if (!lie_chain_in_ring(m, budget, ob.lie, grads)) {
-      ob.lie.clear();
-      for (std::size_t i = 0; i < ob.p; ++i) {
-        LieChain chain = lie_chain_with_gradients(m.h[i], m.f, x, ob.n, &budget);
-        ob.lie.push_back(std::move(chain.derivatives));
-        grads[i] = std::move(chain.gradients);
-      }
-    }
+  RingRows ring_rows;
+  try {
+    lie_chain(m, budget, opt, ob, grads, ring_rows);
+  } catch (const UserError& e) {  // the time or size budget of the symbolic chain
+    if (opt.rank_method != RankMethod::automatic) throw;
+    const std::string why = e.diagnostics().empty() ? e.what() : e.diagnostics()[0].message;
+    return ob = observability_from_jets(
+               m, budget, opt,
+               fmt::format("the symbolic Lie derivatives exceeded their budget ({})", why));
+  } catch (const std::bad_alloc&) {
+    if (opt.rank_method != RankMethod::automatic) throw;
+    return ob = observability_from_jets(m, budget, opt,
+                                        "the symbolic Lie derivatives ran out of memory");
   }
   StageScope stage(budget, "observability");
   for (std::size_t k = 0; k < ob.n; ++k)
@@ -346,7 +515,11 @@ Observability analyse_observability(const Model& m, Budget& budget, const Observ
     }
   }
 
-  if (ob.generic_rank == ob.n && ob.selected.size() == ob.n) {
+  bool factored = false;
+  if (ob.generic_rank == ob.n && ob.selected.size() == ob.n &&
+      determinant_in_ring(ob, ring_rows, x, factored)) {
+    finish_determinant(ob, x, factored);
+  } else if (ob.generic_rank == ob.n && ob.selected.size() == ob.n) {
     // det by cofactor expansion along the last selected row; the cofactors are adj(O) e_n.
     const std::size_t n = ob.n;
     ob.last_row_cofactors.assign(n, 0);

@@ -9,15 +9,26 @@
 #include <vector>
 
 #include "analysis/budget.hpp"
+#include "analysis/jets_rank.hpp"
 #include "front/model.hpp"
 #include "symbolic/lie.hpp"
 
 namespace obsynth {
 
+// How the generic rank is decided: from the symbolic Lie derivatives (which the canonical form
+// needs), from Taylor jets (jets_rank.hpp), or symbolically with jets when the symbolic Lie
+// chain exceeds its budget (automatic).
+enum class RankMethod { automatic, symbolic, jets };
+
 struct ObservabilityOptions {
   int rank_points = 3;    // random points; the generic rank is the maximum seen
   int float_digits = 60;  // for entries with transcendental functions
   std::uint64_t seed = 0x0b5e7;
+  RankMethod rank_method = RankMethod::automatic;
+  // automatic: the symbolic Lie chain's share of the stage time budget; past it the jets
+  // decide the rank (the rest of the budget covers one uninterruptible GiNaC call).
+  double symbolic_share = 0.25;
+  JetsOptions jets;
 };
 
 struct RowId {
@@ -43,8 +54,15 @@ struct Observability {
   // (adj(O_sel) e_n, reused to solve O r = e_n without a second elimination).
   GiNaC::ex det;
   ExVec last_row_cofactors;
+  // r = adj(O) e_n / det O, each component in lowest terms (gcd in FLINT), when det and the
+  // cofactors were computed in the polynomial ring; empty otherwise.
+  ExVec r;
   ExVec rank_drop;  // x-dependent factors of det (its zeros are where the rank drops)
   ExVec undefined;  // x-dependent denominator factors (O undefined on their zeros)
+  // Set when the rank came from Taylor jets: then lie, O, det, rank_drop and undefined are
+  // empty, and symbolic_skipped says why (requested, or the symbolic chain's budget stop).
+  std::optional<JetsRank> jets;
+  std::string symbolic_skipped;
 };
 
 // progress, when given, receives the results as they are found (so a caller that catches a

@@ -71,6 +71,7 @@ const char* holds_word(bool h) {
 }
 
 std::string rank_method(const Observability& ob) {
+  if (ob.jets) return ob.jets->method;
   if (ob.triangular)
     return ob.rank_exact
                ? "O triangular up to a column permutation, its diagonal nonzero: decided exactly"
@@ -78,6 +79,69 @@ std::string rank_method(const Observability& ob) {
                  "zero test";
   return ob.rank_exact ? "exact rational arithmetic at random points"
                        : "60-digit scaled elimination at random points (transcendental entries)";
+}
+
+// T^-1 as its elimination sequence: x_state = value (in z and earlier states).
+ordered_json inverse_steps_json(const Model& m, const CanonicalForm& cf) {
+  if (cf.T_inverse_kind != Availability::symbolic) return nullptr;
+  ordered_json steps = ordered_json::array();
+  for (const auto& s : cf.T_inverse_steps)
+    steps.push_back({{"state", m.states[s.state].get_name()},
+                     {"equation", s.equation + 1},
+                     {"value", to_string(s.value)}});
+  return steps;
+}
+
+std::vector<std::string> inverse_steps_text(const Model& m, const CanonicalForm& cf) {
+  std::vector<std::string> lines;
+  for (const auto& s : cf.T_inverse_steps)
+    lines.push_back(fmt::format("{} = {}   (from T_{} = z{})", m.states[s.state].get_name(),
+                                to_string(s.value), s.equation + 1, s.equation + 1));
+  return lines;
+}
+
+std::string inverse_steps_latex(const Model& m, const CanonicalForm& cf) {
+  std::vector<std::string> rows;
+  for (const auto& s : cf.T_inverse_steps)
+    rows.push_back(fmt::format("{} &= {}", to_latex(m.states[s.state]), to_latex(s.value)));
+  return "\\begin{aligned}" + fmt::format("{}", fmt::join(rows, " \\\\ ")) + "\\end{aligned}";
+}
+
+const char* jets_arithmetic_name(JetsArithmetic a) {
+  return a == JetsArithmetic::modular ? "modular" : "ball";
+}
+
+ordered_json jets_json(const Observability& ob) {
+  const JetsRank& r = *ob.jets;
+  const bool modular = r.arithmetic == JetsArithmetic::modular;
+  auto only = [](bool when, ordered_json v) { return when ? v : ordered_json(nullptr); };
+  return {{"arithmetic", jets_arithmetic_name(r.arithmetic)},
+          {"points", r.points},
+          {"primes", only(modular, r.primes)},
+          {"precision_bits", only(!modular, r.precision_bits)},
+          {"rank_with_inputs", r.rank_inputs},
+          {"degree_bound", only(modular, r.degree_bound)},
+          {"degree_bound_with_inputs", only(modular, r.degree_bound_inputs)},
+          {"error_bound", only(modular, r.error_bound)},
+          {"error_bound_with_inputs", only(modular, r.error_bound_inputs)},
+          {"method", r.method},
+          {"symbolic_skipped", ob.symbolic_skipped}};
+}
+
+// The symbolic stages a jets rank leaves out, and why.
+std::string jets_skipped_text(const Observability& ob) {
+  return "not computed: " + ob.symbolic_skipped;
+}
+
+std::string jets_inputs_text(const Observability& ob) {
+  const JetsRank& r = *ob.jets;
+  return fmt::format(
+      "rank {} under constant random inputs{}; rank {} of the drift (u = 0) is the rank of O",
+      r.rank_inputs,
+      r.arithmetic == JetsArithmetic::modular && r.rank_inputs < r.n
+          ? fmt::format(" (P(under-estimated) <= {:.2g})", r.error_bound_inputs)
+          : std::string(),
+      r.rank);
 }
 
 std::string lie_name(std::size_t k, std::size_t i, std::size_t p) {
@@ -169,6 +233,9 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   const Observability& ob = a.observability;
   const CanonicalForm& cf = a.canonical;
   ordered_json j;
+  // Schema 2: T_inverse is a list of elimination steps {state, equation (1-based), value}
+  // (schema 1, without this key, had T_inverse as a list of expressions in z).
+  j["schema"] = 2;
   j["model"] = m.name;
   j["complete"] = a.complete();
   j["states"] = names(m.states);
@@ -182,7 +249,9 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   j["f"] = expr_list(m.f);
   j["g"] = expr_list(m.g);
   j["h"] = expr_list(m.h);
-  if (ob.p == 1) {
+  if (ob.jets) {
+    j["lie_derivatives"] = nullptr;
+  } else if (ob.p == 1) {
     j["lie_derivatives"] = expr_list(ob.lie[0]);
   } else {
     ordered_json l = ordered_json::array();
@@ -193,13 +262,17 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   o["n"] = ob.n;
   o["p"] = ob.p;
   o["generic_rank"] = ob.generic_rank;
-  o["rank_method"] = ob.triangular ? "triangular" : ob.rank_exact ? "exact" : "high-precision";
-  o["matrix"] = matrix_json(ob.O);
+  o["rank_method"] = ob.jets         ? "jets"
+                     : ob.triangular ? "triangular"
+                     : ob.rank_exact ? "exact"
+                                     : "high-precision";
+  if (ob.jets) o["jets"] = jets_json(ob);
+  o["matrix"] = ob.jets ? ordered_json(nullptr) : matrix_json(ob.O);
   o["indices"] = ob.indices;
   o["det"] = ob.generic_rank == ob.n && ob.selected.size() == ob.n ? ordered_json(to_string(ob.det))
                                                                    : ordered_json(nullptr);
-  o["rank_drop"] = expr_list(ob.rank_drop);
-  o["undefined"] = expr_list(ob.undefined);
+  o["rank_drop"] = ob.jets ? ordered_json(nullptr) : expr_list(ob.rank_drop);
+  o["undefined"] = ob.jets ? ordered_json(nullptr) : expr_list(ob.undefined);
   j["observability"] = o;
   const bool app = cf.applicable;
   j["canonical_applicable"] = app;
@@ -247,7 +320,8 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
         {"note", note}};
   };
   map_entry("T", cf.T_kind, cf.T, cf.T_verdict, cf.T_note);
-  map_entry("T_inverse", cf.T_inverse_kind, cf.T_inverse, cf.T_inverse_verdict, cf.T_inverse_note);
+  map_entry("T_inverse", cf.T_inverse_kind, {}, cf.T_inverse_verdict, cf.T_inverse_note);
+  j["T_inverse"] = inverse_steps_json(m, cf);
   map_entry("l", cf.l_kind, cf.l, cf.l_verdict, cf.l_note);
   ordered_json t = ordered_json::object();
   for (const auto& [stage, ms] : a.timings_ms) t[stage] = opt.timings ? ms : 0.0;
@@ -282,7 +356,8 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
   marks.mark("lie");
   line("");
   line("Lie derivatives");
-  for (std::size_t i = 0; i < ob.p; ++i)
+  if (ob.jets) line("  " + jets_skipped_text(ob));
+  for (std::size_t i = 0; i < ob.lie.size(); ++i)
     for (std::size_t k = 0; k < ob.lie[i].size(); ++k)
       line(fmt::format("  {} = {}", lie_name(k, i, ob.p), to_string(ob.lie[i][k])));
   marks.mark("observability");
@@ -293,7 +368,12 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
                      vec_text(ob.O[r])));
   line(fmt::format("  generic rank {} of n = {}  ({})", ob.generic_rank, ob.n, rank_method(ob)));
   if (ob.p > 1) line(fmt::format("  observability indices {}", fmt::join(ob.indices, ", ")));
-  if (ob.generic_rank == ob.n) {
+  if (ob.jets) {
+    line("  " + jets_inputs_text(ob));
+    if (ob.generic_rank < ob.n)
+      line(fmt::format("  NOT observable: rank deficit {} everywhere", ob.n - ob.generic_rank));
+    line("  det O and the rank-drop set: not computed (they need the symbolic O)");
+  } else if (ob.generic_rank == ob.n) {
     line(fmt::format("  det O{} = {}", ob.p > 1 ? " (selected rows)" : "", to_string(ob.det)));
     line(ob.rank_drop.empty() ? "  the rank never drops"
                               : fmt::format("  the rank drops where any of these vanish: {}",
@@ -335,8 +415,10 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
       line(fmt::format("Diffeomorphism z = T(x), T(x0) = 0 at x0 = {}", vec_text(cf.base_point)));
       if (cf.T_kind == Availability::symbolic) line(fmt::format("  T = {}", vec_text(cf.T)));
       line(fmt::format("  T: {} ({})", availability_name(cf.T_kind), cf.T_note));
-      if (cf.T_inverse_kind == Availability::symbolic)
-        line(fmt::format("  T^-1(z) = {}", vec_text(cf.T_inverse)));
+      if (cf.T_inverse_kind == Availability::symbolic) {
+        line("  T^-1, in this order:");
+        for (const auto& t : inverse_steps_text(m, cf)) line("    " + t);
+      }
       line(fmt::format("  T^-1: {} ({})", availability_name(cf.T_inverse_kind), cf.T_inverse_note));
       if (cf.l_kind == Availability::symbolic) {
         line("");
@@ -379,9 +461,11 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
   marks.mark("lie");
   line("## Observability");
   line("");
-  line("| Lie derivative | expression |");
-  line("|---|---|");
-  for (std::size_t i = 0; i < ob.p; ++i)
+  if (ob.jets)
+    line("Lie derivatives, $O$, $\\det O$ and the rank-drop set: " + jets_skipped_text(ob) + ".");
+  if (!ob.jets) line("| Lie derivative | expression |");
+  if (!ob.jets) line("|---|---|");
+  for (std::size_t i = 0; i < ob.lie.size(); ++i)
     for (std::size_t k = 0; k < ob.lie[i].size(); ++k)
       line(fmt::format(
           "| ${}$ | ${}$ |",
@@ -390,11 +474,12 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
           to_latex(ob.lie[i][k])));
   line("");
   marks.mark("observability");
-  line(fmt::format("$$O(x) = {}$$", matrix_latex(ob.O)));
+  if (!ob.jets) line(fmt::format("$$O(x) = {}$$", matrix_latex(ob.O)));
   line("");
   line(fmt::format("- generic rank **{}** of $n = {}$ ({})", ob.generic_rank, ob.n,
                    rank_method(ob)));
-  if (ob.generic_rank == ob.n) {
+  if (ob.jets) line("- " + jets_inputs_text(ob));
+  if (!ob.jets && ob.generic_rank == ob.n) {
     line(fmt::format("- $\\det O = {}$", to_latex(ob.det)));
     if (ob.rank_drop.empty()) line("- the rank never drops");
     for (const auto& f : ob.rank_drop) line(fmt::format("- rank drops on ${} = 0$", to_latex(f)));
@@ -435,7 +520,7 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
       line("");
       line(fmt::format("$$T(x) = {}, \\qquad T^{{-1}}(z) = {}$$", vec_latex(cf.T),
                        cf.T_inverse_kind == Availability::symbolic
-                           ? vec_latex(cf.T_inverse)
+                           ? inverse_steps_latex(m, cf)
                            : std::string("\\text{(Newton)}")));
     }
     if (cf.l_kind == Availability::symbolic) {
@@ -471,9 +556,14 @@ std::string render_latex(const Analysis& a) {
   line("\\begin{align*}");
   line(fmt::format("  f(x) &= {}, & g(x,u) &= {}, & h(x) &= {} \\\\", vec_latex(m.f),
                    vec_latex(m.g), vec_latex(m.h)));
-  line(fmt::format("  O(x) &= {}, & \\operatorname{{rank}} O &= {}", matrix_latex(ob.O),
-                   ob.generic_rank));
-  if (ob.generic_rank == ob.n) line(fmt::format("  , & \\det O &= {}", to_latex(ob.det)));
+  if (ob.jets)
+    line(fmt::format("  \\operatorname{{rank}} O &= {} & &\\text{{({})}}", ob.generic_rank,
+                     rank_method(ob)));
+  else
+    line(fmt::format("  O(x) &= {}, & \\operatorname{{rank}} O &= {}", matrix_latex(ob.O),
+                     ob.generic_rank));
+  if (!ob.jets && ob.generic_rank == ob.n)
+    line(fmt::format("  , & \\det O &= {}", to_latex(ob.det)));
   line("\\end{align*}");
   marks.mark("frame");
   if (cf.applicable) {
@@ -503,7 +593,7 @@ std::string render_latex(const Analysis& a) {
       line("\\begin{align*}");
       line(fmt::format("  T(x) &= {}, & l(u,y) &= {}", vec_latex(cf.T), vec_latex(cf.l)));
       if (cf.T_inverse_kind == Availability::symbolic)
-        line(fmt::format("  \\\\ T^{{-1}}(z) &= {}", vec_latex(cf.T_inverse)));
+        line(fmt::format("  \\\\ T^{{-1}}(z) &= {}", inverse_steps_latex(m, cf)));
       line("\\end{align*}");
     }
   } else {

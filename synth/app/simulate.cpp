@@ -147,12 +147,14 @@ class SpecFunctions {
     if (it != cache_.end()) return it->second;
     const GeneratedFunction* f = s_.function(name);
     OBSYNTH_ASSERT(f != nullptr, "simulate: the spec has no function " + name);
-    ExVec out = resolved_outputs(*f);
+    ExVec out = f->outputs;
     for (auto& e : out) e = e.subs(params_);
+    auto lets = let_pairs(*f);
+    for (auto& l : lets) l.second = l.second.subs(params_);
     std::vector<std::string> in;
     for (const auto& arg : f->args)
       for (const auto& sym : arg.symbols) in.push_back(sym.get_name());
-    return cache_.emplace(name, NumericFunction(out, in)).first->second;
+    return cache_.emplace(name, NumericFunction(lets, out, in)).first->second;
   }
 
  private:

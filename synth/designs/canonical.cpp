@@ -50,6 +50,24 @@ std::vector<std::string> canonical_form_failures(const Analysis& a) {
   return {};
 }
 
+GeneratedFunction inverse_function(const Analysis& a) {
+  const Model& m = a.model;
+  const CanonicalForm& cf = a.canonical;
+  GeneratedFunction f;
+  f.name = "T_inverse";
+  f.doc = "Closed-form inverse x = T^-1(z), as its elimination sequence.";
+  f.args = {vector_arg("z", "State", cf.z)};
+  f.out_rows = m.n();
+  f.out_type = "State";
+  if (cf.T_inverse_steps.empty()) {
+    f.outputs = cf.T_inverse;
+    return f;
+  }
+  for (const auto& step : cf.T_inverse_steps) f.lets.push_back({m.states[step.state], step.value});
+  f.outputs.assign(m.states.begin(), m.states.end());
+  return f;
+}
+
 namespace {
 
 enum class Realisation { z, x };
@@ -129,9 +147,7 @@ void add_canonical_maps(const Analysis& a, const Choices& c, ObserverSpec& s) {
   if (cf.T_kind == Availability::symbolic)
     s.functions.push_back(
         fn("T", "Diffeomorphism z = T(x) to observer canonical form, T(x0) = 0.", {x}, cf.T));
-  if (Tinv_closed)
-    s.functions.push_back(fn("T_inverse", "Closed-form inverse x = T^-1(z).",
-                             {vector_arg("z", "State", cf.z)}, cf.T_inverse));
+  if (Tinv_closed) s.functions.push_back(inverse_function(a));
   s.functions.push_back(
       fn("l", "Output injection l(u, y) of the canonical form z' = A z + l(u, y).", {u, y}, cf.l));
   if (!zreal || !Tinv_closed)

@@ -21,6 +21,10 @@ std::vector<GiNaC::numeric> default_poles(std::size_t n);
 // h(x0) at the canonical form's base point: z_n = y - y0.
 GiNaC::ex output_at_base_point(const Analysis& a);
 
+// x = T^-1(z) as a generated function: the elimination steps as let-bindings (straight-line
+// code, never composed by substitution).
+GeneratedFunction inverse_function(const Analysis& a);
+
 // The canonical form's failures as reasons (empty when it applies).
 std::vector<std::string> canonical_form_failures(const Analysis& a);
 

@@ -170,15 +170,17 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
     s.roles.newton_inverse_jacobian = "frame";
     used_orders(z, j, s);
   } else {
-    GiNaC::exmap zs;
-    for (std::size_t i = 0; i < n; ++i) zs[cf.z[i]] = z[i];
-    ExVec x;
-    for (const auto& e : cf.T_inverse) x.push_back(simplify(e.subs(zs)));
-    s.functions.push_back(jet_function(
-        "reconstruct", "The state x = T^-1(z(jets)) from the jets (Procedure 1).", j, x, n, uk));
+    // z(jets), then T^-1's elimination steps, as let-bindings: straight-line code.
+    GeneratedFunction inv = inverse_function(a);
+    GeneratedFunction r = jet_function(
+        "reconstruct", "The state x = T^-1(z(jets)) from the jets (Procedure 1).", j,
+        inv.outputs, n, uk);
+    for (std::size_t i = 0; i < n; ++i) r.lets.push_back({cf.z[i], z[i]});
+    r.lets.insert(r.lets.end(), inv.lets.begin(), inv.lets.end());
+    s.functions.push_back(r);
     s.roles.reconstruct = "reconstruct";
     s.estimate = EstimateKind::identity;
-    used_orders(x, j, s);
+    used_orders(z, j, s);
   }
   std::string u_orders;
   for (std::size_t q = 0; q < m.m(); ++q)

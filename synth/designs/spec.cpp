@@ -87,10 +87,9 @@ std::vector<RuntimeParam> runtime_params(const Model& m) {
   return out;
 }
 
-ExVec resolved_outputs(const GeneratedFunction& f) {
-  ExVec out = f.outputs;
-  for (auto it = f.lets.rbegin(); it != f.lets.rend(); ++it)
-    for (auto& e : out) e = e.subs(GiNaC::exmap{{it->symbol, it->value}});
+std::vector<std::pair<GiNaC::symbol, GiNaC::ex>> let_pairs(const GeneratedFunction& f) {
+  std::vector<std::pair<GiNaC::symbol, GiNaC::ex>> out;
+  for (const auto& l : f.lets) out.emplace_back(l.symbol, l.value);
   return out;
 }
 

@@ -173,8 +173,7 @@ FunctionArg vector_arg(const std::string& name, const std::string& type,
 
 std::string pascal_case(const std::string& name);
 
-// A function's outputs with its let-steps substituted, unexpanded (subtrees stay shared, so
-// a DAG built from them evaluates each step once).
-ExVec resolved_outputs(const GeneratedFunction& f);
+// A function's let-steps as (symbol, value) pairs, for Dag::let and NumericFunction.
+std::vector<std::pair<GiNaC::symbol, GiNaC::ex>> let_pairs(const GeneratedFunction& f);
 
 }  // namespace obsynth

@@ -141,6 +141,12 @@ int Dag::add(const ex& e) {
   return convert(e);
 }
 
+int Dag::let(const GiNaC::symbol& s, const ex& value) {
+  const int id = add(value);
+  bound_[s.get_name()] = id;
+  return id;
+}
+
 // Temporaries must stay alive: the memo is keyed by node address.
 int Dag::convert_owned(const ex& e) {
   keep_alive_.push_back(e);
@@ -154,7 +160,9 @@ int Dag::convert(const ex& e) {
   if (is_a<numeric>(e)) {
     id = constant(GiNaC::ex_to<numeric>(e));
   } else if (is_a<GiNaC::symbol>(e)) {
-    id = variable(GiNaC::ex_to<GiNaC::symbol>(e).get_name());
+    const std::string& name = GiNaC::ex_to<GiNaC::symbol>(e).get_name();
+    const auto bound = bound_.find(name);
+    id = bound != bound_.end() ? bound->second : variable(name);
   } else if (is_a<GiNaC::add>(e)) {
     std::vector<int> args;
     for (std::size_t i = 0; i < e.nops(); ++i) args.push_back(convert(e.op(i)));
@@ -241,7 +249,13 @@ int Dag::convert(const ex& e) {
 }
 
 NumericFunction::NumericFunction(const std::vector<ex>& outputs,
+                                 const std::vector<std::string>& inputs)
+    : NumericFunction({}, outputs, inputs) {}
+
+NumericFunction::NumericFunction(const std::vector<std::pair<GiNaC::symbol, ex>>& lets,
+                                 const std::vector<ex>& outputs,
                                  const std::vector<std::string>& inputs) {
+  for (const auto& [s, value] : lets) dag_.let(s, value);
   for (const auto& e : outputs) out_ids_.push_back(dag_.add(e));
   std::vector<bool> needed(dag_.size(), false);
   std::vector<int> stack(out_ids_.begin(), out_ids_.end());

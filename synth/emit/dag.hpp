@@ -42,6 +42,11 @@ class Dag {
  public:
   // Adds an expression; returns its node id. Equal subexpressions share ids.
   int add(const GiNaC::ex& e);
+  // A local definition: from now on the symbol stands for the node of `value` (added first).
+  // Elimination sequences are bound step by step this way instead of being substituted into
+  // each other with GiNaC, whose evaluation pulls contents out of powers of sums (factors
+  // 2^(2^k) along nested squares, which overflow in floating point).
+  int let(const GiNaC::symbol& s, const GiNaC::ex& value);
   int constant(const GiNaC::numeric& v);
   int variable(const std::string& name);
 
@@ -59,6 +64,7 @@ class Dag {
   std::vector<Node> nodes_;
   std::map<std::string, int> index_;  // structural key -> id
   std::unordered_map<const GiNaC::basic*, int> memo_;
+  std::map<std::string, int> bound_;  // let-bound symbol names
   std::deque<GiNaC::ex> keep_alive_;  // memo_ keys must outlive the map
 };
 
@@ -69,6 +75,9 @@ class NumericFunction {
   NumericFunction() = default;
   // inputs: variable names in the order of the argument vector.
   NumericFunction(const std::vector<GiNaC::ex>& outputs, const std::vector<std::string>& inputs);
+  // With local definitions (symbol, value), bound in order before the outputs (Dag::let).
+  NumericFunction(const std::vector<std::pair<GiNaC::symbol, GiNaC::ex>>& lets,
+                  const std::vector<GiNaC::ex>& outputs, const std::vector<std::string>& inputs);
   std::vector<double> operator()(const std::vector<double>& in) const;
   std::size_t outputs() const { return out_ids_.size(); }
 

@@ -327,7 +327,8 @@ class HeaderBuilder {
   std::string function(const GeneratedFunction& f) {
     Dag dag;
     std::vector<Assignment> assigns;
-    const ExVec outputs = resolved_outputs(f);
+    for (const auto& l : f.lets) dag.let(l.symbol, l.value);
+    const ExVec& outputs = f.outputs;
     for (std::size_t c = 0; c < f.out_cols; ++c)
       for (std::size_t r = 0; r < f.out_rows; ++r) {
         const std::string target =

@@ -127,6 +127,10 @@ class PolyRing {
   std::optional<Poly> convert(const GiNaC::ex& e) const;
   std::optional<Poly> convert_function(const GiNaC::ex& e) const;
   std::optional<Poly> convert_power(const GiNaC::ex& e) const;
+
+ public:
+  // Number of ring variables (states first, then symbols and atoms): exponent slots in use.
+  std::size_t variables() const { return vars_.size(); }
 };
 
 }  // namespace obsynth

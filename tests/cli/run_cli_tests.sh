@@ -53,7 +53,7 @@ elapsed=$(( $(date +%s) - start ))
 check "budget exit code 1" test $code -eq 1
 check "budget diagnostic names the stage" grep -Eq "stage '[a-z]+' exceeded its (time|expression-size) budget" "$tmp/err"
 check "budget stops promptly (${elapsed}s)" test $elapsed -le 10
-"$bin" check "$tmp/heavy.sym" --max-expression-size 2000 >"$tmp/out" 2>"$tmp/err"
+"$bin" check "$tmp/heavy.sym" --max-expression-size 2000 --rank-method symbolic >"$tmp/out" 2>"$tmp/err"
 check "size budget exit code 1" test $? -eq 1
 check "size budget diagnostic" grep -q "exceeded its expression-size budget" "$tmp/err"
 

@@ -1,0 +1,300 @@
+#include "analysis/diffeomorphism.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <memory>
+
+#include "analysis/flint_products.hpp"
+#include "analysis/output_function.hpp"
+#include "symbolic/expr_print.hpp"
+#include "symbolic/integrate.hpp"
+#include "symbolic/symbolic.hpp"
+
+namespace obsynth {
+
+using GiNaC::ex;
+
+ExVec choose_base_point(const Model& m) {
+  ExVec x0;
+  for (const auto& s : m.states) {
+    const Interval b = m.box(s);
+    if (b.lo <= 0 && b.hi >= 0)
+      x0.push_back(0);
+    else
+      x0.push_back((b.lo + b.hi) / 2);
+  }
+  return x0;
+}
+
+namespace {
+
+ZeroVerdict worst(ZeroVerdict a, ZeroVerdict b) {
+  return static_cast<int>(a) > static_cast<int>(b) ? a : b;
+}
+
+GiNaC::exmap point_map(const Symbols& x, const ExVec& x0) {
+  GiNaC::exmap mp;
+  for (std::size_t i = 0; i < x.size(); ++i) mp[x[i]] = x0[i];
+  return mp;
+}
+
+// What the stage works on: the model's fields, h and the frame.
+struct Context {
+  const Model& m;
+  const CanonicalForm& cf;
+  SampleBoxes boxes;
+  ZeroTestOptions zero;
+  GiNaC::exmap at_x0;
+  ex y0;  // h(x0)
+};
+
+// A(h(x)) - A(h(x0)) with A' = a(y), or nullopt (and a note) when no antiderivative is found.
+std::optional<ex> output_integral(const Context& c, const ex& a_y, std::string& note) {
+  const auto A = antiderivative(a_y, c.cf.y);
+  if (!A) {
+    note = fmt::format("no closed-form antiderivative in y of {}", to_string(a_y));
+    return std::nullopt;
+  }
+  return A->subs(c.cf.y == c.m.h[0]) - A->subs(c.cf.y == c.y0);
+}
+
+// z_n = h - h(x0); z_{i-1} = L_f z_i - l_i(y) with l_i'(y) = L_{tau_n} L_f z_i (a function
+// of y alone when C2 holds), the constant fixing T_{i-1}(x0) = 0.
+enum class Outcome { closed, no_closed_form, outside_ring };
+
+Outcome ginac_T(const Context& c, Budget& budget, ExVec& T, std::string& note) {
+  const std::size_t n = c.m.n();
+  const Symbols& x = c.m.states;
+  T.assign(n, 0);
+  T[n - 1] = simplify(c.m.h[0] - c.y0);
+  for (std::size_t i = n - 1; i >= 1; --i) {
+    const ex LfTi = lie_derivative(T[i], c.m.f, x);
+    const ex a_x = lie_derivative(LfTi, c.cf.frame[n - 1], x);
+    const auto a_y = express_in_output(a_x, c.m.h[0], x, c.cf.y, c.cf.base_point, c.boxes);
+    if (!a_y) {
+      note = fmt::format("L_tau_n L_f T_{} = {} could not be written as a function of y", i + 1,
+                         to_string(a_x));
+      return Outcome::no_closed_form;
+    }
+    const auto integral = output_integral(c, *a_y, note);
+    if (!integral) return Outcome::no_closed_form;
+    T[i - 1] = simplify(LfTi - *integral - simplify(LfTi.subs(c.at_x0)));
+    budget.check(expression_size(T[i - 1]));
+  }
+  return Outcome::closed;
+}
+
+// The same construction in the ring: f, the frame and T stay polynomials.
+struct RingFields {
+  const PolyRing& ring;
+  std::vector<Poly> f, F;                       // f and f + g
+  const std::vector<std::vector<Poly>>& frame;  // tau_1..tau_n
+  OutputFunction in_output;
+  std::shared_ptr<FlintProducts> flint;  // for products of two large operands
+  Poly lie(const Poly& p, const std::vector<Poly>& field) const {
+    std::vector<Poly> grad;
+    std::size_t largest = 0;
+    for (std::size_t j = 0; j < ring.states(); ++j) {
+      grad.push_back(ring.derivative(p, j));
+      largest = std::max(largest, field[j].terms.size());
+    }
+    // The hash map costs one insertion per pair of terms; FLINT multiplies packed exponents.
+    if (p.terms.size() * largest < 100000) return PolyRing::dot(grad, field);
+    std::vector<FlintProducts::Handle> g, v;
+    for (std::size_t j = 0; j < grad.size(); ++j) {
+      g.push_back(flint->add(grad[j]));
+      v.push_back(flint->add(field[j]));
+    }
+    return flint->dot_difference(g, v, {}, {});
+  }
+};
+
+Outcome ring_T(const Context& c, const RingFields& r, Budget& budget, std::vector<Poly>& T,
+               std::string& note) {
+  const std::size_t n = c.m.n();
+  T.assign(n, Poly{});
+  const auto hn = r.ring.from_ex(c.m.h[0] - c.y0);
+  if (!hn) return Outcome::outside_ring;
+  T[n - 1] = *hn;
+  for (std::size_t i = n - 1; i >= 1; --i) {
+    const Poly LfTi = r.lie(T[i], r.f);
+    const auto a_y = r.in_output(r.lie(LfTi, r.frame[n - 1]));
+    if (!a_y) {
+      note = fmt::format("L_tau_n L_f T_{} could not be written as a function of y", i + 1);
+      return Outcome::no_closed_form;
+    }
+    const auto integral = output_integral(c, a_y->value, note);
+    if (!integral) return Outcome::no_closed_form;
+    const auto I = r.ring.from_ex(*integral + simplify(r.ring.to_ex(LfTi).subs(c.at_x0)));
+    if (!I) return Outcome::outside_ring;
+    T[i - 1] = LfTi;
+    PolyRing::subtract_from(T[i - 1], *I);
+    budget.check(T[i - 1].node_estimate());
+  }
+  return Outcome::closed;
+}
+
+// dT/dx [tau] = I, entry by entry, exactly in the ring (the zero test for what the ring
+// leaves nonzero, such as sin^2 + cos^2 - 1).
+ZeroVerdict verify_T_ring(const Context& c, const RingFields& r, const std::vector<Poly>& T) {
+  const std::size_t n = c.m.n();
+  ZeroVerdict v = ZeroVerdict::proved;
+  for (std::size_t i = 0; i < n && v != ZeroVerdict::nonzero; ++i) {
+    std::vector<Poly> grad;
+    for (std::size_t k = 0; k < n; ++k) grad.push_back(r.ring.derivative(T[i], k));
+    for (std::size_t j = 0; j < n; ++j) {
+      Poly acc = PolyRing::dot(grad, r.frame[j]);
+      if (i == j) PolyRing::subtract_from(acc, *r.ring.from_ex(1));
+      if (!acc.is_zero()) v = worst(v, zero_test(r.ring.to_ex(acc), c.boxes, c.zero));
+    }
+  }
+  return v;
+}
+
+ZeroVerdict verify_T_ginac(const Context& c, const ExVec& T) {
+  const std::size_t n = c.m.n();
+  ZeroVerdict v = ZeroVerdict::proved;
+  for (std::size_t i = 0; i < n && v != ZeroVerdict::nonzero; ++i) {
+    const ExVec dTi = gradient(T[i], c.m.states);
+    for (std::size_t j = 0; j < n; ++j) {
+      ex acc = 0;
+      for (std::size_t k = 0; k < n; ++k) acc += dTi[k] * c.cf.frame[j][k];
+      v = worst(v, zero_test(simplify(acc - (i == j ? 1 : 0)), c.boxes, c.zero));
+    }
+  }
+  return v;
+}
+
+// l_i = L_{f+g} T_i - T_{i-1} as a function of (u, y), checked by l(u, h(x)) = that.
+void ring_l(const RingFields& r, const std::vector<Poly>& T, CanonicalForm& cf) {
+  ZeroVerdict lv = ZeroVerdict::proved;
+  ExVec l;
+  for (std::size_t i = 0; i < T.size(); ++i) {
+    Poly li_x = r.lie(T[i], r.F);
+    if (i > 0) PolyRing::subtract_from(li_x, T[i - 1]);
+    const auto li = r.in_output(li_x);
+    if (!li) {
+      cf.l_note = fmt::format("l_{} = {} is not a function of (u, y)", i + 1,
+                              to_string(r.ring.to_ex(li_x)));
+      cf.l_verdict = ZeroVerdict::nonzero;
+      return;
+    }
+    lv = worst(lv, li->verdict);
+    l.push_back(li->value);
+  }
+  cf.l = l;
+  cf.l_verdict = lv;
+  cf.l_kind = Availability::symbolic;
+  cf.l_note = "l(u, h(x)) = L_{f+g} T - A T verified by substitution";
+}
+
+void ginac_l(const Context& c, CanonicalForm& cf) {
+  const Symbols& x = c.m.states;
+  const ExVec F = c.m.field();
+  const ex& h = c.m.h[0];
+  ZeroVerdict lv = ZeroVerdict::proved;
+  ExVec l;
+  for (std::size_t i = 0; i < cf.T.size(); ++i) {
+    const ex li_x = simplify(lie_derivative(cf.T[i], F, x) - (i > 0 ? cf.T[i - 1] : ex(0)));
+    const auto li = express_in_output(li_x, h, x, cf.y, cf.base_point, c.boxes);
+    if (!li) {
+      cf.l_note = fmt::format("l_{} = {} is not a function of (u, y)", i + 1, to_string(li_x));
+      cf.l_verdict = ZeroVerdict::nonzero;
+      return;
+    }
+    // Independent check: l_i(u, h(x)) equals the x-expression.
+    lv = worst(lv, zero_test(simplify(li->subs(cf.y == h) - li_x), c.boxes, c.zero));
+    if (lv == ZeroVerdict::nonzero) {
+      cf.l_note = fmt::format("l_{}(u, h(x)) differs from L_{{f+g}} T_{} - T_{}", i + 1, i + 1, i);
+      cf.l_verdict = lv;
+      return;
+    }
+    l.push_back(*li);
+  }
+  cf.l = l;
+  cf.l_verdict = lv;
+  cf.l_kind = Availability::symbolic;
+  cf.l_note = "l(u, h(x)) = L_{f+g} T - A T verified by substitution";
+}
+
+// The ring's view of the stage, when f, g, h and the frame all live in it.
+std::optional<RingFields> ring_fields(const Context& c, const FrameRing& fr) {
+  if (!fr.ring || fr.fields.size() <= c.m.n()) return std::nullopt;
+  const PolyRing& ring = *fr.ring;
+  std::vector<Poly> f, F;
+  for (std::size_t i = 0; i < c.m.n(); ++i) {
+    const auto fi = ring.from_ex(c.m.f[i]);
+    if (!fi) return std::nullopt;
+    f.push_back(*fi);
+    F.push_back(*fi);
+    PolyRing::add_to(F.back(), fr.fields[c.m.n()][i]);  // + g_i
+  }
+  return RingFields{
+      ring,
+      std::move(f),
+      std::move(F),
+      fr.fields,
+      OutputFunction(ring, c.m.h[0], c.m.states, c.cf.y, c.cf.base_point, c.boxes, c.zero),
+      std::make_shared<FlintProducts>(ring.variables())};
+}
+
+void set_T(ExVec T, ZeroVerdict v, CanonicalForm& cf) {
+  OBSYNTH_ASSERT(v != ZeroVerdict::nonzero, "constructed T does not satisfy dT/dx [tau] = I");
+  cf.T = std::move(T);
+  cf.T_verdict = v;
+  cf.T_kind = Availability::symbolic;
+  cf.T_note = fmt::format("dT/dx [tau] = I {}",
+                          v == ZeroVerdict::proved ? "proved" : "verified numerically");
+}
+
+// The ring path; false when the model leaves the ring on the way (GiNaC takes over).
+bool ring_diffeomorphism(const Context& c, const FrameRing& fr, Budget& budget, CanonicalForm& cf) {
+  const auto r = ring_fields(c, fr);
+  if (!r) return false;
+  std::vector<Poly> T;
+  try {
+    const Outcome o = ring_T(c, *r, budget, T, cf.T_note);
+    if (o == Outcome::outside_ring) return false;
+    if (o == Outcome::no_closed_form) return true;
+    ExVec Tx;
+    for (const auto& p : T) Tx.push_back(r->ring.to_ex(p));
+    set_T(std::move(Tx), verify_T_ring(c, *r, T), cf);
+    ring_l(*r, T, cf);
+  } catch (const PolyOverflow&) {
+    cf.T_note.clear();
+    return false;
+  }
+  return true;
+}
+
+void ginac_diffeomorphism(const Context& c, Budget& budget, CanonicalForm& cf) {
+  ExVec T;
+  if (ginac_T(c, budget, T, cf.T_note) != Outcome::closed) return;
+  const ZeroVerdict v = verify_T_ginac(c, T);
+  set_T(std::move(T), v, cf);
+  ginac_l(c, cf);
+}
+
+}  // namespace
+
+void build_diffeomorphism(const Model& m, const FrameRing& fr, Budget& budget,
+                          const CanonicalOptions& opt, CanonicalForm& cf) {
+  cf.base_point = choose_base_point(m);
+  const Context c{m,
+                  cf,
+                  SampleBoxes::from_model(m),
+                  opt.zero,
+                  point_map(m.states, cf.base_point),
+                  simplify(m.h[0].subs(point_map(m.states, cf.base_point)))};
+  if (!ring_diffeomorphism(c, fr, budget, cf)) ginac_diffeomorphism(c, budget, cf);
+  if (cf.T_kind != Availability::symbolic) {
+    cf.T_kind = Availability::numeric;
+    cf.T_note += "; T is to be evaluated numerically (quadrature of the closed 1-form [tau]^-1 dx)";
+    cf.l_note = "needs T in closed form";
+  } else if (cf.l_kind != Availability::symbolic && cf.l_note.empty()) {
+    cf.l_note = "l is not a function of (u, y)";
+  }
+}
+
+}  // namespace obsynth
