@@ -363,7 +363,9 @@ int run_main_job(const MainJob& c) {
     const Analysis a = analyse(m, analysis_options(c.common));
     const Synthesis s = synthesize(a, so);
     write_output_dir(c.out, s.files);
-    for (const auto& f : s.files) std::printf("wrote %s/%s\n", c.out.c_str(), f.name.c_str());
+    std::string dir = c.out;
+    while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
+    for (const auto& f : s.files) std::printf("wrote %s/%s\n", dir.c_str(), f.name.c_str());
     if (!s.explanation.empty()) std::printf("%s\n", s.explanation.c_str());
     return 0;
   });
