@@ -27,20 +27,6 @@ std::string verdict_word(const nlohmann::ordered_json& v) {
   return v["applies"].get<bool>() ? "applies" : "does not apply";
 }
 
-std::string latex_escape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    if (c == '_' || c == '&' || c == '%' || c == '#' || c == '$' || c == '{' || c == '}')
-      out += '\\';
-    if (c == '^') {
-      out += "\\textasciicircum{}";
-      continue;
-    }
-    out += c;
-  }
-  return out;
-}
-
 }  // namespace
 
 std::string render_design_verdicts(const Analysis& a, ReportFormat format) {
@@ -66,21 +52,58 @@ std::string render_design_verdicts(const Analysis& a, ReportFormat format) {
       for (const auto& v : verdicts)
         out +=
             fmt::format("  \\item \\texttt{{{}}}: {} ({})\n",
-                        latex_escape(v["method"].get<std::string>()), verdict_word(v),
-                        latex_escape(fmt::format(
+                        latex_text(v["method"].get<std::string>()), verdict_word(v),
+                        latex_text(fmt::format(
                             "{}", fmt::join(v["reasons"].get<std::vector<std::string>>(), "; "))));
       return out + "\\end{itemize}\n";
   }
   return out;
 }
 
+nlohmann::ordered_json parameter_box_json(const Model& m) {
+  nlohmann::ordered_json j = nlohmann::ordered_json::array();
+  for (const auto& p : m.free_params()) {
+    const Interval b = m.box(p);
+    j.push_back({{"name", p.get_name()}, {"lo", to_string(b.lo)}, {"hi", to_string(b.hi)}});
+  }
+  return j;
+}
+
+namespace {
+
+// The box of the free parameters on which the verdicts hold (symbolic in them).
+std::string parameter_box_text(const Model& m, ReportFormat format) {
+  if (m.free_params().empty()) return "";
+  std::vector<std::string> boxes;
+  for (const auto& p : m.free_params()) {
+    const Interval b = m.box(p);
+    boxes.push_back(fmt::format("{} in [{}, {}]", p.get_name(), to_string(b.lo), to_string(b.hi)));
+  }
+  const std::string text = fmt::format(
+      "Free parameters {}: the analysis is symbolic in them and its verdicts hold on this box; "
+      "generated observers take them as run-time parameters (--param binds them)",
+      fmt::join(boxes, ", "));
+  switch (format) {
+    case ReportFormat::markdown:
+      return "\n## Parameters\n\n" + text + ".\n";
+    case ReportFormat::latex:
+      return "\n\\subsection*{Parameters}\n" + latex_text(text) + ".\n";
+    default:
+      return "\nParameters\n  " + text + ".\n";
+  }
+}
+
+}  // namespace
+
 std::string render_check(const Analysis& a, ReportFormat format, const ReportOptions& opt) {
   if (format == ReportFormat::json) {
     auto j = report_json(a, opt);
+    j["parameters"] = parameter_box_json(a.model);
     j["designs"] = design_verdicts_json(a);
     return j.dump(2) + "\n";
   }
-  return render_report(a, format, opt) + render_design_verdicts(a, format);
+  return render_report(a, format, opt) + parameter_box_text(a.model, format) +
+         render_design_verdicts(a, format);
 }
 
 nlohmann::ordered_json generated_json(const std::vector<GeneratedObserver>& g) {

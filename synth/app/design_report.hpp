@@ -22,6 +22,8 @@ struct GeneratedObserver {
 };
 
 nlohmann::ordered_json design_verdicts_json(const Analysis& a);
+// The free parameters' boxes: [{"name", "lo", "hi"}].
+nlohmann::ordered_json parameter_box_json(const Model& m);
 std::string render_design_verdicts(const Analysis& a, ReportFormat format);
 
 // The full `check` report: the analysis and the design verdicts.

@@ -190,19 +190,6 @@ std::string incomplete_markdown(const Analysis& a) {
   return s;
 }
 
-std::string latex_text(const std::string& t) {
-  std::string e;
-  for (char c : t) {
-    if (std::string("_%&#${}").find(c) != std::string::npos)
-      e += std::string("\\") + c;
-    else if (c == '~' || c == '^' || c == '\\')
-      e += fmt::format("\\char{}{{}}", static_cast<int>(c));
-    else
-      e += c;
-  }
-  return e;
-}
-
 std::string incomplete_latex(const Analysis& a) {
   if (a.complete()) return {};
   std::string s = "\\paragraph{Report incomplete.} A budget stopped the analysis.\n";
@@ -227,6 +214,19 @@ const std::vector<std::pair<const char*, std::vector<const char*>>>& stage_json_
 }
 
 }  // namespace
+
+std::string latex_text(const std::string& t) {
+  std::string e;
+  for (char c : t) {
+    if (std::string("_%&#${}").find(c) != std::string::npos)
+      e += std::string("\\") + c;
+    else if (c == '~' || c == '^' || c == '\\')
+      e += fmt::format("\\char{}{{}}", static_cast<int>(c));
+    else
+      e += c;
+  }
+  return e;
+}
 
 ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   const Model& m = a.model;

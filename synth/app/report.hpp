@@ -18,6 +18,9 @@ struct ReportOptions {
 };
 
 nlohmann::ordered_json report_json(const Analysis& a, const ReportOptions& opt = {});
+// Plain text escaped for LaTeX.
+std::string latex_text(const std::string& t);
+
 std::string render_report(const Analysis& a, ReportFormat format, const ReportOptions& opt = {});
 
 }  // namespace obsynth

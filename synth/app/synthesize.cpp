@@ -121,6 +121,7 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
       precision_name(opt.emit.precision));
   md += render_generated_markdown(generated);
   auto j = report_json(a, ro);
+  j["parameters"] = parameter_box_json(a.model);
   j["designs"] = design_verdicts_json(a);
   if (!s.explanation.empty()) j["auto"] = s.explanation;
   j["generated"] = generated_json(generated);
