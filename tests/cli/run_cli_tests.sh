@@ -85,7 +85,7 @@ done
   echo '-x1*x8/(1+x1^2) ]'
   echo "h = [x1]"
 } >"$tmp/expchain.sym"
-"$bin" check "$tmp/expchain.sym" --stage-seconds 1 >"$tmp/out" 2>"$tmp/err"
+"$bin" check "$tmp/expchain.sym" --stage-seconds 1 --rank-method symbolic >"$tmp/out" 2>"$tmp/err"
 check "watchdog stop exit code 1" test $? -eq 1
 check "watchdog stop diagnostic" grep -q "stage 'frame' exceeded its time budget of 1 s" "$tmp/err"
 check "watchdog stop keeps the rank" grep -q "generic rank 8 of n = 8" "$tmp/out"
