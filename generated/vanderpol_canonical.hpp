@@ -143,13 +143,13 @@ class VanderpolCanonical {
   }
 
   /// One step of length dt with u and y held over it (zero-order hold), exact for the
-  /// linear dynamics w' = A_cl w + c: w <- w + (E w + Gamma c) with E = Phi(dt) - I. E and
-  /// Gamma are recomputed only when dt changes.
+  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
+  /// Phi and Gamma recomputed only when dt changes.
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
-    if (!(dt == dt_) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
+    if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
     State c;
     F::step_constant(u, y, c);  // constant over the step
-    const State w = zh_ + (E_ * zh_ + Gamma_ * c);
+    const State w = exact_.apply(zh_, c);
     if (!obsynth::all_finite(w)) return status_ = obsynth::Status::non_finite;
     zh_ = w;
     return status_ = update_estimate();
@@ -182,22 +182,20 @@ class VanderpolCanonical {
     return obsynth::Status::ok;
   }
 
-  /// E = e^{A_cl dt} - I, Gamma = int_0^dt e^{A_cl s} ds for the closed loop A_cl.
+  /// Phi = e^{A_cl dt}, Gamma = int_0^dt e^{A_cl s} ds for the closed loop A_cl (cold: once
+  /// per sample period).
+#if defined(__GNUC__)
+  __attribute__((noinline, cold))
+#endif
   bool discretise(Scalar dt) noexcept {
     Eigen::Matrix<Scalar, n, n> A;
     A << Scalar(0), Scalar(-5), Scalar(1), Scalar(-4.5);
-    if (!obsynth::discretise_linear<Scalar, n>(A, dt, E_, Gamma_)) {
-      dt_ = Scalar(0);
-      return false;
-    }
-    dt_ = dt;
-    return true;
+    return exact_.prepare(A, dt);
   }
 
   State zh_;
   State xh_;
-  Eigen::Matrix<Scalar, n, n> E_, Gamma_;  ///< e^{A_cl dt} - I and Gamma
-  Scalar dt_ = Scalar(0);  ///< dt of E_ and Gamma_ (0: not yet computed)
+  obsynth::ExactLinearStep<Scalar, n> exact_;  ///< Phi(dt), Gamma(dt) of the last dt
   obsynth::Status status_ = obsynth::Status::ok;
 };
 

@@ -161,4 +161,13 @@ const SampleSet& chain_samples() {
   return s;
 }
 
+/// The same with a fixed sample period (the firmware case).
+template <class GenD>
+const SampleSet& chain_samples_fixed_dt() {
+  static const SampleSet s =
+      simulate_plant<GenD>(std::vector<double>(static_cast<std::size_t>(GenD::n), 0.0), 0.5, 1e-3,
+                           17 + static_cast<std::uint64_t>(GenD::n), 0.0);
+  return s;
+}
+
 }  // namespace obsynth_bench

@@ -12,9 +12,11 @@
 #include <benchmark/benchmark.h>
 
 #include <cstring>
+#include <string>
 
 #include "bench_loop.hpp"
 #include "chains_list.hpp"
+#include "expert_chain.hpp"
 
 #define OBSYNTH_STR2(x) #x
 #define OBSYNTH_STR(x) OBSYNTH_STR2(x)
@@ -37,6 +39,24 @@ void chain_benchmark(benchmark::State& st) {
                               [] { return Obs<Scalar>(); });
 }
 
+// Fixed sample period, the generated step and the expert one (closed-form T^-1 chains only).
+template <class Obs, class GenD>
+void chain_fixed_dt_benchmark(benchmark::State& st) {
+  static const SampleArrays<Obs> a(chain_samples_fixed_dt<GenD>());
+  step_benchmark<Obs>(st, a, chain_samples_fixed_dt<GenD>(), [] { return Obs(); });
+}
+
+template <template <class> class Gen>
+void register_fixed_dt(const std::string& name) {
+  if constexpr (has_closed_form_z<typename Gen<Scalar>::F>::value) {
+    const std::string s = OBSYNTH_STR(OBSYNTH_CHAIN_SCALAR);
+    benchmark::RegisterBenchmark((name + "_fixed_dt/generated/" + s).c_str(),
+                                 chain_fixed_dt_benchmark<Gen<Scalar>, Gen<double>>);
+    benchmark::RegisterBenchmark((name + "_fixed_dt/expert/" + s).c_str(),
+                                 chain_fixed_dt_benchmark<ExpertCanonical<Gen<Scalar>>, Gen<double>>);
+  }
+}
+
 }  // namespace
 
 void OBSYNTH_CHAIN_REGISTER() {
@@ -45,6 +65,9 @@ void OBSYNTH_CHAIN_REGISTER() {
                                chain_benchmark<obsynth_gen::ns::cls>);
   OBSYNTH_CHAINS(OBSYNTH_REGISTER_ONE)
 #undef OBSYNTH_REGISTER_ONE
+#define OBSYNTH_REGISTER_FIXED(ns, cls) register_fixed_dt<obsynth_gen::ns::cls>(#ns OBSYNTH_CHAIN_SUFFIX);
+  OBSYNTH_CHAINS(OBSYNTH_REGISTER_FIXED)
+#undef OBSYNTH_REGISTER_FIXED
 }
 
 /// For count_steps: runs `steps` steps of the named chain observer (model name plus the set's
