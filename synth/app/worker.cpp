@@ -138,9 +138,24 @@ void install_fatal_signal_handlers() {
   for (int sig : {SIGABRT, SIGSEGV, SIGBUS}) sigaction(sig, &sa, nullptr);
 }
 
+// AddressSanitizer reserves terabytes of address space for its shadow memory, so an
+// address-space limit would stop every sanitized run at start-up: there the resident-set
+// guard of the parent is the memory budget.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kAddressSpaceLimit = false;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+constexpr bool kAddressSpaceLimit = false;
+#else
+constexpr bool kAddressSpaceLimit = true;
+#endif
+#else
+constexpr bool kAddressSpaceLimit = true;
+#endif
+
 void limit_address_space(std::size_t bytes) {
   g_memory_limit = bytes;
-  if (bytes == 0) return;
+  if (bytes == 0 || !kAddressSpaceLimit) return;
   rlimit rl{};
   if (getrlimit(RLIMIT_AS, &rl) != 0) return;
   rl.rlim_cur = rl.rlim_max == RLIM_INFINITY ? bytes : std::min<rlim_t>(bytes, rl.rlim_max);
