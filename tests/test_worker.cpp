@@ -102,6 +102,7 @@ TEST(Worker, PassesExitCodesThrough) {
 }
 
 TEST(Worker, ACrashIsNotAMemoryStop) {
+  SKIP_WITHOUT_ADDRESS_SPACE_LIMIT();  // the classification measures the address space
   const WorkerResult r = run_in_worker(
       [] {
         raise(SIGSEGV);
