@@ -132,6 +132,76 @@ check "main job memory stop writes nothing" test ! -e "$tmp/job_mem"
 check "main job time stop exits 1" test $? -eq 1
 check "main job time stop writes nothing" test ! -e "$tmp/job_time"
 
+# The design registry: --list-methods, auto's explanation, all, unknown and planned methods.
+"$bin" --list-methods >"$tmp/out" 2>&1
+check "--list-methods lists canonical" grep -q "^canonical " "$tmp/out"
+check "--list-methods lists perfect" grep -q "^perfect " "$tmp/out"
+check "--list-methods marks riccati planned" grep -q "^riccati .*planned" "$tmp/out"
+"$bin" "$src/models/slawinski17.sym" -o "$tmp/auto" >"$tmp/out" 2>"$tmp/err"
+check "auto explains its choice" grep -q "auto: chose 'canonical' because the bracket conditions hold" "$tmp/out"
+check "auto writes the alias header" grep -q "using AutoObserver = Slawinski17Canonical<Scalar...>;" "$tmp/auto/slawinski17_auto.hpp"
+"$bin" "$src/models/slawinski17.sym" -o "$tmp/all" --method all >"$tmp/out" 2>"$tmp/err"
+check "--method all writes canonical and perfect" test -e "$tmp/all/slawinski17_canonical.hpp" -a -e "$tmp/all/slawinski17_perfect.hpp"
+"$bin" "$src/models/lorenz.sym" -o "$tmp/lorenz" >"$tmp/out" 2>"$tmp/err"
+check "auto on a non-linearizable model exits 1" test $? -eq 1
+check "auto names why canonical does not apply" grep -q "canonical: not linearizable by output injection" "$tmp/err"
+check "auto names the planned designs" grep -q "not implemented yet: riccati" "$tmp/err"
+check "auto failure writes nothing" test ! -e "$tmp/lorenz"
+"$bin" "$src/models/slawinski17.sym" -o "$tmp/x" --method nonsense >"$tmp/out" 2>"$tmp/err"
+check "unknown method diagnostic" grep -q "unknown method 'nonsense' (known: auto, all, canonical, perfect" "$tmp/err"
+"$bin" "$src/models/slawinski17.sym" -o "$tmp/x" --method thau >"$tmp/out" 2>"$tmp/err"
+check "planned method diagnostic" grep -q "method 'thau' is not implemented in this version of obsynth (implemented: canonical, perfect)" "$tmp/err"
+
+# Run-time parameters and --param.
+"$bin" "$src/models/pendulum_params.sym" -o "$tmp/prm" --method canonical >"$tmp/out" 2>"$tmp/err"
+check "free parameters become Params fields" grep -q "Scalar J = Scalar(1);  ///< default: centre of its box" "$tmp/prm/pendulum_params_canonical.hpp"
+"$bin" "$src/models/pendulum_params.sym" -o "$tmp/prm_bound" --method canonical --param J=1.2 >"$tmp/out" 2>"$tmp/err"
+check "--param binds: J is no longer a field" sh -c "! grep -q 'Scalar J = ' '$tmp/prm_bound/pendulum_params_canonical.hpp'"
+check "--param binds: mgl stays a field" grep -q "Scalar mgl = " "$tmp/prm_bound/pendulum_params_canonical.hpp"
+"$bin" check "$src/models/pendulum_params.sym" --param K=1 >"$tmp/out" 2>"$tmp/err"
+check "--param unknown name" grep -q "the model has no parameter 'K'" "$tmp/err"
+"$bin" check "$src/models/pendulum_params.sym" --param J=7 >"$tmp/out" 2>"$tmp/err"
+check "--param outside the box" grep -q "outside its domain \[1/2, 3/2\]" "$tmp/err"
+"$bin" check "$src/models/pendulum_params.sym" --param J=abc >"$tmp/out" 2>"$tmp/err"
+check "--param malformed value" grep -q "is not a real number" "$tmp/err"
+"$bin" check "$src/models/pendulum_params.sym" >"$tmp/out" 2>"$tmp/err"
+check "check states the parameter box" grep -q "Free parameters mgl in \[1/2, 2\], b in \[1/10, 1/2\], J in \[1/2, 3/2\]" "$tmp/out"
+
+# The usage example of the report compiles under the contract flags and runs.
+if command -v python3 >/dev/null 2>&1 && command -v c++ >/dev/null 2>&1; then
+  for m in slawinski17 pendulum_params; do
+    dir=$tmp/auto
+    [ "$m" = pendulum_params ] && dir=$tmp/prm
+    python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['generated'][0]['usage_example'])" \
+      "$dir/${m}_report.json" >"$tmp/usage_$m.cpp"
+    c++ -std=c++17 -O1 -Wall -Wextra -Werror -Wconversion -Wdouble-promotion -pedantic -fno-exceptions \
+      -fno-rtti -I"$dir" -I"$src/runtime" -I/usr/include/eigen3 "$tmp/usage_$m.cpp" -o "$tmp/usage_$m" 2>"$tmp/err"
+    check "usage example of $m compiles under the contract flags" test $? -eq 0
+    "$tmp/usage_$m" >"$tmp/out" 2>&1
+    check "usage example of $m runs" test $? -eq 0
+  done
+fi
+
+# simulate: convergence, and a run that leaves the finite numbers stops with a diagnostic.
+"$bin" simulate "$src/models/slawinski17.sym" --method canonical --u "sin(t)" --x0 0.5,-0.3 \
+  --xhat0 0,0 --t-end 12 --dt 1e-3 -o "$tmp/sim" >"$tmp/out" 2>"$tmp/err"
+check "simulate exits 0" test $? -eq 0
+check "simulate CSV header" sh -c "head -1 '$tmp/sim/slawinski17_canonical.csv' | grep -qx 't,x1,x2,x1_hat,x2_hat'"
+check "simulate converges" sh -c "tail -1 '$tmp/sim/slawinski17_canonical.csv' | awk -F, '{d1=\$2-\$4; d2=\$3-\$5; if (d1<0) d1=-d1; if (d2<0) d2=-d2; exit !(d1<1e-6 && d2<1e-6)}'"
+"$bin" simulate "$src/models/slawinski17.sym" --method canonical --u "20 - 2*sqrt((t-5)^2)" \
+  --x0 0.5,-0.3 --xhat0 0,0 --t-end 5 --dt 1e-3 -o "$tmp/simnan" >"$tmp/out" 2>"$tmp/err"
+check "simulate divergence exits 1" test $? -eq 1
+check "simulate divergence names system and time" grep -Eq "the (plant|observer) left the finite numbers at t = 0\.[67]" "$tmp/err"
+check "simulate divergence keeps the CSV up to there" sh -c "test \$(wc -l < '$tmp/simnan/slawinski17_canonical.csv') -gt 100 && ! grep -qi nan '$tmp/simnan/slawinski17_canonical.csv'"
+"$bin" simulate "$src/models/slawinski17.sym" --method canonical --u "sin(t)" --x0 0.5,-0.3 \
+  --xhat0 0,0 --t-end 2 --dt 1e-3 -o "$tmp/sim2" >"$tmp/out" 2>"$tmp/err"
+"$bin" simulate "$src/models/slawinski17.sym" --method canonical --u "sin(t)" --x0 0.5,-0.3 \
+  --xhat0 0,0 --t-end 2 --dt 1e-3 -o "$tmp/sim3" >"$tmp/out" 2>"$tmp/err"
+check "simulate SVG is deterministic" cmp -s "$tmp/sim2/slawinski17_canonical.svg" "$tmp/sim3/slawinski17_canonical.svg"
+if command -v python3 >/dev/null 2>&1; then
+  check "simulate SVG is well-formed XML" python3 -c "import sys, xml.dom.minidom; xml.dom.minidom.parse(sys.argv[1])" "$tmp/sim2/slawinski17_canonical.svg"
+fi
+
 # Determinism: byte-identical JSON between runs.
 for m in slawinski17 triangular4 cstr lorenz flexible_joint; do
   "$bin" check "$src/models/$m.sym" --format json --no-timings >"$tmp/a.json"
