@@ -51,10 +51,10 @@ TEST(OutputDir, WritesEveryFileAndLeavesNoStaging) {
 TEST(OutputDir, AFailedWriteLeavesTheDirectoryAsItWas) {
   const fs::path d = fresh_dir("fail");
   write_output_dir(d.string(), {{"a.hpp", "old A"}});
-  EXPECT_THROW(write_output_dir(d.string(), {{"a.hpp", "new A"},
-                                             {"c.md", "C"},
-                                             {"missing/x.hpp", "cannot be written"}}),
-               UserError);
+  EXPECT_THROW(
+      write_output_dir(d.string(),
+                       {{"a.hpp", "new A"}, {"c.md", "C"}, {"missing/x.hpp", "cannot be written"}}),
+      UserError);
   EXPECT_EQ(read(d / "a.hpp"), "old A");
   EXPECT_FALSE(fs::exists(d / "c.md"));
   std::size_t entries = 0;
@@ -102,6 +102,5 @@ TEST(Synthesize, TheMainJobWritesTheAutoAliasAndTheReports) {
   std::vector<std::string> names;
   for (const auto& f : s.files) names.push_back(f.name);
   EXPECT_EQ(names, (std::vector<std::string>{"slawinski17_canonical.hpp", "slawinski17_auto.hpp",
-                                             "slawinski17_report.md",
-                                             "slawinski17_report.json"}));
+                                             "slawinski17_report.md", "slawinski17_report.json"}));
 }

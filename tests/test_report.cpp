@@ -55,8 +55,8 @@ TEST(JsonReport, FailingConditionsCarryResiduals) {
 // Collects every string that is an expression in the report.
 void expression_strings(const json& j, const std::string& key, std::vector<std::string>& out) {
   static const std::set<std::string> expr_keys = {
-      "f", "g",     "h",        "lie_derivatives", "matrix", "det",       "rank_drop", "undefined", "value",
-      "r", "frame", "residual", "base_point",      "T",      "T_inverse", "l"};
+      "f",     "g", "h",     "lie_derivatives", "matrix",     "det", "rank_drop", "undefined",
+      "value", "r", "frame", "residual",        "base_point", "T",   "T_inverse", "l"};
   if (j.is_string() && expr_keys.count(key)) out.push_back(j.get<std::string>());
   if (j.is_array())
     for (const auto& e : j) expression_strings(e, key, out);

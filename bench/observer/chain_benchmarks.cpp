@@ -52,8 +52,9 @@ void register_fixed_dt(const std::string& name) {
     const std::string s = OBSYNTH_STR(OBSYNTH_CHAIN_SCALAR);
     benchmark::RegisterBenchmark((name + "_fixed_dt/generated/" + s).c_str(),
                                  chain_fixed_dt_benchmark<Gen<Scalar>, Gen<double>>);
-    benchmark::RegisterBenchmark((name + "_fixed_dt/expert/" + s).c_str(),
-                                 chain_fixed_dt_benchmark<ExpertCanonical<Gen<Scalar>>, Gen<double>>);
+    benchmark::RegisterBenchmark(
+        (name + "_fixed_dt/expert/" + s).c_str(),
+        chain_fixed_dt_benchmark<ExpertCanonical<Gen<Scalar>>, Gen<double>>);
   }
 }
 
@@ -65,7 +66,8 @@ void OBSYNTH_CHAIN_REGISTER() {
                                chain_benchmark<obsynth_gen::ns::cls>);
   OBSYNTH_CHAINS(OBSYNTH_REGISTER_ONE)
 #undef OBSYNTH_REGISTER_ONE
-#define OBSYNTH_REGISTER_FIXED(ns, cls) register_fixed_dt<obsynth_gen::ns::cls>(#ns OBSYNTH_CHAIN_SUFFIX);
+#define OBSYNTH_REGISTER_FIXED(ns, cls) \
+  register_fixed_dt<obsynth_gen::ns::cls>(#ns OBSYNTH_CHAIN_SUFFIX);
   OBSYNTH_CHAINS(OBSYNTH_REGISTER_FIXED)
 #undef OBSYNTH_REGISTER_FIXED
 }

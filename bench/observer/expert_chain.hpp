@@ -20,12 +20,13 @@ namespace obsynth_bench {
 template <class F, class = void>
 struct has_closed_form_z : std::false_type {};
 template <class F>
-struct has_closed_form_z<
-    F, std::void_t<decltype(F::T_inverse(std::declval<const typename F::State&>(),
-                                         std::declval<typename F::State&>())),
-                   decltype(F::z_rhs(std::declval<const typename F::State&>(),
-                                     std::declval<const typename F::State&>(),
-                                     std::declval<typename F::State&>()))>> : std::true_type {};
+struct has_closed_form_z<F,
+                         std::void_t<decltype(F::T_inverse(std::declval<const typename F::State&>(),
+                                                           std::declval<typename F::State&>())),
+                                     decltype(F::z_rhs(std::declval<const typename F::State&>(),
+                                                       std::declval<const typename F::State&>(),
+                                                       std::declval<typename F::State&>()))>>
+    : std::true_type {};
 
 template <class Gen>
 class ExpertCanonical {

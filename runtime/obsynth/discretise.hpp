@@ -88,7 +88,8 @@ class ExactLinearStep {
 #if defined(__GNUC__)
   __attribute__((noinline, cold))
 #endif
-  bool prepare(const Mat& A, Scalar dt) noexcept {
+  bool
+  prepare(const Mat& A, Scalar dt) noexcept {
     dt_ = Scalar(0);
     if (!discretise_linear<Scalar, N>(A, dt, M_, Gamma_)) return false;
     if (!kIncrement) M_ += Mat::Identity();

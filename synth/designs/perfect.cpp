@@ -172,9 +172,9 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   } else {
     // z(jets), then T^-1's elimination steps, as let-bindings: straight-line code.
     GeneratedFunction inv = inverse_function(a);
-    GeneratedFunction r = jet_function(
-        "reconstruct", "The state x = T^-1(z(jets)) from the jets (Procedure 1).", j,
-        inv.outputs, n, uk);
+    GeneratedFunction r =
+        jet_function("reconstruct", "The state x = T^-1(z(jets)) from the jets (Procedure 1).", j,
+                     inv.outputs, n, uk);
     for (std::size_t i = 0; i < n; ++i) r.lets.push_back({cf.z[i], z[i]});
     r.lets.insert(r.lets.end(), inv.lets.begin(), inv.lets.end());
     s.functions.push_back(r);
