@@ -309,6 +309,14 @@ void check_c_emittable(const Analysis& a, const ObserverSpec& s) {
   if (s.update == UpdateKind::jets || s.estimate == EstimateKind::newton)
     throw UserError(SourceLoc{a.model.file, 0, 0},
                     "--language c: the " + s.method + " observer is not available in C yet");
+  for (const auto& f : s.functions) {
+    bool matrix = f.out_cols > 1;
+    for (const auto& arg : f.args) matrix = matrix || arg.kind == FunctionArg::Kind::matrix;
+    if (matrix)
+      throw UserError(SourceLoc{a.model.file, 0, 0}, "--language c: the matrix-valued function " +
+                                                         f.name + " of the " + s.method +
+                                                         " observer is not available in C yet");
+  }
 }
 
 std::string estimate_body(const ObserverSpec& s, const std::string& prm, CBuilder& b) {
