@@ -120,10 +120,13 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   md += "\n## Generated observers\n\n";
   if (!s.explanation.empty()) md += s.explanation + ".\n\n";
   for (const auto& g : generated) md += "- " + g.summary + "\n";
-  md += fmt::format(
-      "\nLiterals are {} precision; every class is a template on the scalar type (float and "
-      "double).\n",
-      precision_name(opt.emit.precision));
+  md += opt.emit.language == Language::c
+            ? fmt::format("\nC99 pairs (.h and .c); scalar type and literals are {}.\n",
+                          precision_name(opt.emit.precision))
+            : fmt::format(
+                  "\nLiterals are {} precision; every class is a template on the scalar type "
+                  "(float and double).\n",
+                  precision_name(opt.emit.precision));
   md += render_generated_markdown(generated);
   auto j = report_json(a, ro);
   j["designs"] = design_verdicts_json(a);
