@@ -85,7 +85,24 @@ cxxflags=("${arch[@]}" -Os -std=c++17 -fno-exceptions -fno-rtti -fstack-usage -f
           -ffunction-sections -fdata-sections
           -Wall -Wextra -Wconversion -Wdouble-promotion -Werror)
 incs=(-I "$root/runtime" -I "$eigen_dir")
-for d in "$@"; do incs+=(-I "$d"); done
+# C programs (<source>.c, e.g. the C99 back end's): further .c arguments are compiled with it
+# as C99 under the same strict flags (-pedantic added) and linked.
+c_sources=()
+for d in "$@"; do
+  case "$d" in
+    *.c) c_sources+=("$d") ;;
+    *) incs+=(-I "$d") ;;
+  esac
+done
+case "$src" in
+  *.c)
+    CC="${OBSYNTH_ARM_CC:-arm-none-eabi-gcc}"
+    c_sources=("$src" "${c_sources[@]}")
+    cflags=("${arch[@]}" -Os -std=c99 -pedantic -fstack-usage -fcallgraph-info=su
+            -ffunction-sections -fdata-sections
+            -Wall -Wextra -Wconversion -Wdouble-promotion -Werror)
+    ;;
+esac
 # shellcheck disable=SC2206
 extra=(${OBSYNTH_QEMU_CXXFLAGS:-})
 
@@ -93,12 +110,26 @@ name="$(basename "${src%.*}")"
 elf="$work/$name.elf"
 
 echo "== build: $CXX ${arch[*]} -Os -fno-exceptions -fno-rtti -fstack-usage ${extra[*]:-} $src"
-if ! "$CXX" "${cxxflags[@]}" "${incs[@]}" "${extra[@]}" -c "$src" -o "$work/$name.o" ||
+objs=()
+if [ "${#c_sources[@]}" -gt 0 ] && [ -n "${CC:-}" ]; then
+  for c in "${c_sources[@]}"; do
+    o="$work/$(basename "${c%.*}").o"
+    echo "== build (C): $CC ${cflags[*]} ${extra[*]:-} $c"
+    "$CC" "${cflags[@]}" "${incs[@]}" "${extra[@]}" -c "$c" -o "$o" || { echo "run-qemu.sh: build failed" >&2; exit 2; }
+    objs+=("$o")
+  done
+fi
+if [ "${#objs[@]}" -eq 0 ] && ! "$CXX" "${cxxflags[@]}" "${incs[@]}" "${extra[@]}" -c "$src" -o "$work/$name.o"; then
+  echo "run-qemu.sh: build failed" >&2
+  exit 2
+fi
+[ "${#objs[@]}" -gt 0 ] || objs=("$work/$name.o")
+if
    ! "$CXX" "${arch[@]}" -Os -std=c++17 -fno-exceptions -fno-rtti -fstack-usage \
        -ffunction-sections -fdata-sections -Wall -Wextra -Werror \
        -c "$here/startup.cpp" -o "$work/startup.o" ||
    ! "$CXX" "${arch[@]}" --specs=rdimon.specs -T "$here/mps2-an386.ld" -Wl,--gc-sections \
-       -Wl,-Map="$work/$name.map" "$work/$name.o" "$work/startup.o" -lm -o "$elf"; then
+       -Wl,-Map="$work/$name.map" "${objs[@]}" "$work/startup.o" -lm -o "$elf"; then
   echo "run-qemu.sh: build failed" >&2
   exit 2
 fi

@@ -213,7 +213,7 @@ struct SimulateCommand {
 };
 
 struct MainJob {
-  std::string model, out, methods = "auto", precision = "double";
+  std::string model, out, methods = "auto", precision = "double", language = "cpp";
   std::vector<std::string> params;
   DesignOptions design;
   bool list_methods = false;
@@ -264,6 +264,10 @@ void add_main_job(CLI::App& app, MainJob& c) {
   app.add_option("--precision", c.precision,
                  "literal precision and default scalar of the generated code")
       ->check(CLI::IsMember({"float", "double"}))
+      ->capture_default_str();
+  app.add_option("--language", c.language,
+                 "language of the generated code: cpp (one header) or c (C99 .h and .c)")
+      ->check(CLI::IsMember({"cpp", "c"}))
       ->capture_default_str();
   app.add_flag("--list-methods", c.list_methods, "list the observer designs and exit");
   add_design_options(&app, c.design);
@@ -359,6 +363,7 @@ int run_main_job(const MainJob& c) {
     so.design = given(c.design);
     so.emit.precision = c.precision == "float" ? Precision::single : Precision::double_precision;
     so.emit.source_name = c.model;
+    so.emit.language = c.language == "c" ? Language::c : Language::cpp;
     const Model m = load_bound_model(c.model, c.params);
     const Analysis a = analyse(m, analysis_options(c.common));
     const Synthesis s = synthesize(a, so);

@@ -7,6 +7,7 @@
 #include "app/design_report.hpp"
 #include "app/report.hpp"
 #include "designs/registry.hpp"
+#include "emit/emit_c.hpp"
 
 namespace obsynth {
 
@@ -97,14 +98,18 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   std::vector<GeneratedObserver> generated;
   for (const auto& method : s.chosen) {
     const ObserverSpec spec = build_design(a, method, opt.design);
-    const EmittedHeader h = emit_cxx_header(a, spec, opt.emit);
+    const bool c = opt.emit.language == Language::c;
+    const EmittedHeader h = c ? emit_c_pair(a, spec, opt.emit) : emit_cxx_header(a, spec, opt.emit);
     s.files.push_back({h.filename, h.text});
-    generated.push_back(
-        {method, h.filename, fmt::format("obsynth_gen::{}::{}", h.namespace_name, h.class_name),
-         fmt::format("`{}`: {} `obsynth_gen::{}::{}`, {} arithmetic operations in its functions.",
-                     h.filename, spec.summary, h.namespace_name, h.class_name, h.operations),
-         h.usage_example, spec.report, spec.params});
-    if (auto_asked && method == s.chosen.front()) {
+    if (c) s.files.push_back({h.source_filename, h.source_text});
+    // C has no namespaces: its observer is the struct type <model>_<method>_observer.
+    const std::string type =
+        c ? h.class_name : fmt::format("obsynth_gen::{}::{}", h.namespace_name, h.class_name);
+    generated.push_back({method, h.filename, type,
+                         fmt::format("`{}`: {} `{}`, {} arithmetic operations in its functions.",
+                                     h.filename, spec.summary, type, h.operations),
+                         h.usage_example, spec.report, spec.params});
+    if (auto_asked && !c && method == s.chosen.front()) {
       const EmittedHeader alias = emit_cxx_auto_alias(a, h, method);
       s.files.push_back({alias.filename, alias.text});
     }
@@ -115,10 +120,13 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   md += "\n## Generated observers\n\n";
   if (!s.explanation.empty()) md += s.explanation + ".\n\n";
   for (const auto& g : generated) md += "- " + g.summary + "\n";
-  md += fmt::format(
-      "\nLiterals are {} precision; every class is a template on the scalar type (float and "
-      "double).\n",
-      precision_name(opt.emit.precision));
+  md += opt.emit.language == Language::c
+            ? fmt::format("\nC99 pairs (.h and .c); scalar type and literals are {}.\n",
+                          precision_name(opt.emit.precision))
+            : fmt::format(
+                  "\nLiterals are {} precision; every class is a template on the scalar type "
+                  "(float and double).\n",
+                  precision_name(opt.emit.precision));
   md += render_generated_markdown(generated);
   auto j = report_json(a, ro);
   j["parameters"] = parameter_box_json(a.model);

@@ -107,6 +107,14 @@ std::string scalar_literal(const GiNaC::numeric& v, Precision p) {
   return "Scalar(" + s + ")";
 }
 
+std::string c_scalar_literal(const GiNaC::numeric& v, Precision p) {
+  const double d = v.to_double();
+  std::string s = p == Precision::single ? fmt::format("{:.9g}", static_cast<float>(d))
+                                         : fmt::format("{:.17g}", d);
+  if (s.find_first_of(".e") == std::string::npos) s += ".0";
+  return p == Precision::single ? s + "f" : s;
+}
+
 namespace {
 
 enum Prec { p_sum = 1, p_product = 2, p_unary = 3, p_atom = 4 };
@@ -119,8 +127,12 @@ struct Text {
 class StatementEmitter {
  public:
   StatementEmitter(const Dag& dag, const std::map<std::string, Binding>& bindings,
-                   Precision precision, const std::string& indent)
-      : dag_(dag), bindings_(bindings), precision_(precision), indent_(indent) {}
+                   Precision precision, const std::string& indent, Language language)
+      : dag_(dag),
+        bindings_(bindings),
+        precision_(precision),
+        indent_(indent),
+        language_(language) {}
 
   EmittedCode run(const std::vector<Assignment>& outputs) {
     count_uses(outputs);
@@ -144,6 +156,18 @@ class StatementEmitter {
   const std::map<std::string, Binding>& bindings_;
   Precision precision_;
   std::string indent_;
+  Language language_;
+
+  std::string literal(const GiNaC::numeric& v) const {
+    return language_ == Language::c ? c_scalar_literal(v, precision_)
+                                    : scalar_literal(v, precision_);
+  }
+  // A math function's name: std::sin in C++, sin or sinf (by precision) in C.
+  std::string math(const std::string& name) const {
+    if (language_ == Language::cpp) return "std::" + name;
+    const std::string c_name = name == "abs" ? "fabs" : name;
+    return precision_ == Precision::single ? c_name + "f" : c_name;
+  }
   std::map<int, int> uses_;
   std::map<int, Text> done_;
   std::map<std::string, Binding> used_vars_;
@@ -198,7 +222,7 @@ class StatementEmitter {
     switch (n.op) {
       case NodeOp::constant: {
         const GiNaC::numeric& v = n.value;
-        const std::string lit = scalar_literal(GiNaC::abs(v), precision_);
+        const std::string lit = literal(GiNaC::abs(v));
         return done_[id] = v.is_negative() ? Text{"-" + lit, p_unary} : Text{lit, p_atom};
       }
       case NodeOp::variable: {
@@ -265,15 +289,15 @@ class StatementEmitter {
       }
       case NodeOp::sqrt:
         ++operations_;
-        return materialise(id, {"std::sqrt(" + expr(n.args[0]).s + ")", p_atom});
+        return materialise(id, {math("sqrt") + "(" + expr(n.args[0]).s + ")", p_atom});
       case NodeOp::pow_real:
         ++operations_;
-        return materialise(id, {fmt::format("std::pow({}, {})", expr(n.args[0]).s,
-                                            scalar_literal(n.value, precision_)),
-                                p_atom});
+        return materialise(
+            id,
+            {fmt::format("{}({}, {})", math("pow"), expr(n.args[0]).s, literal(n.value)), p_atom});
       case NodeOp::call:
         ++operations_;
-        return materialise(id, {fmt::format("std::{}({})", n.name, expr(n.args[0]).s), p_atom});
+        return materialise(id, {fmt::format("{}({})", math(n.name), expr(n.args[0]).s), p_atom});
     }
     OBSYNTH_ASSERT(false, "unknown node kind");
   }
@@ -283,8 +307,8 @@ class StatementEmitter {
 
 EmittedCode emit_statements(const Dag& dag, const std::vector<Assignment>& outputs,
                             const std::map<std::string, Binding>& bindings, Precision precision,
-                            const std::string& indent) {
-  return StatementEmitter(dag, bindings, precision, indent).run(outputs);
+                            const std::string& indent, Language language) {
+  return StatementEmitter(dag, bindings, precision, indent, language).run(outputs);
 }
 
 std::string render_template(const std::string& tmpl,

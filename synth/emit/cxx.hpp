@@ -13,6 +13,9 @@
 namespace obsynth {
 
 enum class Precision { single, double_precision };
+// The language of the printed statements: C++ (std:: calls, Scalar(...) literals) or C99
+// (sinf/sin by precision, plain suffixed literals). Both read variables through Binding.
+enum class Language { cpp, c };
 const char* precision_name(Precision p);
 
 // Unique C++ identifiers: keywords, names the generated code uses itself, and names
@@ -32,6 +35,8 @@ std::string cxx_identifier(const std::string& name);
 
 // A floating literal of the given precision for an exact value, wrapped as Scalar(...).
 std::string scalar_literal(const GiNaC::numeric& v, Precision p);
+// The same value as a C99 literal: 2.0, 0.5f (no cast, no integer literals).
+std::string c_scalar_literal(const GiNaC::numeric& v, Precision p);
 
 struct Assignment {
   std::string target;  // e.g. "out(0)"
@@ -55,7 +60,7 @@ struct EmittedCode {
 // emission order, which depends only on expression content).
 EmittedCode emit_statements(const Dag& dag, const std::vector<Assignment>& outputs,
                             const std::map<std::string, Binding>& bindings, Precision precision,
-                            const std::string& indent);
+                            const std::string& indent, Language language = Language::cpp);
 
 // Replaces {{key}} in a template. Every placeholder must be provided and every provided
 // key must be used; anything else is an internal error (a bug in a template).

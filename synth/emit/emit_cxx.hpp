@@ -14,7 +14,8 @@ namespace obsynth {
 
 struct EmitOptions {
   Precision precision = Precision::double_precision;
-  std::string source_name;  // the model path as it appears in the banner
+  std::string source_name;            // the model path as it appears in the banner
+  Language language = Language::cpp;  // --language: cpp (one header) or c (.h and .c)
 };
 
 struct EmittedHeader {
@@ -24,6 +25,7 @@ struct EmittedHeader {
   std::string class_name;
   std::string usage_example;   // a complete program using the class (compiled by a test)
   std::size_t operations = 0;  // arithmetic operations in the generated functions
+  std::string source_filename, source_text;  // C only: the .c file beside the .h
 };
 
 EmittedHeader emit_cxx_header(const Analysis& a, const ObserverSpec& spec, const EmitOptions& opt);
