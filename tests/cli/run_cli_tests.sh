@@ -209,5 +209,95 @@ for m in slawinski17 triangular4 cstr lorenz flexible_joint; do
   check "deterministic JSON for $m" cmp -s "$tmp/a.json" "$tmp/b.json"
 done
 
+# simulate: a converging run writes a CSV with the documented header and a well-formed,
+# deterministic SVG.
+for run in 1 2; do
+  "$bin" simulate "$src/models/slawinski17.sym" --u "sin(t)" --x0 0.5,-0.5 --xhat0 0,0 \
+    --t-end 5 --dt 0.01 -o "$tmp/sim$run" >"$tmp/out" 2>"$tmp/err"
+  check "simulate run $run exits 0" test $? -eq 0
+done
+check "simulate CSV header" test "$(head -1 "$tmp/sim1/slawinski17_canonical.csv")" = "t,x1,x2,x1_hat,x2_hat"
+check "simulate CSV is deterministic" cmp -s "$tmp/sim1/slawinski17_canonical.csv" "$tmp/sim2/slawinski17_canonical.csv"
+check "simulate SVG is deterministic" cmp -s "$tmp/sim1/slawinski17_canonical.svg" "$tmp/sim2/slawinski17_canonical.svg"
+check "simulate SVG has an svg root" grep -q "<svg" "$tmp/sim1/slawinski17_canonical.svg"
+if command -v xmllint >/dev/null; then
+  check "simulate SVG is well-formed XML" xmllint --noout "$tmp/sim1/slawinski17_canonical.svg"
+fi
+
+# simulate: the issue's divergence case stops with a message naming the time and the system,
+# keeps the CSV up to the last finite sample and exits 1.
+"$bin" simulate "$src/models/slawinski17.sym" --u "20 - 2*sqrt((t-5)^2)" --x0 0.5,-0.5 \
+  --xhat0 0,0 --t-end 10 --dt 0.001 -o "$tmp/div" >"$tmp/out" 2>"$tmp/err"
+check "diverging simulate exits 1" test $? -eq 1
+check "diverging simulate names system and time" \
+  grep -Eq "^obsynth: error: simulate: the (plant|observer[^ ]*) left the finite numbers at t = 0\.[67]" "$tmp/err"
+check "diverging simulate keeps the CSV" test -s "$tmp/div/slawinski17_canonical.csv"
+check "diverging simulate CSV is finite" \
+  sh -c "! grep -Eqi 'nan|inf' '$tmp/div/slawinski17_canonical.csv'"
+check "diverging simulate CSV ends before t = 1" \
+  awk -F, 'END { exit !($1 > 0.5 && $1 < 1) }' "$tmp/div/slawinski17_canonical.csv"
+check "diverging simulate summary has no false maximum at t = 1" \
+  sh -c "! grep -q 'at t = 1$' '$tmp/out'"
+
+# Methods: the registry is listed; auto refuses a non-linearizable model naming every design;
+# unknown and planned methods have distinct diagnostics.
+"$bin" --list-methods >"$tmp/out" 2>"$tmp/err"
+check "--list-methods exits 0" test $? -eq 0
+for m in canonical perfect riccati high-gain; do
+  check "--list-methods names $m" grep -q "$m" "$tmp/out"
+done
+"$bin" "$src/models/lorenz.sym" -o "$tmp/lorenz_out" >"$tmp/out" 2>"$tmp/err"
+check "auto on lorenz exits 1" test $? -eq 1
+check "auto on lorenz names canonical" grep -q "canonical:" "$tmp/err"
+check "auto on lorenz names perfect" grep -q "perfect:" "$tmp/err"
+check "auto on lorenz lists planned designs" grep -q "not implemented yet: riccati" "$tmp/err"
+check "auto on lorenz writes nothing" test ! -e "$tmp/lorenz_out"
+"$bin" "$src/models/slawinski17.sym" -o "$tmp/m1" --method bogus >"$tmp/out" 2>"$tmp/err"
+check "unknown method exits 1" test $? -eq 1
+check "unknown method diagnostic" grep -q "unknown method 'bogus' (known: auto, all, " "$tmp/err"
+"$bin" "$src/models/slawinski17.sym" -o "$tmp/m2" --method riccati >"$tmp/out" 2>"$tmp/err"
+check "planned method exits 1" test $? -eq 1
+check "planned method diagnostic" grep -q "method 'riccati' is not implemented in this version" "$tmp/err"
+"$bin" "$src/models/slawinski17.sym" -o "$tmp/all" --method all >"$tmp/out" 2>"$tmp/err"
+check "--method all exits 0" test $? -eq 0
+check "--method all writes canonical" test -s "$tmp/all/slawinski17_canonical.hpp"
+check "--method all writes perfect" test -s "$tmp/all/slawinski17_perfect.hpp"
+
+# --param binds at synthesis: the bound field leaves Params, the others stay.
+"$bin" "$src/models/pendulum_params.sym" -o "$tmp/pp" --method canonical --param mgl=1 \
+  >"$tmp/out" 2>"$tmp/err"
+check "--param mgl=1 exits 0" test $? -eq 0
+check "--param mgl=1 removes the field" sh -c "! grep -q 'Scalar mgl =' '$tmp/pp/pendulum_params_canonical.hpp'"
+check "--param mgl=1 keeps b" grep -q "Scalar b =" "$tmp/pp/pendulum_params_canonical.hpp"
+"$bin" "$src/models/pendulum_params.sym" -o "$tmp/pq" --param nope=1 >"$tmp/out" 2>"$tmp/err"
+check "--param unknown name exits 1" test $? -eq 1
+check "--param unknown name diagnostic" grep -q "the model has no parameter 'nope'" "$tmp/err"
+"$bin" "$src/models/pendulum_params.sym" -o "$tmp/pq" --param mgl=7 >"$tmp/out" 2>"$tmp/err"
+check "--param outside box exits 1" test $? -eq 1
+check "--param outside box diagnostic" grep -q "mgl=7: outside its domain \[1/2, 2\]" "$tmp/err"
+for bad in mgl=abc mgl= =1 mgl; do
+  "$bin" "$src/models/pendulum_params.sym" -o "$tmp/pq" --param "$bad" >"$tmp/out" 2>"$tmp/err"
+  check "--param '$bad' exits 1" test $? -eq 1
+  check "--param '$bad' has a diagnostic" grep -q "error: --param" "$tmp/err"
+done
+check "--param failures write nothing" test ! -e "$tmp/pq"
+
+# The report's usage example is a complete program: it compiles under the contract flags and
+# runs (exit 0), for a model without and one with run-time parameters.
+cxx=${CXX:-c++}
+eigen=$(pkg-config --cflags eigen3 2>/dev/null || echo -I/usr/include/eigen3)
+for m in slawinski17 pendulum_params; do
+  "$bin" "$src/models/$m.sym" -o "$tmp/use_$m" --method canonical >"$tmp/out" 2>"$tmp/err"
+  check "usage: $m generates" test $? -eq 0
+  jq -r '.generated[0].usage_example' "$tmp/use_$m/${m}_report.json" >"$tmp/use_$m/main.cpp"
+  check "usage: $m example is non-empty" grep -q "int main()" "$tmp/use_$m/main.cpp"
+  # shellcheck disable=SC2086
+  "$cxx" -std=c++17 -O1 -Wall -Wextra -Werror -Wconversion -Wdouble-promotion -pedantic \
+    -fno-exceptions -fno-rtti -I"$tmp/use_$m" -I"$src/runtime" $eigen \
+    "$tmp/use_$m/main.cpp" -o "$tmp/use_$m/main" 2>"$tmp/err"
+  check "usage: $m example compiles under the contract flags" test $? -eq 0
+  check "usage: $m example runs" "$tmp/use_$m/main"
+done
+
 echo "cli: $pass passed, $fail failed"
 [ "$fail" -eq 0 ]
