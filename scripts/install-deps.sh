@@ -6,7 +6,7 @@ packages=(
   build-essential cmake ninja-build pkg-config
   libginac-dev libcln-dev libflint-dev libflint-arb-dev libgmp-dev libeigen3-dev libfmt-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  clang libclang-rt-14-dev clang-format valgrind nlohmann-json3-dev time
+  clang libclang-rt-14-dev clang-format valgrind nlohmann-json3-dev time jq libxml2-utils
   gcc-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-newlib qemu-system-arm
 )
 missing=()

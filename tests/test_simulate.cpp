@@ -146,3 +146,5 @@ TEST(Svg, WellFormedAndDeterministic) {
   EXPECT_EQ(a.find("nan"), std::string::npos);
   EXPECT_EQ(a.find("a < b"), std::string::npos);  // the title is escaped
 }
+
+}  // namespace
