@@ -151,17 +151,6 @@ std::vector<std::string> split_list(const std::string& s) {
   return out;
 }
 
-// A real number given on the command line, as an exact rational (decimals are exact).
-GiNaC::numeric parse_real(const std::string& text, const char* option) {
-  try {
-    const Model m =
-        parse_model("model q\nstates q\nf = [0]\nh = [q]\nparams v = " + text + "\n", option);
-    return *m.params[0].value;
-  } catch (const UserError&) {
-    throw UserError(SourceLoc{}, fmt::format("{}: '{}' is not a real number", option, text));
-  }
-}
-
 // Design options (--poles, --realisation, ...) come from the registry: each design declares
 // its own, and every subcommand that builds designs accepts them all.
 void add_design_options(CLI::App* app, DesignOptions& o) {
@@ -329,9 +318,10 @@ int run_simulate(const SimulateCommand& c) {
     so.method = c.method;
     so.design = given(c.design);
     so.u_text = c.u;
-    for (const auto& v : split_list(c.x0)) so.x0.push_back(parse_real(v, "--x0").to_double());
+    for (const auto& v : split_list(c.x0))
+      so.x0.push_back(parse_real_number(v, "--x0").to_double());
     for (const auto& v : split_list(c.xhat0))
-      so.xhat0.push_back(parse_real(v, "--xhat0").to_double());
+      so.xhat0.push_back(parse_real_number(v, "--xhat0").to_double());
     so.t_end = c.t_end;
     so.dt = c.dt;
     so.sampling = c.sampling == "zoh" ? Sampling::zoh : Sampling::continuous;

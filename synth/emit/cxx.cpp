@@ -142,8 +142,10 @@ class StatementEmitter {
       assign_.push_back(fmt::format("{}{} = {};\n", indent_, a.target, t.s));
     }
     EmittedCode code;
-    for (const auto& [name, b] : used_vars_)
+    for (const auto& [name, b] : used_vars_) {
       code.text += fmt::format("{}const Scalar {} = {};\n", indent_, b.local, b.source);
+      code.arguments_read.insert(b.argument);
+    }
     for (const auto& s : temps_) code.text += s;
     for (const auto& s : assign_) code.text += s;
     code.temporaries = temp_count_;

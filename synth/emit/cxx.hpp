@@ -45,14 +45,16 @@ struct Assignment {
 
 // A variable of the DAG and how the function reads it.
 struct Binding {
-  std::string local;   // local name in the function (escaped)
-  std::string source;  // e.g. "x(0)"
+  std::string local;     // local name in the function (escaped)
+  std::string source;    // e.g. "x(0)"
+  std::string argument;  // the function parameter the source reads, e.g. "x"
 };
 
 struct EmittedCode {
   std::string text;  // statements, one per line, with the given indent
   std::size_t temporaries = 0;
   std::size_t operations = 0;  // arithmetic operations and calls (a size measure)
+  std::set<std::string> arguments_read;  // Binding::argument of every variable read
 };
 
 // Straight-line statements computing every assignment. Variables used are first read into

@@ -261,13 +261,13 @@ class CBuilder {
       OBSYNTH_ASSERT(arg.kind != FunctionArg::Kind::matrix, "C emitter: matrix argument");
       for (std::size_t i = 0; i < arg.symbols.size(); ++i)
         b[arg.symbols[i].get_name()] =
-            Binding{local(arg.symbols[i].get_name()), fmt::format("{}[{}]", arg.name, i)};
+            Binding{local(arg.symbols[i].get_name()), fmt::format("{}[{}]", arg.name, i), arg.name};
       decls.push_back(fmt::format("const {}_scalar* {}", prefix_, arg.name));
       reads.push_back(arg.name);
     }
     if (has_params()) {
       for (const auto& p : s_.params)
-        b[p.name] = Binding{local(p.name), "prm->" + cxx_identifier(p.name)};
+        b[p.name] = Binding{local(p.name), "prm->" + cxx_identifier(p.name), "prm"};
       decls.push_back(fmt::format("const {}_params* prm", prefix_));
       reads.push_back("prm");
     }
@@ -280,9 +280,7 @@ class CBuilder {
     const EmittedCode code = emit_statements(dag, assigns, b, opt_.precision, "  ", Language::c);
     std::string body;
     for (const auto& r : reads)
-      if (code.text.find(" = " + r + "[") == std::string::npos &&
-          code.text.find(" = " + r + "->") == std::string::npos)
-        body += fmt::format("  (void){};\n", r);
+      if (!code.arguments_read.count(r)) body += fmt::format("  (void){};\n", r);
     body += code.text;
     operations_ += code.operations;
     const std::string params = fmt::format("{}", fmt::join(decls, ", "));

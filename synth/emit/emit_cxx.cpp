@@ -317,9 +317,10 @@ class HeaderBuilder {
             arg.kind == FunctionArg::Kind::matrix
                 ? fmt::format("{}({}, {})", arg.name, i % arg.rows, i / arg.rows)
                 : fmt::format("{}({})", arg.name, i);
-        b[arg.symbols[i].get_name()] = Binding{local(arg.symbols[i].get_name()), source};
+        b[arg.symbols[i].get_name()] = Binding{local(arg.symbols[i].get_name()), source, arg.name};
       }
-    for (const auto& p : s_.params) b[p.name] = Binding{local(p.name), "prm." + field_name(p.name)};
+    for (const auto& p : s_.params)
+      b[p.name] = Binding{local(p.name), "prm." + field_name(p.name), "prm"};
     return b;
   }
 
@@ -347,9 +348,7 @@ class HeaderBuilder {
     decls.push_back(fmt::format("{}& out", f.out_type));
     std::string body;
     for (const auto& r : reads)
-      if (code.text.find(" = " + r + "(") == std::string::npos &&
-          code.text.find(" = " + r + ".") == std::string::npos)
-        body += fmt::format("    static_cast<void>({});\n", r);
+      if (!code.arguments_read.count(r)) body += fmt::format("    static_cast<void>({});\n", r);
     body += code.text;
     operations_ += code.operations;
     return render_template(kFunction, {{"doc", f.doc},

@@ -9,20 +9,6 @@ namespace obsynth {
 
 namespace {
 
-GiNaC::numeric parameter_value(const std::string& name, const std::string& text) {
-  ExVec v;
-  try {
-    v = parse_expression_list(text, "--param " + name, {});
-  } catch (const UserError&) {
-    v.clear();
-  }
-  if (v.size() != 1 || !GiNaC::is_a<GiNaC::numeric>(v[0]) ||
-      !GiNaC::ex_to<GiNaC::numeric>(v[0]).is_real())
-    throw UserError(SourceLoc{},
-                    fmt::format("--param {}={}: '{}' is not a real number", name, text, text));
-  return GiNaC::ex_to<GiNaC::numeric>(v[0]);
-}
-
 void bind_one(Model& m, const std::string& assignment) {
   const auto eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
@@ -34,7 +20,8 @@ void bind_one(Model& m, const std::string& assignment) {
       throw UserError(SourceLoc{},
                       fmt::format("--param {}: the model already gives it the value {}", name,
                                   to_string(*p.value)));
-    const GiNaC::numeric v = parameter_value(name, assignment.substr(eq + 1));
+    const std::string text = assignment.substr(eq + 1);
+    const GiNaC::numeric v = parse_real_number(text, fmt::format("--param {}={}", name, text));
     const auto box = m.domain.find(name);
     if (box != m.domain.end() && (v < box->second.lo || v > box->second.hi))
       throw UserError(SourceLoc{},

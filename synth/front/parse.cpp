@@ -985,4 +985,17 @@ Model load_model(const std::string& path, const ParseLimits& limits) {
   return parse_model(ss.str(), path, limits);
 }
 
+GiNaC::numeric parse_real_number(const std::string& text, const std::string& what) {
+  ExVec v;
+  try {
+    v = parse_expression_list(text, what, {});
+  } catch (const UserError&) {
+    v.clear();
+  }
+  if (v.size() != 1 || !GiNaC::is_a<GiNaC::numeric>(v[0]) ||
+      !GiNaC::ex_to<GiNaC::numeric>(v[0]).is_real())
+    throw UserError(SourceLoc{}, fmt::format("{}: '{}' is not a real number", what, text));
+  return GiNaC::ex_to<GiNaC::numeric>(v[0]);
+}
+
 }  // namespace obsynth

@@ -26,6 +26,10 @@ Model load_model(const std::string& path, const ParseLimits& = {});
 ExVec parse_expression_list(std::string_view text, const std::string& what,
                             const std::vector<GiNaC::symbol>& symbols, const ParseLimits& = {});
 
+// One exact real number given as text (a command-line value: decimals are exact); a UserError
+// "<what>: '<text>' is not a real number" otherwise.
+GiNaC::numeric parse_real_number(const std::string& text, const std::string& what);
+
 // Functions a model may call.
 bool is_supported_function(const std::string& name);
 

@@ -8,7 +8,9 @@
 #include <fstream>
 #include <iostream>
 
+#include "designs/spec.hpp"
 #include "front/parse.hpp"
+#include "reference_value.hpp"
 #include "symbolic/zero_test.hpp"
 
 using namespace obsynth;
@@ -17,10 +19,7 @@ using GiNaC::ex;
 namespace {
 
 std::string value(const ex& e, const GiNaC::exmap& at) {
-  DigitsGuard g(30);
-  const ex v = GiNaC::evalf(e.subs(at));
-  if (!GiNaC::is_a<GiNaC::numeric>(v)) throw std::runtime_error("value not numeric");
-  return fmt::format("{:.17e}", GiNaC::ex_to<GiNaC::numeric>(v).to_double());
+  return testing::reference_value(e, at);
 }
 
 }  // namespace
@@ -60,16 +59,7 @@ int main(int argc, char** argv) {
       U += fmt::format("    {{{}}},\n", u.empty() ? "0.0" : fmt::format("{}", fmt::join(u, ", ")));
       Y += fmt::format("    {{{}}},\n", fmt::join(y, ", "));
     }
-    std::string cls;
-    bool up = true;
-    for (char ch : m.name) {
-      if (ch == '_') {
-        up = true;
-        continue;
-      }
-      cls += up ? static_cast<char>(std::toupper(static_cast<unsigned char>(ch))) : ch;
-      up = false;
-    }
+    const std::string cls = pascal_case(m.name);
     std::ofstream out(argv[2]);
     out << fmt::format(
         "// exact output jets computed by GiNaC for {}\n#pragma once\n#define OBSYNTH_NS {}\n"

@@ -12,6 +12,7 @@
 #include "analysis/analysis.hpp"
 #include "designs/spec.hpp"
 #include "front/parse.hpp"
+#include "reference_value.hpp"
 #include "symbolic/zero_test.hpp"
 
 using namespace obsynth;
@@ -24,10 +25,7 @@ constexpr int kParamSets = 3;
 const double kStepDt = 0.05;  // dt of the reference discretisation (1/20 below)
 
 std::string value(const ex& e, const GiNaC::exmap& at) {
-  DigitsGuard g(30);
-  const ex v = GiNaC::evalf(e.subs(at));
-  if (!GiNaC::is_a<GiNaC::numeric>(v)) throw std::runtime_error("reference: value not numeric");
-  return fmt::format("{:.17e}", GiNaC::ex_to<GiNaC::numeric>(v).to_double());
+  return testing::reference_value(e, at);
 }
 
 using Table = std::vector<std::vector<std::string>>;
