@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cctype>
+#include <utility>
 
 #include "symbolic/expr_print.hpp"
 
@@ -18,6 +19,12 @@ const char* update_kind_name(UpdateKind k) {
       return "jets";
   }
   return "ode";
+}
+
+std::size_t SymmetricBlock::packed_index(std::size_t r, std::size_t c) const {
+  if (r > c) std::swap(r, c);
+  // Rows 0..r-1 hold dim, dim-1, ..., dim-r+1 entries.
+  return offset + r * dim - r * (r - 1) / 2 + (c - r);
 }
 
 const GeneratedFunction* ObserverSpec::function(const std::string& name) const {

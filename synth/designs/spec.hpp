@@ -112,6 +112,36 @@ struct DesignOptions {
   }
 };
 
+// A symmetric matrix held in the observer state as its packed upper triangle, row by row:
+// (0,0), (0,1), ..., (0,d-1), (1,1), ..., (d-1,d-1) at w[offset, offset + d(d+1)/2). Functions
+// read it through the w symbols; `packed_index` maps (r, c) to the position in w.
+struct SymmetricBlock {
+  std::string name;  // e.g. "Q" (Riccati), "S" (Kalman-theta); names an accessor in the class
+  std::size_t offset = 0;
+  std::size_t dim = 0;
+  // After every step the block must have a Cholesky factor (LLT); otherwise the step is
+  // rejected (state kept) and Status::singular returned. Never a NaN.
+  bool keep_positive_definite = true;
+  std::size_t packed_size() const { return dim * (dim + 1) / 2; }
+  std::size_t packed_index(std::size_t r, std::size_t c) const;  // offset + position, r,c < dim
+};
+
+// An extra right-hand-side term of an ODE update that needs a factorised solve, never an
+// explicit inverse: rhs[target_offset + i] += (M^-1 v)_i, i < dim, in every RK4 stage.
+// M is either a generated function of (w, u) (matrix_function, e.g. the observability matrix
+// O(xh) of the high-gain observer) or a SymmetricBlock of w (matrix_block, e.g. S of the
+// Kalman-theta observer). v is a generated function of (w, u, y) (vector_function; fold any
+// sign into v). A failed factorisation rejects the step with Status::singular.
+struct SolveCorrection {
+  enum class Factor { cholesky, lu };
+  Factor factor = Factor::lu;
+  std::string matrix_function;  // name in `functions` (args like rhs minus y), or empty
+  std::string matrix_block;     // name of a SymmetricBlock, or empty
+  std::string vector_function;  // name in `functions` (same args as rhs)
+  std::size_t target_offset = 0, dim = 0;
+  std::string singular_doc;  // where M is singular, for the class comment and the report
+};
+
 struct ObserverSpec {
   std::string method;                    // registry name, e.g. "canonical"
   std::string class_suffix;              // class = PascalCase(model) + suffix
@@ -136,6 +166,10 @@ struct ObserverSpec {
     std::string newton_inverse_jacobian;  // EstimateKind::newton: (dT/dx)^-1 at x
     std::string reconstruct;              // jets: w(jets) (then estimate as above)
   } roles;
+
+  // ode: symmetric blocks of w kept positive definite, and a solve term added to rhs.
+  std::vector<SymmetricBlock> symmetric_blocks;
+  std::optional<SolveCorrection> correction;
 
   // linear_exact: the closed-loop matrix of w' = A_cl w + c (rows of exact rationals).
   std::vector<std::vector<GiNaC::numeric>> closed_loop;
