@@ -5,6 +5,7 @@
 #include <cmath>
 #include <memory>
 
+#include <Eigen/Dense>
 #include <unsupported/Eigen/MatrixFunctions>
 
 #include "app/svg_plot.hpp"
@@ -190,10 +191,14 @@ class SpecObserver {
     xh_ = xh0;
     w_ = s_.init == InitKind::function ? fn_(s_.roles.init)(xh0) : xh0;
   }
-  // d/dt w at (w, u, y): the generated derivative().
+  // d/dt w at (w, u, y): the generated derivative(). A failed gain solve sets `rejected`.
   Vec derivative(const Vec& w, const Vec& u, const Vec& y) {
-    if (s_.update == UpdateKind::ode) return fn_(s_.roles.rhs)(concat(concat(w, u), y));
-    return fn_(s_.roles.rhs)(concat(w, fn_(s_.roles.step_constant)(concat(u, y))));
+    if (s_.update != UpdateKind::ode)
+      return fn_(s_.roles.rhs)(concat(w, fn_(s_.roles.step_constant)(concat(u, y))));
+    Vec dw = fn_(s_.roles.rhs)(concat(concat(w, u), y));
+    if (s_.correction && !add_correction(*s_.correction, w, u, y, dw))
+      rejected_ = "the gain solve failed (" + s_.correction->singular_doc + ")";
+    return dw;
   }
   // The firmware step with u, y held over dt.
   void step(double dt, const Vec& u, const Vec& y) {
@@ -205,12 +210,18 @@ class SpecObserver {
       const Eigen::VectorXd next = Phi_ * wv + Gamma_ * cv;
       w_.assign(next.data(), next.data() + next.size());
     } else {
+      const Vec before = w_;
       rk4([&](double, const Vec& w) { return derivative(w, u, y); }, 0, dt, w_);
+      check_blocks();
+      if (!rejected_.empty()) w_ = before;  // the generated step keeps its state too
     }
     update_estimate();
   }
+  // Why the last step or derivative was rejected (empty: it was not).
+  const std::string& rejected() const { return rejected_; }
   void set_state(const Vec& w) {
     w_ = w;
+    check_blocks();
     update_estimate();
   }
   const Vec& state() const { return w_; }
@@ -231,11 +242,55 @@ class SpecObserver {
         break;
     }
   }
+  // Symmetric blocks that must stay positive definite (Cholesky, as the generated step).
+  void check_blocks() {
+    for (const auto& b : s_.symmetric_blocks)
+      if (b.keep_positive_definite &&
+          Eigen::LLT<Eigen::MatrixXd>(symmetric_block(b, w_)).info() != Eigen::Success)
+        rejected_ = b.name + " is no longer positive definite";
+  }
+  // dw[target..] += M^-1 v by the factorisation the generated code uses.
+  bool add_correction(const SolveCorrection& k, const Vec& w, const Vec& u, const Vec& y, Vec& dw) {
+    const auto d = static_cast<Eigen::Index>(k.dim);
+    Eigen::MatrixXd M(d, d);
+    if (!k.matrix_function.empty()) {
+      const Vec mv = fn_(k.matrix_function)(concat(w, u));  // column-major
+      M = Eigen::Map<const Eigen::MatrixXd>(mv.data(), d, d);
+    } else {
+      for (const auto& b : s_.symmetric_blocks)
+        if (b.name == k.matrix_block) M = symmetric_block(b, w);
+    }
+    const Vec v = fn_(k.vector_function)(concat(concat(w, u), y));
+    const Eigen::Map<const Eigen::VectorXd> vv(v.data(), d);
+    Eigen::VectorXd x;
+    if (k.factor == SolveCorrection::Factor::cholesky) {
+      const Eigen::LLT<Eigen::MatrixXd> llt(M);
+      if (llt.info() != Eigen::Success) return false;
+      x = llt.solve(vv);
+    } else {
+      const Eigen::FullPivLU<Eigen::MatrixXd> lu(M);
+      if (!lu.isInvertible()) return false;
+      x = lu.solve(vv);
+    }
+    for (Eigen::Index i = 0; i < d; ++i) dw[k.target_offset + static_cast<std::size_t>(i)] += x(i);
+    return x.allFinite();
+  }
+  static Eigen::MatrixXd symmetric_block(const SymmetricBlock& b, const Vec& w) {
+    const auto d = static_cast<Eigen::Index>(b.dim);
+    Eigen::MatrixXd M(d, d);
+    for (Eigen::Index r = 0; r < d; ++r)
+      for (Eigen::Index c = r; c < d; ++c)
+        M(r, c) = M(c, r) =
+            w[b.packed_index(static_cast<std::size_t>(r), static_cast<std::size_t>(c))];
+    return M;
+  }
+
   const ObserverSpec& s_;
   SpecFunctions fn_;
   const SimulationOptions& o_;
   Vec w_, xh_;
   Eigen::MatrixXd Phi_, Gamma_;
+  std::string rejected_;
 };
 
 // The jets observer (perfect): differentiators for y and u, then reconstruct and estimate.
@@ -354,6 +409,12 @@ void run_state_observer(const Plant& plant, SpecObserver& obs, const SimulationO
     } else {
       obs.step(opt.dt, plant.inputs({t}), plant.output(x));
       rk4([&](double tt, const Vec& xv) { return plant.f(tt, xv); }, t, opt.dt, x);
+    }
+    if (!obs.rejected().empty()) {
+      rec.res.diverged = fmt::format(
+          "simulate: the observer rejected its step at t = {:g}: {}; the run stopped there", t,
+          obs.rejected());
+      return;
     }
     if (!rec.record(static_cast<double>(k + 1) * opt.dt, x, obs.estimate(), "observer")) return;
   }

@@ -30,7 +30,7 @@ typedef {{scalar}} {{P}}_scalar;
 
 enum { {{P}}_n = {{n}}, {{P}}_m = {{m}}, {{P}}_p = {{p}}, {{P}}_w = {{w_size}} };
 
-typedef enum { {{P}}_ok = 0, {{P}}_non_finite = 1 } {{P}}_status;
+typedef enum { {{P}}_ok = 0, {{P}}_non_finite = 1{{singular}} } {{P}}_status;
 {{params_decl}}
 /* The observer: its own state w, the estimate xh and what step() keeps between calls. */
 typedef struct {
@@ -192,6 +192,131 @@ const char* kStepRk4 = R"(
 }
 )";
 
+// ODE observers with a gain solve and/or symmetric blocks that must stay positive definite.
+const char* kStepRk4Guarded = R"(
+/* One RK4 step of length dt with u and y held over the step; rejected (state kept,
+ * {{P}}_singular) when a gain solve fails in any stage{{guard_doc}}. */
+{{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
+  Scalar k1[N], k2[N], k3[N], k4[N], t[N], w[N];
+  int i, ok;
+  ok = total_rhs(o->w, u, y{{PRM}}, k1);
+  for (i = 0; i < N; ++i) t[i] = o->w[i] + dt / {{two}} * k1[i];
+  ok = total_rhs(t, u, y{{PRM}}, k2) && ok;
+  for (i = 0; i < N; ++i) t[i] = o->w[i] + dt / {{two}} * k2[i];
+  ok = total_rhs(t, u, y{{PRM}}, k3) && ok;
+  for (i = 0; i < N; ++i) t[i] = o->w[i] + dt * k3[i];
+  ok = total_rhs(t, u, y{{PRM}}, k4) && ok;
+  if (!ok) return o->status = {{P}}_singular;
+  for (i = 0; i < N; ++i) w[i] = o->w[i] + dt / {{six}} * (k1[i] + {{two}} * (k2[i] + k3[i]) + k4[i]);
+  if (!all_finite(w, N)) return o->status = {{P}}_non_finite;
+{{block_checks}}  for (i = 0; i < N; ++i) o->w[i] = w[i];
+  return o->status = update_estimate(o);
+}
+)";
+
+// Cholesky and LU with partial pivoting for the gain solve, in place, row-major d x d.
+const char* kSolvers = R"(
+/* Unpacks the symmetric d x d block stored as its upper triangle, row by row, at w + off. */
+static void unpack_symmetric(const Scalar* w, int off, int d, Scalar* M) {
+  int r, c, k = off;
+  for (r = 0; r < d; ++r)
+    for (c = r; c < d; ++c, ++k) M[r * d + c] = M[c * d + r] = w[k];
+}
+
+/* M = L L^T in place (lower triangle); 0 when M is not positive definite. */
+static int cholesky(Scalar* M, int d) {
+  int i, j, k;
+  for (j = 0; j < d; ++j) {
+    Scalar s = M[j * d + j];
+    for (k = 0; k < j; ++k) s -= M[j * d + k] * M[j * d + k];
+    if (!(s > {{zero}}) || !isfinite(s)) return 0;
+    M[j * d + j] = {{sqrt}}(s);
+    for (i = j + 1; i < d; ++i) {
+      Scalar t = M[i * d + j];
+      for (k = 0; k < j; ++k) t -= M[i * d + k] * M[j * d + k];
+      M[i * d + j] = t / M[j * d + j];
+    }
+  }
+  return 1;
+}
+
+static int solve_cholesky(Scalar* M, int d, const Scalar* v, Scalar* x) {
+  int i, k;
+  if (!cholesky(M, d)) return 0;
+  for (i = 0; i < d; ++i) {
+    Scalar t = v[i];
+    for (k = 0; k < i; ++k) t -= M[i * d + k] * x[k];
+    x[i] = t / M[i * d + i];
+  }
+  for (i = d - 1; i >= 0; --i) {
+    Scalar t = x[i];
+    for (k = i + 1; k < d; ++k) t -= M[k * d + i] * x[k];
+    x[i] = t / M[i * d + i];
+  }
+  return all_finite(x, d);
+}
+
+/* LU with partial pivoting; 0 when a pivot is below d * epsilon times the largest. */
+static int solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x) {
+  int i, j, k;
+  Scalar largest = {{zero}};
+  for (i = 0; i < d; ++i) x[i] = v[i];
+  for (k = 0; k < d; ++k) {
+    int p = k;
+    for (i = k + 1; i < d; ++i)
+      if ({{fabs}}(M[i * d + k]) > {{fabs}}(M[p * d + k])) p = i;
+    if (p != k) {
+      for (j = 0; j < d; ++j) {
+        const Scalar t = M[k * d + j];
+        M[k * d + j] = M[p * d + j];
+        M[p * d + j] = t;
+      }
+      {
+        const Scalar t = x[k];
+        x[k] = x[p];
+        x[p] = t;
+      }
+    }
+    if ({{fabs}}(M[k * d + k]) > largest) largest = {{fabs}}(M[k * d + k]);
+    if (!({{fabs}}(M[k * d + k]) > (Scalar)d * {{epsilon}} * largest)) return 0;
+    for (i = k + 1; i < d; ++i) {
+      const Scalar f = M[i * d + k] / M[k * d + k];
+      for (j = k; j < d; ++j) M[i * d + j] -= f * M[k * d + j];
+      x[i] -= f * x[k];
+    }
+  }
+  for (i = d - 1; i >= 0; --i) {
+    Scalar t = x[i];
+    for (k = i + 1; k < d; ++k) t -= M[i * d + k] * x[k];
+    x[i] = t / M[i * d + i];
+  }
+  return all_finite(x, d);
+}
+
+static int packed_positive_definite(const Scalar* w, int off, int d) {
+  Scalar M[{{max_dim}} * {{max_dim}}];
+  unpack_symmetric(w, off, d, M);
+  return cholesky(M, d);
+}
+)";
+
+const char* kTotalRhs = R"(
+/* rhs(w, u, y){{correction_doc}}; 0 when the solve fails. */
+static int total_rhs(const Scalar* w, const Scalar* u, const Scalar* y{{prm_decl}}, Scalar* dw) {
+  {{rhs}}(w, u, y{{prm}}, dw);
+{{correction}}}
+)";
+
+const char* kCorrection = R"(  {
+    Scalar M[{{dim}} * {{dim}}], v[{{dim}}], s[{{dim}}];
+    int i;
+{{matrix}}    {{vector}}(w, u, y{{prm}}, v);
+    if (!{{solver}}(M, {{dim}}, v, s)) return 0;
+    for (i = 0; i < {{dim}}; ++i) dw[{{offset}} + i] += s[i];
+  }
+  return 1;
+)";
+
 const char* kLifecycle = R"(
 static {{P}}_status update_estimate({{P}}_observer* o) {
 {{estimate_body}}}
@@ -254,11 +379,10 @@ class CBuilder {
 
   // Declaration and definition of one generated function.
   std::pair<std::string, std::string> function(const GeneratedFunction& f) {
-    OBSYNTH_ASSERT(f.out_cols == 1, "C emitter: matrix-valued functions are not supported");
+    // Matrix arguments and results are flat arrays in column-major order, as in the spec.
     std::map<std::string, Binding> b;
     std::vector<std::string> decls, reads;
     for (const auto& arg : f.args) {
-      OBSYNTH_ASSERT(arg.kind != FunctionArg::Kind::matrix, "C emitter: matrix argument");
       for (std::size_t i = 0; i < arg.symbols.size(); ++i)
         b[arg.symbols[i].get_name()] =
             Binding{local(arg.symbols[i].get_name()), fmt::format("{}[{}]", arg.name, i), arg.name};
@@ -275,7 +399,7 @@ class CBuilder {
     Dag dag;
     for (const auto& l : f.lets) dag.let(l.symbol, l.value);
     std::vector<Assignment> assigns;
-    for (std::size_t r = 0; r < f.out_rows; ++r)
+    for (std::size_t r = 0; r < f.outputs.size(); ++r)
       assigns.push_back({fmt::format("out[{}]", r), dag.add(f.outputs[r])});
     const EmittedCode code = emit_statements(dag, assigns, b, opt_.precision, "  ", Language::c);
     std::string body;
@@ -302,19 +426,9 @@ class CBuilder {
 };
 
 void check_c_emittable(const Analysis& a, const ObserverSpec& s) {
-  if (a.model.p() != 1)
-    throw UserError(SourceLoc{a.model.file, 0, 0}, "code generation is single-output for now");
   if (s.update == UpdateKind::jets || s.estimate == EstimateKind::newton)
     throw UserError(SourceLoc{a.model.file, 0, 0},
                     "--language c: the " + s.method + " observer is not available in C yet");
-  for (const auto& f : s.functions) {
-    bool matrix = f.out_cols > 1;
-    for (const auto& arg : f.args) matrix = matrix || arg.kind == FunctionArg::Kind::matrix;
-    if (matrix)
-      throw UserError(SourceLoc{a.model.file, 0, 0}, "--language c: the matrix-valued function " +
-                                                         f.name + " of the " + s.method +
-                                                         " observer is not available in C yet");
-  }
 }
 
 std::string estimate_body(const ObserverSpec& s, const std::string& prm, CBuilder& b) {
@@ -327,6 +441,79 @@ std::string estimate_body(const ObserverSpec& s, const std::string& prm, CBuilde
       "  if (!all_finite(x, {0}_n)) return {0}_non_finite;\n"
       "  for (i = 0; i < {0}_n; ++i) o->xh[i] = x[i];\n  return {0}_ok;\n",
       b.prefix(), b.fn(s.roles.estimate), prm);
+}
+
+bool guarded(const ObserverSpec& s) {
+  return s.update == UpdateKind::ode && (s.correction || !s.symmetric_blocks.empty());
+}
+
+// The solvers, total_rhs and the guarded RK4 step.
+std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b,
+                              Precision precision) {
+  const bool single = precision == Precision::single;
+  std::size_t max_dim = 1;
+  for (const auto& q : s.symmetric_blocks) max_dim = std::max(max_dim, q.dim);
+  std::string out =
+      render_template(kSolvers, {{"zero", b.lit(0)},
+                                 {"sqrt", single ? "sqrtf" : "sqrt"},
+                                 {"fabs", single ? "fabsf" : "fabs"},
+                                 {"epsilon", single ? "1.1920929e-7f" : "2.220446049250313e-16"},
+                                 {"max_dim", std::to_string(max_dim)}});
+  const bool params = !prm.empty();
+  std::string correction = "  return 1;\n", doc;
+  if (s.correction) {
+    const SolveCorrection& k = *s.correction;
+    const std::string d = std::to_string(k.dim);
+    std::string matrix;
+    if (!k.matrix_function.empty()) {
+      matrix = fmt::format(
+          "    {{\n      Scalar Mc[{0} * {0}]; /* column-major */\n      int r, c;\n"
+          "      {1}(w, u{2}, Mc);\n"
+          "      for (r = 0; r < {0}; ++r)\n        for (c = 0; c < {0}; ++c) M[r * {0} + c] = "
+          "Mc[c * {0} + r];\n    }}\n",
+          d, b.fn(k.matrix_function), params ? ", prm" : "");
+    } else {
+      for (const auto& q : s.symmetric_blocks)
+        if (q.name == k.matrix_block)
+          matrix = fmt::format("    unpack_symmetric(w, {}, {}, M); /* {} */\n", q.offset, q.dim,
+                               q.name);
+      OBSYNTH_ASSERT(!matrix.empty(), "solve correction names an unknown symmetric block");
+    }
+    const bool chol = k.factor == SolveCorrection::Factor::cholesky;
+    correction = render_template(kCorrection, {{"dim", d},
+                                               {"matrix", matrix},
+                                               {"vector", b.fn(k.vector_function)},
+                                               {"prm", params ? ", prm" : ""},
+                                               {"solver", chol ? "solve_cholesky" : "solve_lu"},
+                                               {"offset", std::to_string(k.target_offset)}});
+    doc = fmt::format(" plus M^-1 v in rows {}..{} ({} solve)", k.target_offset,
+                      k.target_offset + k.dim - 1, chol ? "Cholesky" : "LU");
+  }
+  out += render_template(
+      kTotalRhs, {{"correction_doc", doc},
+                  {"prm_decl", params ? fmt::format(", const {}_params* prm", b.prefix()) : ""},
+                  {"rhs", b.fn(s.roles.rhs)},
+                  {"prm", params ? ", prm" : ""},
+                  {"correction", correction}});
+  std::string checks, names;
+  for (const auto& q : s.symmetric_blocks) {
+    if (!q.keep_positive_definite) continue;
+    checks += fmt::format(
+        "  if (!packed_positive_definite(w, {}, {})) return o->status = {}_singular; /* {} */\n",
+        q.offset, q.dim, b.prefix(), q.name);
+    names += (names.empty() ? "" : ", ") + q.name;
+  }
+  return out +
+         render_template(kStepRk4Guarded,
+                         {{"P", b.prefix()},
+                          {"guard_doc", names.empty() ? ""
+                                                      : fmt::format(", or when {} is no longer "
+                                                                    "positive definite",
+                                                                    names)},
+                          {"PRM", prm},
+                          {"two", b.lit(2)},
+                          {"six", b.lit(6)},
+                          {"block_checks", checks}});
 }
 
 std::string step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b) {
@@ -405,6 +592,7 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
        {"m", std::to_string(m.m())},
        {"p", std::to_string(m.p())},
        {"w_size", std::to_string(s.state_size)},
+       {"singular", guarded(s) ? fmt::format(", {}_singular = 2", P) : ""},
        {"params_decl", params ? render_template(kParamsDecl, {{"fields", fields}, {"P", P}}) : ""},
        {"members", members},
        {"prototypes", prototypes}});
@@ -436,7 +624,7 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
                                       {"reset_body", reset_body},
                                       {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
                                       {"init_body", init_body}});
-  src += step_text(s, prm, b);
+  src += guarded(s) ? guarded_step_text(s, prm, b, opt.precision) : step_text(s, prm, b);
   h.source_text = src;
   h.operations = b.operations_;
   std::string set_params;

@@ -86,7 +86,7 @@ class {{class_name}} {
   using Input = Eigen::Matrix<Scalar, m, 1>;
   using Output = Eigen::Matrix<Scalar, p, 1>;
   using F = {{functions_name}}<Scalar>;
-{{params_type}})";
+{{params_type}}{{observer_state_type}})";
 
 const char* kParamsApi = R"(
   /// The run-time parameters (defaults in ModelParams); they take effect at the next step.
@@ -108,12 +108,12 @@ const char* kStateClass = R"({{class_comment}}{{preamble}}
 
   /// The observer as a continuous-time system, d/dt w = derivative(w, u, y) for its own state
   /// w: for simulating plant and observer as one ODE (then the error decays as designed).
-  void derivative(const State& w, const Input& u, const Output& y, State& dw) const noexcept {
+  {{derivative_type}} derivative(const {{WState}}& w, const Input& u, const Output& y, {{WState}}& dw) const noexcept {
 {{derivative_body}}  }
   /// The observer's own state: {{state_doc}}.
-  const State& observer_state() const noexcept { return {{w}}_; }
+  const {{WState}}& observer_state() const noexcept { return {{w}}_; }
   /// Sets the observer's own state and recomputes the estimate.
-  obsynth::Status set_observer_state(const State& w) noexcept {
+  obsynth::Status set_observer_state(const {{WState}}& w) noexcept {
     {{w}}_ = w;
     return status_ = update_estimate();
   }
@@ -138,6 +138,55 @@ const char* kStepOde = R"(  /// One RK4 step of length dt with u and y held over
     }
     return status_ = update_estimate();
   }
+)";
+
+// ODE observers with a solve in the right-hand side and/or symmetric blocks in their state
+// that must stay positive definite: a failed solve or a lost definiteness rejects the step.
+const char* kStepOdeGuarded =
+    R"(  /// One RK4 step of length dt with u and y held over the step. The step is rejected (state
+  /// kept, Status::singular) when a gain solve fails in any stage{{guard_doc}}.
+  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
+    const ObserverState w_prev = {{w}}_;
+    bool solved = true;
+    obsynth::rk4_step<Scalar, nw>(
+        [{{capture}}&u, &y, &solved](const ObserverState& w, ObserverState& dw) noexcept {
+          solved = total_rhs(w, u, y{{P}}, dw) && solved;
+        },
+        dt, {{w}}_);
+    if (!solved) {
+      {{w}}_ = w_prev;
+      return status_ = obsynth::Status::singular;
+    }
+    if (!obsynth::all_finite({{w}}_)) {
+      {{w}}_ = w_prev;
+      return status_ = obsynth::Status::non_finite;
+    }
+{{block_checks}}    return status_ = update_estimate();
+  }
+)";
+
+const char* kBlockCheck =
+    R"(    if (!obsynth::packed_positive_definite<{{offset}}, {{dim}}>({{w}}_)) {  // {{name}}
+      {{w}}_ = w_prev;
+      return status_ = obsynth::Status::singular;
+    }
+)";
+
+const char* kTotalRhs = R"(
+  /// rhs(w, u, y){{correction_doc}}. False when the solve fails.
+  static bool total_rhs(const ObserverState& w, const Input& u, const Output& y{{prm_decl}},
+                        ObserverState& dw) noexcept {
+    F::{{rhs}}(w, u, y{{prm}}, dw);
+{{correction}}  }
+)";
+
+const char* kCorrection = R"(    typename F::GainMatrix M;
+{{matrix}}    typename F::GainVector v;
+    F::{{vector}}(w, u, y{{prm}}, v);
+    typename F::GainVector s;
+    if (!obsynth::{{solver}}<Scalar, {{dim}}>(M, v, s)) return false;
+    dw.template segment<{{dim}}>({{offset}}) += s;
+    return true;
 )";
 
 const char* kStepLinearRk4 = R"(  /// One RK4 step of length dt with u and y held over the step.
@@ -402,6 +451,11 @@ std::string describe_model(const Model& m) {
   return s;
 }
 
+// ODE observers whose step can be rejected by a failed solve or a lost definiteness.
+bool guarded(const ObserverSpec& s) {
+  return s.correction.has_value() || !s.symmetric_blocks.empty();
+}
+
 std::string includes_for(const ObserverSpec& s) {
   std::set<std::string> inc = {"eigen", "numeric", "observer", "status"};
   if (s.update == UpdateKind::ode || (s.update == UpdateKind::linear_exact && s.rk4_for_linear))
@@ -409,9 +463,15 @@ std::string includes_for(const ObserverSpec& s) {
   if (s.update == UpdateKind::linear_exact && !s.rk4_for_linear) inc.insert("discretise");
   if (s.update == UpdateKind::jets) inc.insert("differentiator");
   if (s.estimate == EstimateKind::newton) inc.insert("newton");
+  if (guarded(s)) inc.insert("linear_solve");
   std::string out;
   for (const auto& h : inc) out += fmt::format("#include \"obsynth/{}.hpp\"\n", h);
   return out;
+}
+
+// The observer state is not just an n-vector (a matrix block, or another size).
+bool own_state_type(const ObserverSpec& s) {
+  return s.update == UpdateKind::ode && guarded(s);
 }
 
 std::string tolerance_literal(Precision p) {
@@ -428,13 +488,20 @@ ClassContext class_context(const Analysis& a, const ObserverSpec& s, const EmitO
                            const std::string& class_name, const std::string& functions_name) {
   ClassContext c;
   const bool params = !s.params.empty();
-  c.common = {{"scalar", precision_name(opt.precision)},
-              {"class_name", class_name},
-              {"n", std::to_string(a.model.n())},
-              {"m", std::to_string(a.model.m())},
-              {"p", std::to_string(a.model.p())},
-              {"functions_name", functions_name},
-              {"params_type", params ? "  using Params = ModelParams<Scalar>;\n" : ""}};
+  c.common = {
+      {"scalar", precision_name(opt.precision)},
+      {"class_name", class_name},
+      {"n", std::to_string(a.model.n())},
+      {"m", std::to_string(a.model.m())},
+      {"p", std::to_string(a.model.p())},
+      {"functions_name", functions_name},
+      {"params_type", params ? "  using Params = ModelParams<Scalar>;\n" : ""},
+      {"observer_state_type",
+       own_state_type(s) ? fmt::format("  static constexpr int nw = {};  ///< observer state "
+                                       "size\n  using ObserverState = typename "
+                                       "F::ObserverState;\n",
+                                       s.state_size)
+                         : ""}};
   c.P = params ? ", prm_" : "";
   c.capture = params ? "this" : "";
   c.params_api = params ? kParamsApi : "";
@@ -473,6 +540,59 @@ std::string closed_loop_literals(const ObserverSpec& s, Precision p) {
   return fmt::format("{}", fmt::join(v, ", "));
 }
 
+std::string guarded_step(const ObserverSpec& s, const ClassContext& c) {
+  std::string checks, names;
+  for (const auto& b : s.symmetric_blocks) {
+    if (!b.keep_positive_definite) continue;
+    checks += render_template(kBlockCheck, {{"offset", std::to_string(b.offset)},
+                                            {"dim", std::to_string(b.dim)},
+                                            {"w", s.state_name},
+                                            {"name", b.name}});
+    names += (names.empty() ? "" : ", ") + b.name;
+  }
+  const std::string guard_doc =
+      names.empty() ? "" : fmt::format(", or when {} is no longer positive definite", names);
+  return render_template(kStepOdeGuarded, {{"w", s.state_name},
+                                           {"P", c.P},
+                                           {"capture", c.capture.empty() ? "" : "this, "},
+                                           {"guard_doc", guard_doc},
+                                           {"block_checks", checks}});
+}
+
+// The private total_rhs(w, u, y) = rhs + [0; M^-1 v; 0] of guarded ODE observers.
+std::string total_rhs_function(const ObserverSpec& s, const ClassContext& c) {
+  const bool params = !c.P.empty();
+  std::string correction = "    return true;\n", doc;
+  if (s.correction) {
+    const SolveCorrection& k = *s.correction;
+    std::string matrix;
+    if (!k.matrix_function.empty()) {
+      matrix = fmt::format("    F::{}(w, u{}, M);\n", k.matrix_function, params ? ", prm" : "");
+    } else {
+      const SymmetricBlock* b = nullptr;
+      for (const auto& q : s.symmetric_blocks)
+        if (q.name == k.matrix_block) b = &q;
+      OBSYNTH_ASSERT(b != nullptr, "solve correction names an unknown symmetric block");
+      matrix = fmt::format("    obsynth::unpack_symmetric<{}, {}>(w, M);  // {}\n", b->offset,
+                           b->dim, b->name);
+    }
+    const bool chol = k.factor == SolveCorrection::Factor::cholesky;
+    correction = render_template(kCorrection, {{"matrix", matrix},
+                                               {"vector", k.vector_function},
+                                               {"prm", params ? ", prm" : ""},
+                                               {"solver", chol ? "solve_cholesky" : "solve_lu"},
+                                               {"dim", std::to_string(k.dim)},
+                                               {"offset", std::to_string(k.target_offset)}});
+    doc = fmt::format(" plus M^-1 v in rows {}..{} ({} solve)", k.target_offset,
+                      k.target_offset + k.dim - 1, chol ? "Cholesky" : "LU");
+  }
+  return render_template(kTotalRhs, {{"correction_doc", doc},
+                                     {"prm_decl", params ? ", const Params& prm" : ""},
+                                     {"rhs", s.roles.rhs},
+                                     {"prm", params ? ", prm" : ""},
+                                     {"correction", correction}});
+}
+
 std::string step_text(const ObserverSpec& s, const ClassContext& c) {
   const std::map<std::string, std::string> v = {{"w", s.state_name},
                                                 {"P", c.P},
@@ -484,12 +604,17 @@ std::string step_text(const ObserverSpec& s, const ClassContext& c) {
     for (const char* k : keys) used[k] = v.at(k);
     return render_template(t, used);
   };
+  if (s.update == UpdateKind::ode && guarded(s)) return guarded_step(s, c);
   if (s.update == UpdateKind::ode) return pick(kStepOde, {"w", "P", "capture", "rhs"});
   if (s.rk4_for_linear) return pick(kStepLinearRk4, {"w", "P", "capture", "rhs", "step_constant"});
   return pick(kStepLinearExact, {"w", "P", "step_constant"});
 }
 
 std::string derivative_body(const ObserverSpec& s, const ClassContext& c) {
+  if (s.update == UpdateKind::ode && guarded(s))
+    return fmt::format(
+        "    return total_rhs(w, u, y{}, dw) ? obsynth::Status::ok : obsynth::Status::singular;\n",
+        c.P);
   if (s.update == UpdateKind::ode)
     return fmt::format("    F::{}(w, u, y{}, dw);\n", s.roles.rhs, c.P);
   return fmt::format("    State c;\n    F::{}(u, y{}, c);\n    F::{}(w, c{}, dw);\n",
@@ -520,16 +645,18 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOpti
   }
   const bool exact = s.update == UpdateKind::linear_exact && !s.rk4_for_linear;
   std::string members;
-  if (own_state) members += fmt::format("  State {}_;\n", s.state_name);
+  const std::string wstate = own_state_type(s) ? "ObserverState" : "State";
+  if (own_state) members += fmt::format("  {} {}_;\n", wstate, s.state_name);
   members += "  State xh_;\n";
   if (exact)
     members +=
         "  obsynth::ExactLinearStep<Scalar, n> exact_;  ///< Phi(dt), Gamma(dt) of the last dt\n";
   members += c.params_member;
-  const std::string private_functions =
+  std::string private_functions =
       exact
           ? render_template(kDiscretise, {{"closed_loop", closed_loop_literals(s, opt.precision)}})
           : "";
+  if (s.update == UpdateKind::ode && guarded(s)) private_functions += total_rhs_function(s, c);
   auto v = c.common;
   v.erase("scalar");
   v.erase("n");
@@ -537,6 +664,7 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOpti
   v.erase("p");
   v.erase("functions_name");
   v.erase("params_type");
+  v.erase("observer_state_type");
   v["preamble"] = render_preamble(c);
   v["class_comment"] = class_comment(s);
   v["params_api"] = c.params_api;
@@ -546,6 +674,8 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOpti
   v["reset_body"] = reset;
   v["step"] = step_text(s, c);
   v["derivative_body"] = derivative_body(s, c);
+  v["derivative_type"] = s.update == UpdateKind::ode && guarded(s) ? "obsynth::Status" : "void";
+  v["WState"] = wstate;
   v["state_doc"] = s.state_doc;
   v["w"] = s.state_name;
   v["estimate_body"] = estimate_body(s, opt, c);
@@ -589,6 +719,20 @@ std::string jets_class(const Analysis& a, const ObserverSpec& s, const EmitOptio
        {"members", c.params_member}});
 }
 
+// Types of the observer state and of the gain solve (guarded ODE observers).
+std::string guarded_types(const ObserverSpec& s) {
+  if (!own_state_type(s)) return "";
+  std::string out = fmt::format(
+      "  using ObserverState = Eigen::Matrix<Scalar, {}, 1>;  ///< the observer's own state\n",
+      s.state_size);
+  if (s.correction)
+    out += fmt::format(
+        "  using GainMatrix = Eigen::Matrix<Scalar, {0}, {0}>;  ///< M of the gain solve\n"
+        "  using GainVector = Eigen::Matrix<Scalar, {0}, 1>;\n",
+        s.correction->dim);
+  return out;
+}
+
 std::string jet_types(const ObserverSpec& s) {
   if (s.update != UpdateKind::jets) return "";
   return fmt::format(
@@ -614,15 +758,16 @@ std::string usage_example(const EmittedHeader& h, const ObserverSpec& s, const E
                                   {"set_params", set_params}});
 }
 
-void check_emittable(const Analysis& a) {
-  if (a.model.p() != 1)
-    throw UserError(SourceLoc{a.model.file, 0, 0}, "code generation is single-output for now");
+void check_emittable(const Analysis& a, const ObserverSpec& s) {
+  if (a.model.p() != 1 && s.update == UpdateKind::jets)
+    throw UserError(SourceLoc{a.model.file, 0, 0},
+                    "the " + s.method + " observer is single-output for now");
 }
 
 }  // namespace
 
 EmittedHeader emit_cxx_header(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt) {
-  check_emittable(a);
+  check_emittable(a, s);
   const Model& m = a.model;
   HeaderBuilder b(a, s, opt);
   EmittedHeader h;
@@ -630,7 +775,7 @@ EmittedHeader emit_cxx_header(const Analysis& a, const ObserverSpec& s, const Em
   h.class_name = pascal_case(h.namespace_name) + s.class_suffix;
   h.filename = h.namespace_name + "_" + s.method + ".hpp";
   const std::string functions_name = s.class_suffix + "Functions";
-  std::string functions = jet_types(s);
+  std::string functions = jet_types(s) + guarded_types(s);
   for (const auto& f : s.functions) functions += b.function(f);
   std::string description = describe_model(m);
   for (const auto& line : s.description) description += "// " + line + "\n";

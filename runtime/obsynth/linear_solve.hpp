@@ -1,0 +1,72 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) obsynth authors
+//
+// Factorised solves and packed symmetric blocks for observers whose state holds a matrix
+// (Riccati Q, Kalman-like S) or whose gain needs M^-1 v (high-gain O(x)^-1). Fixed size,
+// no heap, noexcept, failure as `false` (the caller turns it into a Status). Eigen's LLT and
+// PartialPivLU do the factorisations; never an explicit inverse.
+#pragma once
+
+#include <cmath>
+
+#include "obsynth/eigen.hpp"
+#include "obsynth/numeric.hpp"
+
+namespace obsynth {
+
+/// The symmetric D x D matrix stored row by row as its packed upper triangle at
+/// w[offset, offset + D(D+1)/2): (0,0), (0,1), ..., (0,D-1), (1,1), ..., (D-1,D-1).
+template <int Offset, int D, class Scalar, int NW>
+inline void unpack_symmetric(const Eigen::Matrix<Scalar, NW, 1>& w,
+                             Eigen::Matrix<Scalar, D, D>& M) noexcept {
+  static_assert(Offset + D * (D + 1) / 2 <= NW, "packed block outside the observer state");
+  int k = Offset;
+  for (int r = 0; r < D; ++r)
+    for (int c = r; c < D; ++c) {
+      M(r, c) = w(k);
+      M(c, r) = w(k);
+      ++k;
+    }
+}
+
+/// Whether the packed symmetric block is (numerically) positive definite: its Cholesky
+/// factorisation succeeds with finite, positive pivots.
+template <int Offset, int D, class Scalar, int NW>
+inline bool packed_positive_definite(const Eigen::Matrix<Scalar, NW, 1>& w) noexcept {
+  Eigen::Matrix<Scalar, D, D> M;
+  unpack_symmetric<Offset, D>(w, M);
+  const Eigen::LLT<Eigen::Matrix<Scalar, D, D>> llt(M);
+  if (llt.info() != Eigen::Success) return false;
+  const auto L = llt.matrixLLT();
+  for (int i = 0; i < D; ++i)
+    if (!(L(i, i) > Scalar(0)) || !std::isfinite(L(i, i))) return false;
+  return true;
+}
+
+/// x = M^-1 v for symmetric positive definite M (Cholesky). False when M is not positive
+/// definite or the result is not finite.
+template <class Scalar, int D>
+inline bool solve_cholesky(const Eigen::Matrix<Scalar, D, D>& M,
+                           const Eigen::Matrix<Scalar, D, 1>& v,
+                           Eigen::Matrix<Scalar, D, 1>& x) noexcept {
+  const Eigen::LLT<Eigen::Matrix<Scalar, D, D>> llt(M);
+  if (llt.info() != Eigen::Success) return false;
+  x = llt.solve(v);
+  return all_finite(x);
+}
+
+/// x = M^-1 v by LU with partial pivoting. False when a pivot is below D * epsilon times the
+/// largest one (singular to working precision) or the result is not finite.
+template <class Scalar, int D>
+inline bool solve_lu(const Eigen::Matrix<Scalar, D, D>& M, const Eigen::Matrix<Scalar, D, 1>& v,
+                     Eigen::Matrix<Scalar, D, 1>& x) noexcept {
+  const Eigen::PartialPivLU<Eigen::Matrix<Scalar, D, D>> lu(M);
+  const auto U = lu.matrixLU().diagonal().cwiseAbs();
+  const Scalar largest = U.maxCoeff();
+  if (!(largest > Scalar(0)) || !std::isfinite(largest)) return false;
+  if (U.minCoeff() <= Scalar(D) * Eigen::NumTraits<Scalar>::epsilon() * largest) return false;
+  x = lu.solve(v);
+  return all_finite(x);
+}
+
+}  // namespace obsynth
