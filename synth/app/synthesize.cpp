@@ -108,7 +108,7 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
     generated.push_back({method, h.filename, type,
                          fmt::format("`{}`: {} `{}`, {} arithmetic operations in its functions.",
                                      h.filename, spec.summary, type, h.operations),
-                         h.usage_example, spec.report, spec.params});
+                         h.usage_example, c, spec.report, spec.params});
     if (auto_asked && !c && method == s.chosen.front()) {
       const EmittedHeader alias = emit_cxx_auto_alias(a, h, method);
       s.files.push_back({alias.filename, alias.text});
