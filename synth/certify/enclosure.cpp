@@ -577,7 +577,11 @@ DefinitenessVerdict negative_definite(const GiNaC::matrix& S, const Box& box,
     };
     obj.at = [&](const std::vector<double>& p) { return score(pe(p)); };
     const BBResult r = branch_and_bound(
-        box, obj, budget, false, [](double ub, double best) { return ub < 0 || best > 0; },
+        box, obj, budget, false,
+        [&budget](double ub, double best) {
+          // proven with a tight bound, or failed at a point
+          return (ub < 0 && ub - best <= budget.relative_gap * std::fabs(best)) || best > 0;
+        },
         tape.used_vars());
     out.worst_point = r.best_point;
     if (std::isfinite(r.upper) && r.upper < 0) {
