@@ -3,6 +3,8 @@
 // (never through the library's own evaluator).
 #include <gtest/gtest.h>
 
+#include <Eigen/Dense>
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -209,6 +211,102 @@ TEST(Enclosure, NegativeDefiniteFailsWithWorstPoint) {
   // Non-symmetric input is symmetrized: eta' S eta only sees (S + S')/2.
   GiNaC::matrix N = {{-1, 4}, {-4, -1}};
   EXPECT_TRUE(negative_definite(N, box1(x, 0, 1)).holds);
+}
+
+// Random polynomial entries in (x, y) on a box, evaluated independently in plain doubles.
+struct RandomPoly {
+  std::vector<std::array<int, 3>> terms;  // c x^i y^j
+  ex to_ex() const {
+    ex e = 0;
+    for (const auto& t : terms) e += t[0] * pow(x, t[1]) * pow(y, t[2]);
+    return e;
+  }
+  double at(double xv, double yv) const {
+    double v = 0;
+    for (const auto& t : terms) v += t[0] * std::pow(xv, t[1]) * std::pow(yv, t[2]);
+    return v;
+  }
+};
+
+RandomPoly random_poly(std::mt19937& rng) {
+  std::uniform_int_distribution<int> coef(-4, 4), deg(0, 2), count(1, 3);
+  RandomPoly p;
+  const int k = count(rng);
+  for (int t = 0; t < k; ++t) p.terms.push_back({coef(rng), deg(rng), deg(rng)});
+  return p;
+}
+
+TEST(Enclosure, RandomMatrixNormsNeverBelowDenseSampling) {
+  std::mt19937 rng(4242);
+  const Box box{{x, y}, {{-1, 1.5}, {-0.5, 1}}};
+  for (int trial = 0; trial < 15; ++trial) {
+    RandomPoly e[2][3];
+    GiNaC::matrix M(2, 3);
+    for (unsigned i = 0; i < 2; ++i)
+      for (unsigned j = 0; j < 3; ++j) {
+        e[i][j] = random_poly(rng);
+        M(i, j) = e[i][j].to_ex();
+      }
+    const Bound b = matrix_norm_bound(M, box);
+    ASSERT_EQ(b.kind, BoundKind::rigorous);
+    double dense = 0;
+    for (int a = 0; a <= 100; ++a)
+      for (int c = 0; c <= 100; ++c) {
+        const double xv = -1 + 2.5 * a / 100, yv = -0.5 + 1.5 * c / 100;
+        Eigen::Matrix<double, 2, 3> A;
+        for (int i = 0; i < 2; ++i)
+          for (int j = 0; j < 3; ++j) A(i, j) = e[i][j].at(xv, yv);
+        dense = std::max(dense, Eigen::JacobiSVD<Eigen::MatrixXd>(A).singularValues()(0));
+      }
+    EXPECT_GE(b.value, dense) << M;
+    EXPECT_LE(b.value, 1.1 * dense + 1e-9) << M;
+  }
+}
+
+TEST(Enclosure, RandomSymmetricMatricesEigenvalueBoundsNeverBelowDenseSampling) {
+  std::mt19937 rng(99);
+  const Box box{{x, y}, {{-1, 1}, {0, 1}}};
+  int proven = 0, refuted = 0;
+  for (int trial = 0; trial < 24; ++trial) {
+    RandomPoly e[3][3];
+    GiNaC::matrix S(3, 3);
+    const double shift = 4.0 * (trial % 6);  // S - shift I: some definite, some not
+    for (unsigned i = 0; i < 3; ++i)
+      for (unsigned j = i; j < 3; ++j) {
+        e[i][j] = random_poly(rng);
+        e[j][i] = e[i][j];
+        S(i, j) = S(j, i) = e[i][j].to_ex();
+      }
+    for (unsigned i = 0; i < 3; ++i) S(i, i) = e[i][i].to_ex() - GiNaC::numeric(4 * (trial % 6));
+    const DefinitenessVerdict v = negative_definite(S, box);
+    double dense = -1e300;
+    for (int a = 0; a <= 60; ++a)
+      for (int c = 0; c <= 60; ++c) {
+        const double xv = -1 + 2.0 * a / 60, yv = 1.0 * c / 60;
+        Eigen::Matrix3d A;
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) A(i, j) = e[i][j].at(xv, yv) - (i == j ? shift : 0.0);
+        dense = std::max(
+            dense, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(A).eigenvalues().maxCoeff());
+      }
+    if (v.kind != BoundKind::rigorous) continue;
+    EXPECT_GE(v.max_eigenvalue_bound, dense) << S;
+    if (v.holds) {
+      ++proven;
+      EXPECT_LT(dense, 0) << S;
+    } else {
+      ++refuted;
+      ASSERT_EQ(v.worst_point.size(), 2u);
+      Eigen::Matrix3d A;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          A(i, j) = e[i][j].at(v.worst_point[0], v.worst_point[1]) - (i == j ? shift : 0.0);
+      EXPECT_GE(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(A).eigenvalues().maxCoeff(), -1e-12)
+          << S;
+    }
+  }
+  EXPECT_GT(proven, 3);
+  EXPECT_GT(refuted, 3);
 }
 
 }  // namespace

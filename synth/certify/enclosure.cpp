@@ -373,16 +373,22 @@ double lambda_max_upper(const BallVec& b, std::size_t n) {
     }
     gersh = std::max(gersh, detail::upper(s));
   }
-  // lambda_max(mid) + ||rad||_2.
+  // lambda_max(mid) + ||rad||_2 (Weyl). mid and rad are made exactly symmetric: Arb's Cholesky
+  // reads the lower triangle only, and ||rad||_2 = rho(rad) (Collatz-Wielandt) needs symmetry.
   std::vector<double> rad(n * n);
   ArbMat M(static_cast<slong>(n), static_cast<slong>(n));
   for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t j = 0; j < n; ++j) {
+    for (std::size_t j = i; j < n; ++j) {
       const double m = arf_get_d(arb_midref(b[i * n + j]), ARF_RND_NEAR);
       arb_set_d(arb_mat_entry(M.m, i, j), m);
+      arb_set_d(arb_mat_entry(M.m, j, i), m);
       arb_set_d(t, m);
       arb_sub(t, b[i * n + j], t, kPrec);
-      rad[i * n + j] = detail::abs_upper(t);
+      double r = detail::abs_upper(t);
+      arb_set_d(t, m);
+      arb_sub(t, b[j * n + i], t, kPrec);
+      r = std::max(r, detail::abs_upper(t));
+      rad[i * n + j] = rad[j * n + i] = r;
     }
   double bnd = gersh;
   const double lm = point_lambda_max(M, n);
