@@ -121,8 +121,9 @@ Verdict applies(const Analysis& a) {
   }
   v.applies = true;
   v.reasons.push_back(
-      "it needs only the Jacobians of f + g and h (no canonical form); convergence from "
-      "|x0 - m0| < rho (Theorem 2.1) or globally when delta > 0 (Corollary 2.1) under uniform "
+      "it needs only the Jacobians of f + g and h (no canonical form); convergence for "
+      "an initial error below rho (Theorem 2.1) or globally when delta > 0 (Corollary 2.1) under "
+      "uniform "
       "detectability");
   return v;
 }
@@ -289,8 +290,9 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       {"R", matrix_text(prm.R) + (prm.R_given ? " (--R)" : " (default: I)")},
       {"R^-2", matrix_text(W) + " (exact)"},
       {"integrator",
-       "RK4 of (m, Q) with u, y held; Q kept symmetric positive definite (Cholesky check after "
-       "each step, rejected step -> Status::singular)"}};
+       "RK4 of (m, Q) with u, y held; Q kept symmetric positive definite (after each step its "
+       "L D L^T pivots must be finite and > 0, i.e. Q has a Cholesky factor; otherwise the step "
+       "is rejected: Status::singular)"}};
   if (prm.N.rank() < n)
     s.report.push_back({"warning", fmt::format("rank N = {} < n = {}: seed 000 assumes rank N = n "
                                                "(N N^T >= r0 I, r0 > 0)",
