@@ -97,21 +97,32 @@ TEST(Synthesize, AutoChoosesCanonicalWhenTheBracketsHoldAndSaysWhy) {
 TEST(Synthesize, AllIsEveryDesignThatApplies) {
   std::string why;
   EXPECT_EQ(resolve_methods(analysed("slawinski17"), {"all"}, why),
-            (std::vector<std::string>{"canonical", "perfect"}));
-  EXPECT_TRUE(resolve_methods(analysed("lorenz"), {"all"}, why).empty());
+            (std::vector<std::string>{"canonical", "perfect", "riccati"}));
+  EXPECT_EQ(resolve_methods(analysed("lorenz"), {"all"}, why),
+            (std::vector<std::string>{"riccati"}));
+  EXPECT_TRUE(resolve_methods(analysed("stuart_landau"), {"all"}, why).empty());
 }
 
-TEST(Synthesize, AutoOnANonLinearizableModelListsEveryDesignsReason) {
+TEST(Synthesize, AutoOnANonLinearizableModelFallsBackToRiccatiAndSaysWhy) {
   const Analysis a = analysed("rayleigh");
+  std::string why;
+  EXPECT_EQ(resolve_methods(a, {"auto"}, why), std::vector<std::string>{"riccati"});
+  EXPECT_NE(why.find("chose 'riccati'"), std::string::npos) << why;
+  EXPECT_NE(why.find("canonical: "), std::string::npos) << why;
+  EXPECT_NE(why.find("perfect: "), std::string::npos) << why;
+}
+
+TEST(Synthesize, AutoOnAnUnobservableModelListsEveryDesignsReason) {
+  const Analysis a = analysed("stuart_landau");
   std::string why;
   try {
     resolve_methods(a, {"auto"}, why);
-    FAIL() << "auto chose a design for rayleigh";
+    FAIL() << "auto chose a design for stuart_landau";
   } catch (const UserError& e) {
     const std::string msg = e.diagnostics().at(0).message;
     EXPECT_NE(msg.find("canonical: "), std::string::npos) << msg;
-    EXPECT_NE(msg.find("perfect: "), std::string::npos) << msg;
-    EXPECT_NE(msg.find("not implemented yet: riccati"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("riccati: "), std::string::npos) << msg;
+    EXPECT_NE(msg.find("not implemented yet: high-gain"), std::string::npos) << msg;
   }
 }
 

@@ -6,6 +6,7 @@
 
 #include "designs/canonical.hpp"
 #include "designs/perfect.hpp"
+#include "designs/riccati.hpp"
 
 namespace obsynth {
 
@@ -17,14 +18,14 @@ const std::vector<Design>& design_registry() {
   static const std::vector<Design> designs = {
       canonical_design(),
       perfect_design(),
+      riccati_design(),
   };
   return designs;
 }
 
 const std::vector<std::string>& planned_methods() {
   static const std::vector<std::string> planned = {
-      "riccati",    "high-gain", "kalman-theta", "thau", "kou", "extended-linearization",
-      "finite-time"};
+      "high-gain", "kalman-theta", "thau", "kou", "extended-linearization", "finite-time"};
   return planned;
 }
 

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <map>
+
 #include "front/diagnostics.hpp"
 
 #ifndef OBSYNTH_VERSION
@@ -195,7 +197,7 @@ const char* kStepRk4 = R"(
 // ODE observers with a gain solve and/or symmetric blocks that must stay positive definite.
 const char* kStepRk4Guarded = R"(
 /* One RK4 step of length dt with u and y held over the step; rejected (state kept,
- * {{P}}_singular) when a gain solve fails in any stage{{guard_doc}}. */
+ * {{P}}_singular) {{guard_doc}}. */
 {{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
   Scalar k1[N], k2[N], k3[N], k4[N], t[N], w[N];
   int i, ok;
@@ -214,15 +216,18 @@ const char* kStepRk4Guarded = R"(
 }
 )";
 
-// Cholesky and LU with partial pivoting for the gain solve, in place, row-major d x d.
-const char* kSolvers = R"(
+// Helpers of guarded ODE updates; each is emitted only when the spec uses it (strict C flags
+// reject unused static functions). Row-major d x d, in place.
+const char* kUnpack = R"(
 /* Unpacks the symmetric d x d block stored as its upper triangle, row by row, at w + off. */
 static void unpack_symmetric(const Scalar* w, int off, int d, Scalar* M) {
   int r, c, k = off;
   for (r = 0; r < d; ++r)
     for (c = r; c < d; ++c, ++k) M[r * d + c] = M[c * d + r] = w[k];
 }
+)";
 
+const char* kSolveCholesky = R"(
 /* M = L L^T in place (lower triangle); 0 when M is not positive definite. */
 static int cholesky(Scalar* M, int d) {
   int i, j, k;
@@ -255,7 +260,9 @@ static int solve_cholesky(Scalar* M, int d, const Scalar* v, Scalar* x) {
   }
   return all_finite(x, d);
 }
+)";
 
+const char* kSolveLu = R"(
 /* LU with partial pivoting; 0 when a pivot is below d * epsilon times the largest. */
 static int solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x) {
   int i, j, k;
@@ -292,11 +299,29 @@ static int solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x) {
   }
   return all_finite(x, d);
 }
+)";
 
+// Positive definiteness of a packed block: the pivots of its square-root-free Cholesky
+// factorisation L D L^T are finite and > 0 (exactly when L L^T exists), read in place.
+const char* kPackedPositiveDefinite = R"(
+/* 1 when the symmetric d x d block packed at w + off (upper triangle, row by row) is positive
+ * definite: every pivot of its L D L^T factorisation is finite and > 0. */
 static int packed_positive_definite(const Scalar* w, int off, int d) {
-  Scalar M[{{max_dim}} * {{max_dim}}];
-  unpack_symmetric(w, off, d, M);
-  return cholesky(M, d);
+  Scalar L[{{max_dim}} * {{max_dim}}], D[{{max_dim}}];
+  int i, j, k;
+  for (j = 0; j < d; ++j) {
+    const int row = off + j * d - j * (j - 1) / 2; /* (j, j) */
+    Scalar s = w[row];
+    for (k = 0; k < j; ++k) s -= L[j * d + k] * L[j * d + k] * D[k];
+    if (!(s > {{zero}}) || !isfinite(s)) return 0;
+    D[j] = s;
+    for (i = j + 1; i < d; ++i) {
+      Scalar t = w[row + (i - j)];
+      for (k = 0; k < j; ++k) t -= L[i * d + k] * L[j * d + k] * D[k];
+      L[i * d + j] = t / s;
+    }
+  }
+  return 1;
 }
 )";
 
@@ -600,12 +625,26 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
   const bool single = precision == Precision::single;
   std::size_t max_dim = 1;
   for (const auto& q : s.symmetric_blocks) max_dim = std::max(max_dim, q.dim);
-  std::string out =
-      render_template(kSolvers, {{"zero", b.lit(0)},
-                                 {"sqrt", single ? "sqrtf" : "sqrt"},
-                                 {"fabs", single ? "fabsf" : "fabs"},
-                                 {"epsilon", single ? "1.1920929e-7f" : "2.220446049250313e-16"},
-                                 {"max_dim", std::to_string(max_dim)}});
+  const std::map<std::string, std::string> lits = {
+      {"zero", b.lit(0)},
+      {"sqrt", single ? "sqrtf" : "sqrt"},
+      {"fabs", single ? "fabsf" : "fabs"},
+      {"epsilon", single ? "1.1920929e-7f" : "2.220446049250313e-16"},
+      {"max_dim", std::to_string(max_dim)}};
+  auto helper = [&](const char* text, std::vector<std::string> keys) {
+    std::map<std::string, std::string> v;
+    for (const auto& k : keys) v[k] = lits.at(k);
+    return render_template(text, v);
+  };
+  std::string out;
+  if (s.correction && !s.correction->matrix_block.empty()) out += kUnpack;
+  if (s.correction && s.correction->factor == SolveCorrection::Factor::cholesky)
+    out += helper(kSolveCholesky, {"zero", "sqrt"});
+  if (s.correction && s.correction->factor == SolveCorrection::Factor::lu)
+    out += helper(kSolveLu, {"zero", "fabs", "epsilon"});
+  bool pd = false;
+  for (const auto& q : s.symmetric_blocks) pd = pd || q.keep_positive_definite;
+  if (pd) out += helper(kPackedPositiveDefinite, {"zero", "max_dim"});
   const bool params = !prm.empty();
   std::string correction = "  return 1;\n", doc;
   if (s.correction) {
@@ -650,17 +689,16 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
         q.offset, q.dim, b.prefix(), q.name);
     names += (names.empty() ? "" : ", ") + q.name;
   }
-  return out +
-         render_template(kStepRk4Guarded,
-                         {{"P", b.prefix()},
-                          {"guard_doc", names.empty() ? ""
-                                                      : fmt::format(", or when {} is no longer "
-                                                                    "positive definite",
-                                                                    names)},
-                          {"PRM", prm},
-                          {"two", b.lit(2)},
-                          {"six", b.lit(6)},
-                          {"block_checks", checks}});
+  std::vector<std::string> why;
+  if (s.correction) why.push_back("when a gain solve fails in any stage");
+  if (!names.empty()) why.push_back(fmt::format("when {} is no longer positive definite", names));
+  const std::string guard_doc = fmt::format("{}", fmt::join(why, ", or "));
+  return out + render_template(kStepRk4Guarded, {{"P", b.prefix()},
+                                                 {"guard_doc", guard_doc},
+                                                 {"PRM", prm},
+                                                 {"two", b.lit(2)},
+                                                 {"six", b.lit(6)},
+                                                 {"block_checks", checks}});
 }
 
 std::string step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b) {
