@@ -169,7 +169,7 @@ Certificate certify(const Model& m, const HighGainStructure& st, const std::vect
       M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = b.value;
       c.rigorous = c.rigorous && b.rigorous;
       c.entries.push_back(
-          fmt::format("|d phi_{}/d z_{}| <= {:.4g} ({})", i + 1, j + 1, b.value, b.method));
+          fmt::format("sup abs(d phi_{}/d z_{}) <= {:.4g} ({})", i + 1, j + 1, b.value, b.method));
     }
   c.L = M.norm() > 0 ? Eigen::JacobiSVD<Eigen::MatrixXd>(M).singularValues()(0) : 0.0;
   c.lambda_P = lyapunov_lambda_max(K);

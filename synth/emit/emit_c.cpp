@@ -215,14 +215,17 @@ const char* kStepRk4Guarded = R"(
 )";
 
 // Cholesky and LU with partial pivoting for the gain solve, in place, row-major d x d.
-const char* kSolvers = R"(
+// Each helper is emitted only when the spec uses it (no unused static functions).
+const char* kSolverUnpack = R"(
 /* Unpacks the symmetric d x d block stored as its upper triangle, row by row, at w + off. */
 static void unpack_symmetric(const Scalar* w, int off, int d, Scalar* M) {
   int r, c, k = off;
   for (r = 0; r < d; ++r)
     for (c = r; c < d; ++c, ++k) M[r * d + c] = M[c * d + r] = w[k];
 }
+)";
 
+const char* kSolverCholesky = R"(
 /* M = L L^T in place (lower triangle); 0 when M is not positive definite. */
 static int cholesky(Scalar* M, int d) {
   int i, j, k;
@@ -239,7 +242,9 @@ static int cholesky(Scalar* M, int d) {
   }
   return 1;
 }
+)";
 
+const char* kSolverSolveCholesky = R"(
 static int solve_cholesky(Scalar* M, int d, const Scalar* v, Scalar* x) {
   int i, k;
   if (!cholesky(M, d)) return 0;
@@ -255,7 +260,9 @@ static int solve_cholesky(Scalar* M, int d, const Scalar* v, Scalar* x) {
   }
   return all_finite(x, d);
 }
+)";
 
+const char* kSolverLu = R"(
 /* LU with partial pivoting; 0 when a pivot is below d * epsilon times the largest. */
 static int solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x) {
   int i, j, k;
@@ -292,7 +299,9 @@ static int solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x) {
   }
   return all_finite(x, d);
 }
+)";
 
+const char* kSolverPositiveDefinite = R"(
 static int packed_positive_definite(const Scalar* w, int off, int d) {
   Scalar M[{{max_dim}} * {{max_dim}}];
   unpack_symmetric(w, off, d, M);
@@ -359,6 +368,8 @@ class CBuilder {
   CBuilder(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt)
       : a_(a), s_(s), opt_(opt) {
     prefix_ = cxx_identifier(a.model.name) + "_" + s.method;
+    for (auto& ch : prefix_)
+      if (ch == '-') ch = '_';  // method names such as "high-gain" are not C identifiers
     const Model& m = a.model;
     for (const auto& x : m.states) local(x.get_name());
     for (const auto& x : m.inputs) local(x.get_name());
@@ -453,12 +464,28 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
   const bool single = precision == Precision::single;
   std::size_t max_dim = 1;
   for (const auto& q : s.symmetric_blocks) max_dim = std::max(max_dim, q.dim);
-  std::string out =
-      render_template(kSolvers, {{"zero", b.lit(0)},
-                                 {"sqrt", single ? "sqrtf" : "sqrt"},
-                                 {"fabs", single ? "fabsf" : "fabs"},
-                                 {"epsilon", single ? "1.1920929e-7f" : "2.220446049250313e-16"},
-                                 {"max_dim", std::to_string(max_dim)}});
+  const std::map<std::string, std::string> values = {
+      {"zero", b.lit(0)},
+      {"sqrt", single ? "sqrtf" : "sqrt"},
+      {"fabs", single ? "fabsf" : "fabs"},
+      {"epsilon", single ? "1.1920929e-7f" : "2.220446049250313e-16"},
+      {"max_dim", std::to_string(max_dim)}};
+  auto use = [&](const char* t, std::initializer_list<const char*> keys) {
+    std::map<std::string, std::string> used;
+    for (const char* k : keys) used[k] = values.at(k);
+    return render_template(t, used);
+  };
+  bool pd_blocks = false;
+  for (const auto& q : s.symmetric_blocks) pd_blocks = pd_blocks || q.keep_positive_definite;
+  const bool block_solve = s.correction && !s.correction->matrix_block.empty();
+  const bool chol_solve = s.correction && s.correction->factor == SolveCorrection::Factor::cholesky;
+  const bool lu_solve = s.correction && s.correction->factor == SolveCorrection::Factor::lu;
+  std::string out;
+  if (pd_blocks || block_solve) out += use(kSolverUnpack, {});
+  if (pd_blocks || chol_solve) out += use(kSolverCholesky, {"zero", "sqrt"});
+  if (chol_solve) out += use(kSolverSolveCholesky, {});
+  if (lu_solve) out += use(kSolverLu, {"zero", "fabs", "epsilon"});
+  if (pd_blocks) out += use(kSolverPositiveDefinite, {"max_dim"});
   const bool params = !prm.empty();
   std::string correction = "  return 1;\n", doc;
   if (s.correction) {
