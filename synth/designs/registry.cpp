@@ -5,6 +5,8 @@
 #include <algorithm>
 
 #include "designs/canonical.hpp"
+#include "designs/high_gain.hpp"
+#include "designs/kalman_theta.hpp"
 #include "designs/perfect.hpp"
 #include "designs/riccati.hpp"
 
@@ -18,14 +20,16 @@ const std::vector<Design>& design_registry() {
   static const std::vector<Design> designs = {
       canonical_design(),
       perfect_design(),
+      high_gain_design(),
       riccati_design(),
+      kalman_theta_design(),
   };
   return designs;
 }
 
 const std::vector<std::string>& planned_methods() {
-  static const std::vector<std::string> planned = {
-      "high-gain", "kalman-theta", "thau", "kou", "extended-linearization", "finite-time"};
+  static const std::vector<std::string> planned = {"thau", "kou", "extended-linearization",
+                                                   "finite-time"};
   return planned;
 }
 

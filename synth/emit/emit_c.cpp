@@ -524,6 +524,8 @@ class CBuilder {
   CBuilder(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt)
       : a_(a), s_(s), opt_(opt) {
     prefix_ = cxx_identifier(a.model.name) + "_" + s.method;
+    for (auto& ch : prefix_)
+      if (ch == '-') ch = '_';  // method names such as "high-gain" are not C identifiers
     const Model& m = a.model;
     for (const auto& x : m.states) local(x.get_name());
     for (const auto& x : m.inputs) local(x.get_name());
