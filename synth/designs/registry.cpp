@@ -5,7 +5,9 @@
 #include <algorithm>
 
 #include "designs/canonical.hpp"
+#include "designs/kou.hpp"
 #include "designs/perfect.hpp"
+#include "designs/thau.hpp"
 
 namespace obsynth {
 
@@ -17,14 +19,15 @@ const std::vector<Design>& design_registry() {
   static const std::vector<Design> designs = {
       canonical_design(),
       perfect_design(),
+      thau_design(),
+      kou_design(),
   };
   return designs;
 }
 
 const std::vector<std::string>& planned_methods() {
   static const std::vector<std::string> planned = {
-      "riccati",    "high-gain", "kalman-theta", "thau", "kou", "extended-linearization",
-      "finite-time"};
+      "riccati", "high-gain", "kalman-theta", "extended-linearization", "finite-time"};
   return planned;
 }
 
