@@ -7,8 +7,10 @@
 #include "designs/canonical.hpp"
 #include "designs/high_gain.hpp"
 #include "designs/kalman_theta.hpp"
+#include "designs/kou.hpp"
 #include "designs/perfect.hpp"
 #include "designs/riccati.hpp"
+#include "designs/thau.hpp"
 
 namespace obsynth {
 
@@ -23,13 +25,14 @@ const std::vector<Design>& design_registry() {
       high_gain_design(),
       riccati_design(),
       kalman_theta_design(),
+      thau_design(),
+      kou_design(),
   };
   return designs;
 }
 
 const std::vector<std::string>& planned_methods() {
-  static const std::vector<std::string> planned = {"thau", "kou", "extended-linearization",
-                                                   "finite-time"};
+  static const std::vector<std::string> planned = {"extended-linearization", "finite-time"};
   return planned;
 }
 
