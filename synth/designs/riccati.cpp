@@ -4,6 +4,7 @@
 
 #include <set>
 
+#include "certify/riccati_certificate.hpp"
 #include "designs/options.hpp"
 #include "symbolic/expr_print.hpp"
 
@@ -41,6 +42,21 @@ GiNaC::matrix matrix_option(const DesignOptions& o, const std::string& name, std
                                 name, v.size(), what, d, d, d, d * d));
   }
   return M;
+}
+
+// Lambda of the detectability test (3.3), n x p: n*p values (row-major); none: 0.
+GiNaC::matrix lambda_option(const DesignOptions& o, std::size_t n, std::size_t p) {
+  const std::vector<numeric> v = real_list_option(o, "Lambda");
+  GiNaC::matrix L(static_cast<unsigned>(n), static_cast<unsigned>(p));
+  if (v.empty()) return L;
+  if (v.size() != n * p)
+    throw UserError(SourceLoc{},
+                    fmt::format("--Lambda: {} values given; Lambda is n x p = {} x {}: "
+                                "give {} values (row-major)",
+                                v.size(), n, p, n * p));
+  for (unsigned r = 0; r < n; ++r)
+    for (unsigned c = 0; c < p; ++c) L(r, c) = v[r * p + c];
+  return L;
 }
 
 void require_symmetric_pd(const GiNaC::matrix& M, const std::string& name) {
@@ -299,6 +315,11 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
                                                prm.N.rank(), n)});
   const Verdict v = applies(a);
   if (!v.applies) s.report.push_back({"warning", v.text()});
+  // The certificate of Theorem 2.1 / Corollary 2.1 over the domain box (rigorous or sampled,
+  // each number labelled).
+  const certify::RiccatiCertificate cert = certify::riccati_certificate(
+      m, certify::RiccatiParameters{prm.Q0, prm.N, prm.R, lambda_option(o, n, p)});
+  for (auto& row : certify::riccati_certificate_rows(cert)) s.report.push_back(std::move(row));
   s.summary = fmt::format(
       "James-Baras Riccati observer (seed 000): RK4 of (m, Q) with Q packed and kept positive "
       "definite; Q0 = {}, N = {}, R = {}",
@@ -342,7 +363,11 @@ Design riccati_design() {
       {"R",
        "riccati: R (a standard deviation: gain Q Dh^T R^-2), p x p symmetric positive definite: "
        "p values (diagonal), p*p or 1",
-       "I"}};
+       "I"},
+      {"Lambda",
+       "riccati: Lambda of the detectability test (3.3), n x p: n*p values (row-major); "
+       "certificate only",
+       "0"}};
   d.applies = applies;
   d.build = build;
   return d;
