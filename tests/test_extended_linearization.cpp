@@ -26,7 +26,7 @@ using GiNaC::ex;
 namespace {
 
 Model load(const std::string& name) {
-  return parse_model_file(std::string(OBSYNTH_SOURCE_DIR) + "/models/" + name + ".sym");
+  return load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/" + name + ".sym");
 }
 
 DesignOptions opts(std::map<std::string, std::string> v) {
