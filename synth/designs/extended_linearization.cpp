@@ -330,10 +330,12 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   GiNaC::exmap on_family = *fam;
   for (const auto& kv : other_inputs) on_family[kv.first] = kv.second;
   GiNaC::matrix A(static_cast<unsigned>(n), static_cast<unsigned>(n)), H(1, static_cast<unsigned>(n));
+  // Series family: entries stay unsimplified (the Taylor expansion below does the work).
+  auto tidy = [&](const ex& e) { return r.family_closed ? simplify(e) : e; };
   for (unsigned i = 0; i < n; ++i) {
     for (unsigned j = 0; j < n; ++j)
-      A(i, j) = simplify(P.F[i].diff(m.states[j]).subs(on_family, GiNaC::subs_options::no_pattern));
-    H(0, i) = simplify(P.h.diff(m.states[i]).subs(on_family, GiNaC::subs_options::no_pattern));
+      A(i, j) = tidy(P.F[i].diff(m.states[j]).subs(on_family, GiNaC::subs_options::no_pattern));
+    H(0, i) = tidy(P.h.diff(m.states[i]).subs(on_family, GiNaC::subs_options::no_pattern));
   }
   GiNaC::matrix O(static_cast<unsigned>(n), static_cast<unsigned>(n));
   {
@@ -357,8 +359,7 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
     pA = pA.mul(A.sub(GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(static_cast<unsigned>(n))).mul_scalar(q)));
   const GiNaC::matrix c = pA.mul(v);
   for (unsigned i = 0; i < n; ++i) {
-    ex ci = simplify(c(i, 0));
-    if (!r.family_closed) ci = taylor(ci, eps, std::max(0, m_order - 1));
+    const ex ci = r.family_closed ? simplify(c(i, 0)) : taylor(c(i, 0), eps, std::max(0, m_order - 1));
     r.c_eps.push_back(ci);
   }
 
@@ -555,7 +556,19 @@ const ExtendedLinearization& extended_linearization(const Model& m, const Design
   static std::map<std::string, ExtendedLinearization> cache;
   const std::string key = key_of(m, o);
   auto it = cache.find(key);
-  if (it == cache.end()) it = cache.emplace(key, run(m, o)).first;
+  if (it == cache.end()) {
+    ExtendedLinearization r;
+    try {
+      r = run(m, o);
+    } catch (const UserError&) {
+      throw;
+    } catch (const std::exception& e) {
+      // A symbolic step failed (e.g. a series at a singular point): the design does not apply.
+      r = ExtendedLinearization{};
+      r.failures.push_back(std::string("the symbolic construction failed: ") + e.what());
+    }
+    it = cache.emplace(key, r).first;
+  }
   return it->second;
 }
 
