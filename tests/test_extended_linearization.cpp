@@ -41,12 +41,16 @@ ex taylor_of(const ex& e, const GiNaC::symbol& y, int order) {
   return GiNaC::series_to_poly(e.series(y == 0, order + 1));
 }
 
-bool exactly_equal(const ex& a, const ex& b) { return GiNaC::normal(GiNaC::expand(a - b)).is_zero(); }
+bool exactly_equal(const ex& a, const ex& b) {
+  return GiNaC::normal(GiNaC::expand(a - b)).is_zero();
+}
 
 // Pendulum, by hand: family x = (e, 0), u = sin e; A = [[0, 1], [-cos e, -1/4]], H = [1, 0];
 // det(lambda I - A + c H) = lambda^2 + (c1 + 1/4) lambda + c1/4 + cos e + c2 = (lambda+1)(lambda+2)
 // => c1 = 11/4, c2 = 21/16 - cos e; k(y) = [11/4 y, 21/16 y - sin y].
-ExVec pendulum_k(const GiNaC::symbol& y) { return {GiNaC::numeric(11, 4) * y, GiNaC::numeric(21, 16) * y - GiNaC::sin(y)}; }
+ExVec pendulum_k(const GiNaC::symbol& y) {
+  return {GiNaC::numeric(11, 4) * y, GiNaC::numeric(21, 16) * y - GiNaC::sin(y)};
+}
 // Cart pendulum, by hand (models/cart_pendulum.sym): k(y) = [3 asin y, 2 asin y + atanh y].
 ExVec cart_k(const GiNaC::symbol& y) {
   return {3 * GiNaC::asin(y), 2 * GiNaC::asin(y) + GiNaC::atanh(y)};
@@ -159,9 +163,11 @@ TEST(ExtendedLinearization, EigenvaluesInvariantAlongFamily) {
     const Model m = load("pendulum");
     const Analysis a = analyse(m);
     for (const auto& poles : {std::string(""), std::string("-3,-0.5")}) {
-      const ObserverSpec s = build_design(
-          a, "extended-linearization", poles.empty() ? DesignOptions{} : opts({{"el-poles", poles}}));
-      const std::vector<double> want = poles.empty() ? std::vector<double>{-2, -1} : std::vector<double>{-3, -0.5};
+      const ObserverSpec s =
+          build_design(a, "extended-linearization",
+                       poles.empty() ? DesignOptions{} : opts({{"el-poles", poles}}));
+      const std::vector<double> want =
+          poles.empty() ? std::vector<double>{-2, -1} : std::vector<double>{-3, -0.5};
       for (double e : {-2.0, -0.7, 0.0, 0.3, 1.0, 2.5}) {
         const auto ev = error_eigenvalues(m, s, {e, 0}, std::sin(e));
         EXPECT_LT(deviation(ev, want), 1e-9) << "eps = " << e;
@@ -178,8 +184,10 @@ TEST(ExtendedLinearization, EigenvaluesInvariantAlongFamily) {
     };
     EXPECT_LT(dev(0), 1e-12);
     const double d1 = dev(0.2), d2 = dev(0.1), d3 = dev(0.05);
-    std::printf("cart pendulum, series injection m = 6: eigenvalue deviation %.3g, %.3g, %.3g at "
-                "eps = 0.2, 0.1, 0.05\n", d1, d2, d3);
+    std::printf(
+        "cart pendulum, series injection m = 6: eigenvalue deviation %.3g, %.3g, %.3g at "
+        "eps = 0.2, 0.1, 0.05\n",
+        d1, d2, d3);
     EXPECT_GT(d1, 0);
     // Order 6: halving eps divides the deviation by about 2^6.
     EXPECT_GT(d2 / d3, 40) << d2 << " " << d3;
@@ -191,7 +199,8 @@ TEST(ExtendedLinearization, EigenvaluesInvariantAlongFamily) {
 
 double final_error(const SimulationResult& r) {
   double e = 0;
-  for (size_t i = 0; i < r.names.size(); ++i) e = std::max(e, std::abs(r.x.back()[i] - r.xh.back()[i]));
+  for (size_t i = 0; i < r.names.size(); ++i)
+    e = std::max(e, std::abs(r.x.back()[i] - r.xh.back()[i]));
   return e;
 }
 
@@ -225,25 +234,30 @@ TEST(ExtendedLinearization, ClosedLoopConvergesNearFamily) {
   }
 }
 
-Model model_text(const char* text) { return parse_model(text, "t.sym"); }
+Model model_text(const char* text) {
+  return parse_model(text, "t.sym");
+}
 
 TEST(ExtendedLinearization, ConstraintsReportedWithNumbers) {
   // (i): the double integrator has det A0 = 0.
-  const Model di = model_text("model di\nstates x1 x2\ninputs u\nf = [x2, 0]\ng = [0, u]\nh = [x1]\n");
+  const Model di =
+      model_text("model di\nstates x1 x2\ninputs u\nf = [x2, 0]\ng = [0, u]\nh = [x1]\n");
   const Verdict v1 = find_design("extended-linearization")->applies(analyse(di));
   EXPECT_FALSE(v1.applies);
-  EXPECT_NE(v1.text().find("constraint (i) fails: det(d(f+g)/dx) at the base point = 0"), std::string::npos)
+  EXPECT_NE(v1.text().find("constraint (i) fails: det(d(f+g)/dx) at the base point = 0"),
+            std::string::npos)
       << v1.text();
   // (iii): the input enters bilinearly, B0 = 0, dy/deps = 0.
   const Model bl = model_text(
       "model bl\nstates x1 x2\ninputs u\nf = [-x1 + x2, -x2]\ng = [0, u*x1]\nh = [x1]\n");
   const Verdict v3 = find_design("extended-linearization")->applies(analyse(bl));
   EXPECT_FALSE(v3.applies);
-  EXPECT_NE(v3.text().find("constraint (iii) fails: dy_eps/deps = -H0 A0^-1 B0 = 0"), std::string::npos)
+  EXPECT_NE(v3.text().find("constraint (iii) fails: dy_eps/deps = -H0 A0^-1 B0 = 0"),
+            std::string::npos)
       << v3.text();
   // (ii): x2 invisible in the linearisation.
-  const Model un = model_text(
-      "model un\nstates x1 x2\ninputs u\nf = [-x1 + x2^2, -x2]\ng = [0, u]\nh = [x1]\n");
+  const Model un =
+      model_text("model un\nstates x1 x2\ninputs u\nf = [-x1 + x2^2, -x2]\ng = [0, u]\nh = [x1]\n");
   const Verdict v2 = find_design("extended-linearization")->applies(analyse(un));
   EXPECT_FALSE(v2.applies);
   EXPECT_NE(v2.text().find("constraint (ii) fails"), std::string::npos) << v2.text();
@@ -251,7 +265,8 @@ TEST(ExtendedLinearization, ConstraintsReportedWithNumbers) {
   const Model ni = model_text("model ni\nstates x1 x2\nf = [x2, -x1]\nh = [x1]\n");
   EXPECT_FALSE(find_design("extended-linearization")->applies(analyse(ni)).applies);
   // Not an equilibrium at the origin.
-  const Model ne = model_text("model ne\nstates x1 x2\ninputs u\nf = [x2, 1 - x1]\ng = [0, u]\nh = [x1]\n");
+  const Model ne =
+      model_text("model ne\nstates x1 x2\ninputs u\nf = [x2, 1 - x1]\ng = [0, u]\nh = [x1]\n");
   const Verdict v4 = find_design("extended-linearization")->applies(analyse(ne));
   EXPECT_FALSE(v4.applies);
   EXPECT_NE(v4.text().find("not an equilibrium"), std::string::npos) << v4.text();
@@ -266,7 +281,8 @@ TEST(ExtendedLinearization, BadOptionsAreDiagnosed) {
   EXPECT_THROW(build_design(a, "extended-linearization", opts({{"el-poles", "-1"}})), UserError);
   EXPECT_THROW(build_design(a, "extended-linearization", opts({{"el-poles", "-1,2"}})), UserError);
   EXPECT_THROW(build_design(a, "extended-linearization", opts({{"el-order", "0"}})), UserError);
-  EXPECT_THROW(build_design(a, "extended-linearization", opts({{"el-injection", "magic"}})), UserError);
+  EXPECT_THROW(build_design(a, "extended-linearization", opts({{"el-injection", "magic"}})),
+               UserError);
   // Closed form demanded where the integrals do not close: the cart pendulum's family is a series.
   EXPECT_THROW(build_design(analyse(load("cart_pendulum")), "extended-linearization",
                             opts({{"el-injection", "closed"}})),

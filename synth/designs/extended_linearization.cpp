@@ -41,9 +41,24 @@ double value_at(const ex& e, const GiNaC::exmap& pt) {
   return std::numeric_limits<double>::quiet_NaN();
 }
 
-std::string num_text(double v) { return fmt::format("{:.6g}", v); }
+std::string num_text(double v) {
+  return fmt::format("{:.6g}", v);
+}
 
-std::string vec_text(const ExVec& v) { return fmt::format("[{}]", fmt::join(to_strings(v), ", ")); }
+// Entry by entry: to_string orders each entry deterministically, GiNaC's matrix printing does not.
+std::string mat_text(const GiNaC::matrix& M) {
+  std::vector<std::string> rows;
+  for (unsigned i = 0; i < M.rows(); ++i) {
+    std::vector<std::string> row;
+    for (unsigned j = 0; j < M.cols(); ++j) row.push_back(to_string(M(i, j)));
+    rows.push_back(fmt::format("[{}]", fmt::join(row, ", ")));
+  }
+  return fmt::format("[{}]", fmt::join(rows, ", "));
+}
+
+std::string vec_text(const ExVec& v) {
+  return fmt::format("[{}]", fmt::join(to_strings(v), ", "));
+}
 
 // The Taylor polynomial of e in eps up to eps^order (inclusive).
 ex taylor(const ex& e, const GiNaC::symbol& eps, int order) {
@@ -55,17 +70,17 @@ ex taylor(const ex& e, const GiNaC::symbol& eps, int order) {
 }
 
 struct Problem {
-  ExVec F;                                // f + g with the other inputs at u0
-  ex h;                                   // the output
-  std::vector<GiNaC::symbol> unknowns;    // states, then the first input
-  ExVec equations;                        // F, h - y0 - eps
-  GiNaC::exmap base;                      // unknowns -> base values
+  ExVec F;                              // f + g with the other inputs at u0
+  ex h;                                 // the output
+  std::vector<GiNaC::symbol> unknowns;  // states, then the first input
+  ExVec equations;                      // F, h - y0 - eps
+  GiNaC::exmap base;                    // unknowns -> base values
 };
 
 // Solve the family one unknown at a time; nullopt when some step is not linear with a
 // coefficient nonzero at the base point.
-std::optional<GiNaC::exmap> closed_family(const Model& m, const Problem& P, const GiNaC::symbol& eps,
-                                          const GiNaC::exmap& params) {
+std::optional<GiNaC::exmap> closed_family(const Model& m, const Problem& P,
+                                          const GiNaC::symbol& eps, const GiNaC::exmap& params) {
   GiNaC::exmap sol;
   std::vector<bool> used(P.equations.size(), false);
   std::set<unsigned> solved;
@@ -115,7 +130,10 @@ std::optional<GiNaC::exmap> series_family(const Problem& P, const GiNaC::symbol&
   GiNaC::matrix J(d, d);
   for (unsigned i = 0; i < d; ++i)
     for (unsigned j = 0; j < d; ++j)
-      J(i, j) = P.equations[i].diff(P.unknowns[j]).subs(P.base, GiNaC::subs_options::no_pattern).subs(eps == 0);
+      J(i, j) = P.equations[i]
+                    .diff(P.unknowns[j])
+                    .subs(P.base, GiNaC::subs_options::no_pattern)
+                    .subs(eps == 0);
   const ex det = simplify(J.determinant());
   if (det.is_zero()) {
     why = "the Jacobian of (f + g, h) in (x, u) is singular at the base point";
@@ -168,8 +186,8 @@ int order_option(const DesignOptions& o, const std::string& name, int dflt) {
   const auto v = real_option(o, name);
   if (!v) return dflt;
   if (!v->is_integer() || *v < 1 || *v > 20)
-    throw UserError(SourceLoc{}, fmt::format("--{}: expected an integer in 1..20, got {}", name,
-                                             to_string(*v)));
+    throw UserError(SourceLoc{},
+                    fmt::format("--{}: expected an integer in 1..20, got {}", name, to_string(*v)));
   return v->to_int();
 }
 
@@ -181,8 +199,9 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   r.poles_given = !r.poles.empty();
   if (r.poles_given) {
     if (r.poles.size() != n)
-      throw UserError(SourceLoc{}, fmt::format("--el-poles: {} poles given, the model has n = {} states",
-                                               r.poles.size(), n));
+      throw UserError(SourceLoc{},
+                      fmt::format("--el-poles: {} poles given, the model has n = {} states",
+                                  r.poles.size(), n));
     for (const auto& q : r.poles)
       if (!q.is_negative())
         throw UserError(SourceLoc{}, fmt::format("--el-poles: pole {} is not negative (the error "
@@ -198,24 +217,28 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   const int fam_order = order_option(o, "el-family-order", m_order);
 
   if (m.p() != 1) {
-    r.failures.push_back(fmt::format("the model has p = {} outputs; extended linearization is built "
-                                     "here for one output (seed 001 §5, p = 1)",
-                                     m.p()));
+    r.failures.push_back(
+        fmt::format("the model has p = {} outputs; extended linearization is built "
+                    "here for one output (seed 001 §5, p = 1)",
+                    m.p()));
     return r;
   }
   if (m.m() == 0) {
-    r.failures.push_back("the model has no input: there is no family of equilibria x_eps, u_eps "
-                         "(seed 001 §5 needs a controlled system)");
+    r.failures.push_back(
+        "the model has no input: there is no family of equilibria x_eps, u_eps "
+        "(seed 001 §5 needs a controlled system)");
     return r;
   }
   if (m.feedthrough()) {
-    r.failures.push_back("the output depends on the input (y = h(x, u)); the seed assumes y = h(x)");
+    r.failures.push_back(
+        "the output depends on the input (y = h(x, u)); the seed assumes y = h(x)");
     return r;
   }
   if (n > kMaxStates) {
-    r.failures.push_back(fmt::format("n = {} > {}: the symbolic Ackermann gain schedule is not "
-                                     "attempted",
-                                     n, kMaxStates));
+    r.failures.push_back(
+        fmt::format("n = {} > {}: the symbolic Ackermann gain schedule is not "
+                    "attempted",
+                    n, kMaxStates));
     return r;
   }
   const GiNaC::exmap params = param_point(m);
@@ -229,7 +252,8 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
     r.u0.push_back(uj);
     if (j > 0) other_inputs[m.inputs[j]] = uj;
   }
-  for (const auto& e : m.field()) P.F.push_back(e.subs(other_inputs, GiNaC::subs_options::no_pattern));
+  for (const auto& e : m.field())
+    P.F.push_back(e.subs(other_inputs, GiNaC::subs_options::no_pattern));
   P.h = m.h[0];
   for (std::size_t i = 0; i < n; ++i) {
     P.unknowns.push_back(m.states[i]);
@@ -258,8 +282,8 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   P.equations.push_back(P.h - r.y0 - eps);
 
   // Linearisation at the base point and constraints (i)-(iii).
-  GiNaC::matrix A0(static_cast<unsigned>(n), static_cast<unsigned>(n)), B0(static_cast<unsigned>(n), 1),
-      H0(1, static_cast<unsigned>(n));
+  GiNaC::matrix A0(static_cast<unsigned>(n), static_cast<unsigned>(n)),
+      B0(static_cast<unsigned>(n), 1), H0(1, static_cast<unsigned>(n));
   for (unsigned i = 0; i < n; ++i) {
     for (unsigned j = 0; j < n; ++j)
       A0(i, j) = P.F[i].diff(m.states[j]).subs(P.base, GiNaC::subs_options::no_pattern);
@@ -281,17 +305,19 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
       params.empty() ? std::string() : " (free parameters at the centre of their boxes)";
   const bool c1 = std::isfinite(r.det_A0) && std::fabs(r.det_A0) > kTiny;
   const bool c2 = r.obs_rank == n;
-  r.notes.push_back(fmt::format("base point x0 = 0, u0 = {}, y0 = h(x0) = {}; A0 = d(f+g)/dx = {}, "
-                                "B0 = d(f+g)/du = {}, H0 = dh/dx = {}{}",
-                                to_string(ex(r.u0[0])), to_string(r.y0), to_string(ex(A0)),
-                                to_string(ex(B0)), to_string(ex(H0)), at_params));
+  r.notes.push_back(
+      fmt::format("base point x0 = 0, u0 = {}, y0 = h(x0) = {}; A0 = d(f+g)/dx = {}, "
+                  "B0 = d(f+g)/du = {}, H0 = dh/dx = {}{}",
+                  to_string(ex(r.u0[0])), to_string(r.y0), mat_text(A0), mat_text(B0),
+                  mat_text(H0), at_params));
   if (c1) {
     r.dy_deps = value_at((H0.mul(A0.inverse()).mul(B0))(0, 0) * -1, params);
   } else {
     r.dy_deps = std::numeric_limits<double>::quiet_NaN();
   }
   const bool c3 = c1 && std::isfinite(r.dy_deps) && std::fabs(r.dy_deps) > kTiny;
-  r.notes.push_back(fmt::format("constraint (i) {}: det A0 = {}", c1 ? "holds" : "fails", num_text(r.det_A0)));
+  r.notes.push_back(
+      fmt::format("constraint (i) {}: det A0 = {}", c1 ? "holds" : "fails", num_text(r.det_A0)));
   r.notes.push_back(fmt::format("constraint (ii) {}: det O(A0, H0) = {} (rank {} of n = {})",
                                 c2 ? "holds" : "fails", num_text(det_O0), c2 ? n : r.obs_rank, n));
   r.notes.push_back(fmt::format("constraint (iii) {}: dy_eps/deps = -H0 A0^-1 B0 = {}",
@@ -301,9 +327,10 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
     r.failures.push_back(fmt::format("constraint (i) fails: det(d(f+g)/dx) at the base point = {}",
                                      num_text(r.det_A0)));
   if (!c2)
-    r.failures.push_back(fmt::format("constraint (ii) fails: (A0, H0) not observable, det of its "
-                                     "observability matrix = {}",
-                                     num_text(det_O0)));
+    r.failures.push_back(
+        fmt::format("constraint (ii) fails: (A0, H0) not observable, det of its "
+                    "observability matrix = {}",
+                    num_text(det_O0)));
   if (c1 && !c3)
     r.failures.push_back(fmt::format("constraint (iii) fails: dy_eps/deps = -H0 A0^-1 B0 = {}",
                                      num_text(r.dy_deps)));
@@ -329,7 +356,8 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   // Gain schedule by Ackermann's formula on the family.
   GiNaC::exmap on_family = *fam;
   for (const auto& kv : other_inputs) on_family[kv.first] = kv.second;
-  GiNaC::matrix A(static_cast<unsigned>(n), static_cast<unsigned>(n)), H(1, static_cast<unsigned>(n));
+  GiNaC::matrix A(static_cast<unsigned>(n), static_cast<unsigned>(n)),
+      H(1, static_cast<unsigned>(n));
   // Series family: entries stay unsimplified (the Taylor expansion below does the work).
   auto tidy = [&](const ex& e) { return r.family_closed ? simplify(e) : e; };
   for (unsigned i = 0; i < n; ++i) {
@@ -351,15 +379,18 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   try {
     v = O.inverse().mul(en);
   } catch (const std::exception& e) {
-    r.failures.push_back(std::string("the observability matrix along the family is singular: ") + e.what());
+    r.failures.push_back(std::string("the observability matrix along the family is singular: ") +
+                         e.what());
     return r;
   }
   GiNaC::matrix pA = GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(static_cast<unsigned>(n)));
   for (const auto& q : r.poles)
-    pA = pA.mul(A.sub(GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(static_cast<unsigned>(n))).mul_scalar(q)));
+    pA = pA.mul(A.sub(
+        GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(static_cast<unsigned>(n))).mul_scalar(q)));
   const GiNaC::matrix c = pA.mul(v);
   for (unsigned i = 0; i < n; ++i) {
-    const ex ci = r.family_closed ? simplify(c(i, 0)) : taylor(c(i, 0), eps, std::max(0, m_order - 1));
+    const ex ci =
+        r.family_closed ? simplify(c(i, 0)) : taylor(c(i, 0), eps, std::max(0, m_order - 1));
     r.c_eps.push_back(ci);
   }
 
@@ -368,8 +399,8 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   bool closed = false;
   if (inj_mode != "series") {
     if (!r.family_closed) {
-      r.injection_reason = fmt::format("the equilibrium family is a series (order {}), so c(eps) is too",
-                                       r.family_order);
+      r.injection_reason = fmt::format(
+          "the equilibrium family is a series (order {}), so c(eps) is too", r.family_order);
     } else {
       ExVec k;
       closed = true;
@@ -385,7 +416,8 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
         GiNaC::exmap z0 = params;
         if (!std::isfinite(value_at(at0, z0))) {
           closed = false;
-          r.injection_reason = fmt::format("the antiderivative of c_{} is undefined at eps = 0", i + 1);
+          r.injection_reason =
+              fmt::format("the antiderivative of c_{} is undefined at eps = 0", i + 1);
           break;
         }
         k.push_back(simplify(I.value->subs(eps == shift) - at0));
@@ -424,10 +456,11 @@ std::string family_text(const Model& m, const ExtendedLinearization& r) {
   for (std::size_t i = 0; i < m.n(); ++i)
     parts.push_back(fmt::format("{} = {}", m.states[i].get_name(), to_string(r.x_eps[i])));
   parts.push_back(fmt::format("{} = {}", m.inputs[0].get_name(), to_string(r.u_eps)));
-  return fmt::format("{} ({})", fmt::join(parts, ", "),
-                     r.family_closed ? "closed form"
-                                     : fmt::format("Taylor polynomial to eps^{}, implicit function theorem",
-                                                   r.family_order));
+  return fmt::format(
+      "{} ({})", fmt::join(parts, ", "),
+      r.family_closed
+          ? "closed form"
+          : fmt::format("Taylor polynomial to eps^{}, implicit function theorem", r.family_order));
 }
 
 std::string injection_kind(const ExtendedLinearization& r) {
@@ -447,7 +480,9 @@ Verdict applies(const Analysis& a) {
   }
   if (!r->failures.empty()) {
     v.reasons = r->failures;
-    for (const auto& nt : r->notes) v.reasons.push_back(nt);
+    // The base point and the constraints that hold (the failed ones are already listed).
+    for (const auto& nt : r->notes)
+      if (nt.find(" fails") == std::string::npos) v.reasons.push_back(nt);
     return v;
   }
   v.applies = true;
@@ -455,8 +490,9 @@ Verdict applies(const Analysis& a) {
       "constraints (i)-(iii) hold at the base point (det A0 = {}, (A0, H0) observable, dy_eps/deps "
       "= {}); equilibrium family {}; the linearized error has eigenvalues {} for every eps (local "
       "result near the family); injection {}",
-      num_text(r->det_A0), num_text(r->dy_deps), r->family_closed ? "in closed form" : "as a series",
-      poles_text(r->poles), r->injection_closed ? "in closed form" : "as a series"));
+      num_text(r->det_A0), num_text(r->dy_deps),
+      r->family_closed ? "in closed form" : "as a series", poles_text(r->poles),
+      r->injection_closed ? "in closed form" : "as a series"));
   return v;
 }
 
@@ -503,11 +539,12 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   spec.state_size = n;
   spec.params = runtime_params(m);
   spec.functions = model_functions(m);
-  spec.functions.push_back(fn("injection",
-                              "Output injection k(y) with dk/dy(y_eps) = C(eps)^T (seed 001 eq. 34, 40).",
-                              {output_arg({y})}, k_y, "State"));
-  GeneratedFunction x_rhs = fn("x_rhs", "xh' = f(xh) + g(xh, u) + k(y) - k(h(xh))  (seed 001 eq. 29).",
-                               {state_arg(m), input_arg(m), output_arg({y})}, rhs, "State");
+  spec.functions.push_back(
+      fn("injection", "Output injection k(y) with dk/dy(y_eps) = C(eps)^T (seed 001 eq. 34, 40).",
+         {output_arg({y})}, k_y, "State"));
+  GeneratedFunction x_rhs =
+      fn("x_rhs", "xh' = f(xh) + g(xh, u) + k(y) - k(h(xh))  (seed 001 eq. 29).",
+         {state_arg(m), input_arg(m), output_arg({y})}, rhs, "State");
   x_rhs.lets.push_back({yh, m.h[0]});
   spec.functions.push_back(x_rhs);
   spec.state_name = "xh";
@@ -522,27 +559,31 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       "Observer: extended linearization (Baumann-Rugh 1986; seed 001 §5, eq. 27-45)",
       fmt::format("Eigenvalues of the linearized error along the equilibrium family: {}{}",
                   poles_text(r.poles), r.poles_given ? "" : " (default)"),
-      fmt::format("Injection k(y): {}", r.injection_closed
-                                            ? std::string("closed form (eq. 40)")
-                                            : fmt::format("series to order {} (eq. 42-45)", r.injection_order))};
-  spec.class_doc = {"  xh' = f(xh) + g(xh, u) + k(y) - k(h(xh)),  dk/dy(y_eps) = C(eps)^T (Ackermann),",
-                    "so the error dynamics linearized at every equilibrium x_eps of the family have the",
-                    "prescribed eigenvalues (a local design: near the family)."};
+      fmt::format("Injection k(y): {}",
+                  r.injection_closed
+                      ? std::string("closed form (eq. 40)")
+                      : fmt::format("series to order {} (eq. 42-45)", r.injection_order))};
+  spec.class_doc = {
+      "  xh' = f(xh) + g(xh, u) + k(y) - k(h(xh)),  dk/dy(y_eps) = C(eps)^T (Ackermann),",
+      "so the error dynamics linearized at every equilibrium x_eps of the family have the",
+      "prescribed eigenvalues (a local design: near the family)."};
   spec.constants.push_back({"poles", r.poles, "eigenvalues of the linearized error dynamics"});
   spec.report = {
-      {"equations", "xh' = f(xh, u) + k(y) - k(h(xh)) (seed 001 eq. 29), dk/dy(y_eps) = C(eps)^T (eq. 34)"},
+      {"equations",
+       "xh' = f(xh, u) + k(y) - k(h(xh)) (seed 001 eq. 29), dk/dy(y_eps) = C(eps)^T (eq. 34)"},
       {"parametrisation",
        "eps = y - y0, the output level of the equilibrium (regular by constraint (iii)); u is the "
        "model's first input"}};
   for (const auto& nt : r.notes) spec.report.push_back({"constraints", nt});
   spec.report.push_back({"equilibrium family", family_text(m, r)});
-  spec.report.push_back({"poles", fmt::format("{} ({})", poles_text(r.poles),
-                                              r.poles_given ? "given with --el-poles"
-                                                            : "default -1, -2, ..., -n")});
-  spec.report.push_back({"gain schedule C(eps)^T", fmt::format("{} (Ackermann: p(A_eps) O_eps^-1 e_n{})",
-                                                              vec_text(r.c_eps),
-                                                              r.family_closed ? "" : ", as a series")});
-  spec.report.push_back({"injection k(y)", fmt::format("{}; {}", vec_text(r.injection), injection_kind(r))});
+  spec.report.push_back(
+      {"poles", fmt::format("{} ({})", poles_text(r.poles),
+                            r.poles_given ? "given with --el-poles" : "default -1, -2, ..., -n")});
+  spec.report.push_back({"gain schedule C(eps)^T",
+                         fmt::format("{} (Ackermann: p(A_eps) O_eps^-1 e_n{})", vec_text(r.c_eps),
+                                     r.family_closed ? "" : ", as a series")});
+  spec.report.push_back(
+      {"injection k(y)", fmt::format("{}; {}", vec_text(r.injection), injection_kind(r))});
   spec.summary = fmt::format(
       "Extended linearization observer (Baumann-Rugh): linearized error eigenvalues {} along the "
       "equilibrium family ({}); injection {}",
@@ -565,7 +606,9 @@ const ExtendedLinearization& extended_linearization(const Model& m, const Design
     } catch (const std::exception& e) {
       // A symbolic step failed (e.g. a series at a singular point): the design does not apply.
       r = ExtendedLinearization{};
-      r.failures.push_back(std::string("the symbolic construction failed: ") + e.what());
+      r.failures.push_back(std::string("the symbolic construction failed (the seed needs f, g and "
+                                       "h analytic at the base point and along the family): ") +
+                           e.what());
     }
     it = cache.emplace(key, r).first;
   }
@@ -581,13 +624,16 @@ Design extended_linearization_design() {
   d.options = {
       {"el-poles", "extended-linearization: eigenvalues of the linearized error, n negative reals",
        "-1, -2, ..., -n"},
-      {"el-injection", "extended-linearization: injection k(y): auto (closed form when the integrals "
-                       "exist), closed, or series",
+      {"el-injection",
+       "extended-linearization: injection k(y): auto (closed form when the integrals "
+       "exist), closed, or series",
        "auto"},
       {"el-order", "extended-linearization: order m of the series injection (eq. 42-45)", "6"},
-      {"el-family", "extended-linearization: equilibrium family: auto (closed form when found) or series",
+      {"el-family",
+       "extended-linearization: equilibrium family: auto (closed form when found) or series",
        "auto"},
-      {"el-family-order", "extended-linearization: order of the family's power series", "el-order"}};
+      {"el-family-order", "extended-linearization: order of the family's power series",
+       "el-order"}};
   d.applies = applies;
   d.build = build;
   return d;

@@ -42,21 +42,21 @@ struct ExtendedLinearization {
   std::vector<std::string> failures;  // why it does not apply (empty: it does)
   std::vector<std::string> notes;     // constraint values and choices, with numbers
   GiNaC::symbol eps{"eps"}, y{"y"};
-  GiNaC::ex y0;                       // h at the base point (may hold free parameters)
-  std::vector<GiNaC::numeric> x0, u0; // base point
+  GiNaC::ex y0;                        // h at the base point (may hold free parameters)
+  std::vector<GiNaC::numeric> x0, u0;  // base point
   bool family_closed = false;
-  int family_order = 0;               // series order when not closed
-  ExVec x_eps;                        // x on the family (exact, or Taylor polynomial in eps)
-  GiNaC::ex u_eps;                    // the first input on the family
+  int family_order = 0;  // series order when not closed
+  ExVec x_eps;           // x on the family (exact, or Taylor polynomial in eps)
+  GiNaC::ex u_eps;       // the first input on the family
   std::vector<GiNaC::numeric> poles;
   bool poles_given = false;
-  ExVec c_eps;                        // gain schedule c(eps) = C(eps)^T
+  ExVec c_eps;  // gain schedule c(eps) = C(eps)^T
   bool injection_closed = false;
-  int injection_order = 0;            // series order m when not closed
-  std::string injection_reason;       // why the series was used
-  ExVec injection;                    // k(y)
-  double det_A0 = 0, dy_deps = 0;     // constraint (i), (iii) values
-  std::size_t obs_rank = 0;           // constraint (ii)
+  int injection_order = 0;         // series order m when not closed
+  std::string injection_reason;    // why the series was used
+  ExVec injection;                 // k(y)
+  double det_A0 = 0, dy_deps = 0;  // constraint (i), (iii) values
+  std::size_t obs_rank = 0;        // constraint (ii)
 };
 
 // Runs the design (cached per model and options). Throws UserError for bad options.

@@ -11,7 +11,9 @@
 namespace el_ref {
 
 #if OBSYNTH_EL_MODEL == 1  // pendulum: f = [x2, -sin x1 - x2/4], g = [0, u], h = x1
-inline long double h(const long double* x) { return x[0]; }
+inline long double h(const long double* x) {
+  return x[0];
+}
 inline void field(const long double* x, long double u, long double* out) {
   out[0] = x[1];
   out[1] = -std::sin(x[0]) - x[1] / 4 + u;
@@ -21,11 +23,15 @@ inline void k(long double y, long double* out) {
   out[1] = 21.0L / 16 * y - std::sin(y);
 }
 // Closed loop near the family x = (e, 0), u = sin e.
-inline long double u_of_t(double t) { return std::sin(0.5L) + 0.2L * std::sin(static_cast<long double>(t)); }
+inline long double u_of_t(double t) {
+  return std::sin(0.5L) + 0.2L * std::sin(static_cast<long double>(t));
+}
 constexpr double x0[2] = {0.5, 0}, xh0[2] = {0.8, -0.4};
 constexpr double t_end = 15;
 #else  // cart pendulum: f = [x2, sin x1], g = [0, -cos(x1) u], h = sin x1
-inline long double h(const long double* x) { return std::sin(x[0]); }
+inline long double h(const long double* x) {
+  return std::sin(x[0]);
+}
 inline void field(const long double* x, long double u, long double* out) {
   out[0] = x[1];
   out[1] = std::sin(x[0]) - std::cos(x[0]) * u;
@@ -36,7 +42,9 @@ inline void k(long double y, long double* out) {
   out[1] = 3 * y + 2 * y3 / 3 + 7 * y5 / 20;
 }
 // At the equilibrium x1 = asin(1/5), u = tan(x1) = 1/sqrt(24) (open loop unstable).
-inline long double u_of_t(double) { return 1 / std::sqrt(24.0L); }
+inline long double u_of_t(double) {
+  return 1 / std::sqrt(24.0L);
+}
 constexpr double x0[2] = {0.20135792079033080, 0}, xh0[2] = {0.25135792079033080, -0.05};
 constexpr double t_end = 10;
 #endif

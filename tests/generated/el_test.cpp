@@ -31,7 +31,8 @@ void numeric_equivalence() {
   const double tol = sizeof(Scalar) == sizeof(double) ? 1e-13 : 2e-6;
   for (int a = 0; a < 7; ++a)
     for (int b = 0; b < 5; ++b) {
-      const double x1 = -0.9 + 0.3 * a, x2 = -1 + 0.5 * b, uu = 0.1 * a - 0.2 * b, yy = 0.13 * b - 0.4;
+      const double x1 = -0.9 + 0.3 * a, x2 = -1 + 0.5 * b, uu = 0.1 * a - 0.2 * b,
+                   yy = 0.13 * b - 0.4;
       typename F::State xh, out, kout;
       typename F::Input u;
       typename F::Output y;
@@ -47,7 +48,8 @@ void numeric_equivalence() {
       el_ref::k(static_cast<Scalar>(yy), kw);
       for (int i = 0; i < 2; ++i) {
         const double scale = 1 + std::fabs(static_cast<double>(want[i]));
-        expect(std::fabs(static_cast<double>(out(i)) - static_cast<double>(want[i])) <= tol * scale * 4,
+        expect(std::fabs(static_cast<double>(out(i)) - static_cast<double>(want[i])) <=
+                   tol * scale * 4,
                "x_rhs", static_cast<double>(out(i)), static_cast<double>(want[i]));
         expect(std::fabs(static_cast<double>(kout(i)) - static_cast<double>(kw[i])) <=
                    tol * (1 + std::fabs(static_cast<double>(kw[i]))),
@@ -91,7 +93,8 @@ void closed_loop() {
   expect(not_ok == 0, "every step returns ok", static_cast<double>(not_ok));
   double err = 0;
   for (int i = 0; i < 2; ++i)
-    err = std::fmax(err, std::fabs(static_cast<double>(x[i]) - static_cast<double>(o.estimate()(i))));
+    err =
+        std::fmax(err, std::fabs(static_cast<double>(x[i]) - static_cast<double>(o.estimate()(i))));
   // u, y held over dt: the floor is first order in dt times |y'| (small near the family).
   const double tol = sizeof(Scalar) == sizeof(double) ? 1e-3 : 2e-3;
   expect(err < tol, "closed loop error", err, tol);
