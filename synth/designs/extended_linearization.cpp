@@ -308,8 +308,8 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   r.notes.push_back(
       fmt::format("base point x0 = 0, u0 = {}, y0 = h(x0) = {}; A0 = d(f+g)/dx = {}, "
                   "B0 = d(f+g)/du = {}, H0 = dh/dx = {}{}",
-                  to_string(ex(r.u0[0])), to_string(r.y0), mat_text(A0), mat_text(B0),
-                  mat_text(H0), at_params));
+                  to_string(ex(r.u0[0])), to_string(r.y0), mat_text(A0), mat_text(B0), mat_text(H0),
+                  at_params));
   if (c1) {
     r.dy_deps = value_at((H0.mul(A0.inverse()).mul(B0))(0, 0) * -1, params);
   } else {
@@ -392,6 +392,39 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
     const ex ci =
         r.family_closed ? simplify(c(i, 0)) : taylor(c(i, 0), eps, std::max(0, m_order - 1));
     r.c_eps.push_back(ci);
+  }
+
+  // Self-check: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole), identically in eps
+  // (closed form) or up to eps^(m-1) (series).
+  {
+    const GiNaC::symbol lambda("lambda");
+    GiNaC::matrix M(static_cast<unsigned>(n), static_cast<unsigned>(n));
+    for (unsigned i = 0; i < n; ++i)
+      for (unsigned j = 0; j < n; ++j) M(i, j) = A(i, j) - r.c_eps[i] * H(0, j);
+    ex want = 1;
+    for (const auto& q : r.poles) want *= lambda - q;
+    const ex diff = GiNaC::expand(M.charpoly(lambda) - want);
+    bool ok = true;
+    SampleBoxes eboxes = SampleBoxes::from_model(m);
+    eboxes.by_name[eps.get_name()] = Interval{numeric(-1, 20), numeric(1, 20)};
+    for (unsigned k = 0; k < n && ok; ++k) {
+      const ex coef = diff.coeff(lambda, static_cast<int>(k));
+      ok = r.family_closed ? is_zero_verdict(zero_test(coef, eboxes))
+                           : GiNaC::normal(taylor(coef, eps, std::max(0, m_order - 1))).is_zero();
+    }
+    if (!ok) {
+      r.failures.push_back(
+          "internal check failed: the characteristic polynomial of A_eps - c(eps) H_eps "
+          "is not the prescribed one");
+      return r;
+    }
+    r.notes.push_back(
+        r.family_closed
+            ? "checked: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole) identically in "
+              "eps"
+            : fmt::format("checked: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole) + "
+                          "O(eps^{})",
+                          m_order));
   }
 
   // The injection k(y) = int_0^{y - y0} c(e) de.
