@@ -10,6 +10,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <cstdio>
@@ -28,6 +29,10 @@ namespace {
 
 Model load(const std::string& name) {
   return load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/" + name + ".sym");
+}
+
+Model model_text(const char* text) {
+  return parse_model(text, "t.sym");
 }
 
 DesignOptions opts(std::map<std::string, std::string> v) {
@@ -59,14 +64,15 @@ ExVec cart_k(const GiNaC::symbol& y) {
 // Eigenvalues (sorted by real part) of d rhs / d xh at xh = x, y = h(x), u given: the
 // linearized error dynamics of e = x - xh.
 std::vector<std::complex<double>> error_eigenvalues(const Model& m, const ObserverSpec& s,
-                                                    const std::vector<double>& x, double u) {
+                                                    const std::vector<double>& x, double u,
+                                                    const GiNaC::exmap& params = {}) {
   const GeneratedFunction* rhs = s.function(s.roles.rhs);
   EXPECT_NE(rhs, nullptr);
   GiNaC::exmap lets;
   ExVec out = rhs->outputs;
   for (auto it = rhs->lets.rbegin(); it != rhs->lets.rend(); ++it)
     for (auto& e : out) e = e.subs(it->symbol == it->value);
-  GiNaC::exmap pt;
+  GiNaC::exmap pt = params;
   for (std::size_t i = 0; i < m.n(); ++i) pt[m.states[i]] = x[i];
   pt[m.inputs[0]] = u;
   // The output argument y = h(x).
@@ -197,6 +203,43 @@ TEST(ExtendedLinearization, EigenvaluesInvariantAlongFamily) {
   }
 }
 
+// Free parameters stay symbolic: the eigenvalues are the poles at every parameter value.
+// pendulum_params by hand: family x = (e, 0), u = mgl sin e.
+TEST(ExtendedLinearization, RuntimeParametersKeepEigenvalues) {
+  const Model m = load("pendulum_params");
+  const ObserverSpec s = build_design(analyse(m), "extended-linearization", {});
+  EXPECT_EQ(s.params.size(), 3u);
+  for (const auto& prm :
+       std::vector<std::array<double, 3>>{{0.5, 0.1, 0.5}, {2, 0.5, 1.5}, {1.2, 0.3, 0.7}}) {
+    GiNaC::exmap pv;
+    for (const auto& p : m.params)
+      pv[p.symbol] = p.name == "mgl" ? prm[0] : p.name == "b" ? prm[1] : prm[2];
+    for (double e : {-1.0, 0.2, 1.5}) {
+      const auto ev = error_eigenvalues(m, s, {e, 0}, prm[0] * std::sin(e), pv);
+      EXPECT_LT(deviation(ev, {-2, -1}), 1e-9) << "eps = " << e << ", mgl = " << prm[0];
+    }
+  }
+}
+
+// A base equilibrium away from the origin, given with --el-base (x1 = 1, x2 = 0, u = 0).
+TEST(ExtendedLinearization, BaseEquilibriumOption) {
+  const Model m = model_text(
+      "model sh\nstates x1 x2\ninputs u\nf = [x2, -(x1 - 1)^3 - (x1 - 1) - x2]\ng = [0, u]\nh = "
+      "[x1]\n");
+  const Analysis a = analyse(m);
+  const Verdict v = find_design("extended-linearization")->applies(a);
+  EXPECT_FALSE(v.applies);
+  EXPECT_NE(v.text().find("is not an equilibrium: f(x0) + g(x0, u0) = [0, 2]"), std::string::npos)
+      << v.text();
+  EXPECT_THROW(build_design(a, "extended-linearization", opts({{"el-base", "1,0"}})), UserError);
+  const ObserverSpec s = build_design(a, "extended-linearization", opts({{"el-base", "1,0,0"}}));
+  // Family by hand: x1 = 1 + e, x2 = 0, u = e^3 + e.
+  for (double e : {-0.5, 0.0, 0.4, 1.0}) {
+    const auto ev = error_eigenvalues(m, s, {1 + e, 0}, e * e * e + e);
+    EXPECT_LT(deviation(ev, {-2, -1}), 1e-9) << "eps = " << e;
+  }
+}
+
 double final_error(const SimulationResult& r) {
   double e = 0;
   for (size_t i = 0; i < r.names.size(); ++i)
@@ -232,10 +275,6 @@ TEST(ExtendedLinearization, ClosedLoopConvergesNearFamily) {
     EXPECT_LT(final_error(r), 1e-3 * e0);
     EXPECT_LT(std::abs(r.x.back()[0] - std::asin(0.2)), 1e-6);  // the plant stayed there
   }
-}
-
-Model model_text(const char* text) {
-  return parse_model(text, "t.sym");
 }
 
 TEST(ExtendedLinearization, ConstraintsReportedWithNumbers) {

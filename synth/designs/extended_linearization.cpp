@@ -41,6 +41,12 @@ double value_at(const ex& e, const GiNaC::exmap& pt) {
   return std::numeric_limits<double>::quiet_NaN();
 }
 
+std::string poles_list(const std::vector<numeric>& v) {
+  std::vector<std::string> s;
+  for (const auto& q : v) s.push_back(to_string(ex(q)));
+  return fmt::format("{}", fmt::join(s, ", "));
+}
+
 std::string num_text(double v) {
   return fmt::format("{:.6g}", v);
 }
@@ -244,11 +250,18 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   const GiNaC::exmap params = param_point(m);
   const GiNaC::symbol& eps = r.eps;
 
-  // Base point: the origin with the nominal input.
+  // Base point: --el-base (x0 and the first input), else the origin with the nominal input.
+  const std::vector<numeric> base = real_list_option(o, "el-base");
+  if (!base.empty() && base.size() != n + 1)
+    throw UserError(SourceLoc{}, fmt::format("--el-base: expected n + 1 = {} numbers (the states, "
+                                             "then the first input), got {}",
+                                             n + 1, base.size()));
   Problem P;
   GiNaC::exmap other_inputs;
   for (std::size_t j = 0; j < m.m(); ++j) {
-    const numeric uj = j < m.nominal.size() ? m.nominal[j] : numeric(0);
+    const numeric uj = j == 0 && !base.empty() ? base[n]
+                       : j < m.nominal.size()  ? m.nominal[j]
+                                               : numeric(0);
     r.u0.push_back(uj);
     if (j > 0) other_inputs[m.inputs[j]] = uj;
   }
@@ -257,8 +270,8 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   P.h = m.h[0];
   for (std::size_t i = 0; i < n; ++i) {
     P.unknowns.push_back(m.states[i]);
-    P.base[m.states[i]] = 0;
-    r.x0.push_back(0);
+    r.x0.push_back(base.empty() ? numeric(0) : base[i]);
+    P.base[m.states[i]] = r.x0.back();
   }
   P.unknowns.push_back(m.inputs[0]);
   P.base[m.inputs[0]] = r.u0[0];
@@ -273,9 +286,9 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   }
   if (!equilibrium) {
     r.failures.push_back(fmt::format(
-        "the origin with u = {} is not an equilibrium: f(0) + g(0, u0) = {} (seed 001 eq. 27 "
-        "needs f(0, 0) = 0)",
-        to_string(ex(r.u0[0])), vec_text(F0)));
+        "the base point x0 = ({}) with u = {} is not an equilibrium: f(x0) + g(x0, u0) = {} (seed "
+        "001 eq. 27 needs f(0, 0) = 0; give an equilibrium with --el-base)",
+        poles_list(r.x0), to_string(ex(r.u0[0])), vec_text(F0)));
     return r;
   }
   for (const auto& e : P.F) P.equations.push_back(e);
@@ -306,10 +319,10 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   const bool c1 = std::isfinite(r.det_A0) && std::fabs(r.det_A0) > kTiny;
   const bool c2 = r.obs_rank == n;
   r.notes.push_back(
-      fmt::format("base point x0 = 0, u0 = {}, y0 = h(x0) = {}; A0 = d(f+g)/dx = {}, "
+      fmt::format("base point x0 = ({}), u0 = {}, y0 = h(x0) = {}; A0 = d(f+g)/dx = {}, "
                   "B0 = d(f+g)/du = {}, H0 = dh/dx = {}{}",
-                  to_string(ex(r.u0[0])), to_string(r.y0), mat_text(A0), mat_text(B0), mat_text(H0),
-                  at_params));
+                  poles_list(r.x0), to_string(ex(r.u0[0])), to_string(r.y0), mat_text(A0),
+                  mat_text(B0), mat_text(H0), at_params));
   if (c1) {
     r.dy_deps = value_at((H0.mul(A0.inverse()).mul(B0))(0, 0) * -1, params);
   } else {
@@ -665,8 +678,10 @@ Design extended_linearization_design() {
       {"el-family",
        "extended-linearization: equilibrium family: auto (closed form when found) or series",
        "auto"},
-      {"el-family-order", "extended-linearization: order of the family's power series",
-       "el-order"}};
+      {"el-family-order", "extended-linearization: order of the family's power series", "el-order"},
+      {"el-base",
+       "extended-linearization: base equilibrium, n + 1 numbers: the states, then the first input",
+       "the origin, nominal input"}};
   d.applies = applies;
   d.build = build;
   return d;
