@@ -21,8 +21,14 @@ std::string Verdict::text() const {
 
 const std::vector<Design>& design_registry() {
   static const std::vector<Design> designs = {
-      canonical_design(),    perfect_design(), high_gain_design(), riccati_design(),
-      kalman_theta_design(), thau_design(),    kou_design(),       extended_linearization_design(),
+      canonical_design(),
+      perfect_design(),
+      high_gain_design(),
+      riccati_design(),
+      kalman_theta_design(),
+      thau_design(),
+      kou_design(),
+      extended_linearization_design(),
   };
   return designs;
 }
