@@ -5,6 +5,7 @@
 #include <algorithm>
 
 #include "designs/canonical.hpp"
+#include "designs/extended_linearization.hpp"
 #include "designs/high_gain.hpp"
 #include "designs/kalman_theta.hpp"
 #include "designs/kou.hpp"
@@ -27,12 +28,13 @@ const std::vector<Design>& design_registry() {
       kalman_theta_design(),
       thau_design(),
       kou_design(),
+      extended_linearization_design(),
   };
   return designs;
 }
 
 const std::vector<std::string>& planned_methods() {
-  static const std::vector<std::string> planned = {"extended-linearization", "finite-time"};
+  static const std::vector<std::string> planned = {"finite-time"};
   return planned;
 }
 

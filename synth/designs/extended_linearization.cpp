@@ -1,0 +1,690 @@
+#include "designs/extended_linearization.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <limits>
+#include <map>
+#include <set>
+
+#include "designs/options.hpp"
+#include "symbolic/expr_print.hpp"
+#include "symbolic/integrate.hpp"
+#include "symbolic/symbolic.hpp"
+#include "symbolic/zero_test.hpp"
+
+namespace obsynth {
+
+using GiNaC::ex;
+using GiNaC::numeric;
+
+namespace {
+
+constexpr std::size_t kMaxStates = 6;
+constexpr int kDefaultOrder = 6;
+constexpr double kTiny = 1e-12;
+
+// Free parameters at their runtime defaults (the centre of their boxes).
+GiNaC::exmap param_point(const Model& m) {
+  GiNaC::exmap pt;
+  for (const auto& p : runtime_params(m)) pt[p.symbol] = p.default_value;
+  return pt;
+}
+
+double value_at(const ex& e, const GiNaC::exmap& pt) {
+  try {
+    const ex v = GiNaC::evalf(e.subs(pt, GiNaC::subs_options::no_pattern));
+    if (GiNaC::is_a<numeric>(v) && GiNaC::ex_to<numeric>(v).is_real())
+      return GiNaC::ex_to<numeric>(v).to_double();
+  } catch (const std::exception&) {
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+std::string poles_list(const std::vector<numeric>& v) {
+  std::vector<std::string> s;
+  for (const auto& q : v) s.push_back(to_string(ex(q)));
+  return fmt::format("{}", fmt::join(s, ", "));
+}
+
+std::string num_text(double v) {
+  return fmt::format("{:.6g}", v);
+}
+
+// Entry by entry: to_string orders each entry deterministically, GiNaC's matrix printing does not.
+std::string mat_text(const GiNaC::matrix& M) {
+  std::vector<std::string> rows;
+  for (unsigned i = 0; i < M.rows(); ++i) {
+    std::vector<std::string> row;
+    for (unsigned j = 0; j < M.cols(); ++j) row.push_back(to_string(M(i, j)));
+    rows.push_back(fmt::format("[{}]", fmt::join(row, ", ")));
+  }
+  return fmt::format("[{}]", fmt::join(rows, ", "));
+}
+
+std::string vec_text(const ExVec& v) {
+  return fmt::format("[{}]", fmt::join(to_strings(v), ", "));
+}
+
+// The Taylor polynomial of e in eps up to eps^order (inclusive).
+ex taylor(const ex& e, const GiNaC::symbol& eps, int order) {
+  const ex s = e.series(eps == 0, order + 1);
+  ex p = GiNaC::series_to_poly(s).expand();
+  ex out = 0;
+  for (int k = 0; k <= order; ++k) out += p.coeff(eps, k) * GiNaC::pow(eps, k);
+  return out;
+}
+
+struct Problem {
+  ExVec F;                              // f + g with the other inputs at u0
+  ex h;                                 // the output
+  std::vector<GiNaC::symbol> unknowns;  // states, then the first input
+  ExVec equations;                      // F, h - y0 - eps
+  GiNaC::exmap base;                    // unknowns -> base values
+};
+
+// Solve the family one unknown at a time; nullopt when some step is not linear with a
+// coefficient nonzero at the base point.
+std::optional<GiNaC::exmap> closed_family(const Model& m, const Problem& P,
+                                          const GiNaC::symbol& eps, const GiNaC::exmap& params) {
+  GiNaC::exmap sol;
+  std::vector<bool> used(P.equations.size(), false);
+  std::set<unsigned> solved;
+  bool progress = true;
+  while (progress && sol.size() < P.unknowns.size()) {
+    progress = false;
+    for (std::size_t i = 0; i < P.equations.size() && !progress; ++i) {
+      if (used[i]) continue;
+      const ex e = simplify(P.equations[i].subs(sol, GiNaC::subs_options::no_pattern));
+      for (std::size_t k = 0; k < P.unknowns.size() && !progress; ++k) {
+        const GiNaC::symbol& z = P.unknowns[k];
+        if (sol.count(z) || !e.has(z)) continue;
+        const ex d = simplify(e.diff(z));
+        bool free = true;
+        for (const auto& w : P.unknowns)
+          if (!sol.count(w) && d.has(w)) free = false;
+        if (!free) continue;
+        GiNaC::exmap at0 = params;
+        at0[eps] = 0;
+        const double dv = value_at(d, at0);
+        if (!std::isfinite(dv) || std::fabs(dv) < kTiny) continue;
+        const ex rest = e.subs(z == 0);
+        const ex value = simplify(-rest / d);
+        for (auto& kv : sol) kv.second = simplify(kv.second.subs(z == value));
+        sol[z] = value;
+        used[i] = true;
+        progress = true;
+      }
+    }
+  }
+  if (sol.size() < P.unknowns.size()) return std::nullopt;
+  // Verify: every equation vanishes identically in eps on the family.
+  SampleBoxes boxes = SampleBoxes::from_model(m);
+  boxes.by_name[eps.get_name()] = Interval{numeric(-1, 20), numeric(1, 20)};
+  for (const auto& e : P.equations)
+    if (!is_zero_verdict(zero_test(e.subs(sol, GiNaC::subs_options::no_pattern), boxes)))
+      return std::nullopt;
+  (void)m;
+  return sol;
+}
+
+// Newton on truncated power series with the Jacobian at the base point fixed: each iteration
+// gains one order, `order` iterations give the Taylor polynomial of the family to eps^order.
+std::optional<GiNaC::exmap> series_family(const Problem& P, const GiNaC::symbol& eps, int order,
+                                          std::string& why) {
+  const unsigned d = static_cast<unsigned>(P.unknowns.size());
+  GiNaC::matrix J(d, d);
+  for (unsigned i = 0; i < d; ++i)
+    for (unsigned j = 0; j < d; ++j)
+      J(i, j) = P.equations[i]
+                    .diff(P.unknowns[j])
+                    .subs(P.base, GiNaC::subs_options::no_pattern)
+                    .subs(eps == 0);
+  const ex det = simplify(J.determinant());
+  if (det.is_zero()) {
+    why = "the Jacobian of (f + g, h) in (x, u) is singular at the base point";
+    return std::nullopt;
+  }
+  const GiNaC::matrix Ji = J.inverse();
+  std::vector<ex> z(d);
+  for (unsigned j = 0; j < d; ++j) z[j] = P.base.at(P.unknowns[j]);
+  for (int it = 0; it < order; ++it) {
+    GiNaC::exmap cur;
+    for (unsigned j = 0; j < d; ++j) cur[P.unknowns[j]] = z[j];
+    std::vector<ex> r(d);
+    for (unsigned i = 0; i < d; ++i)
+      r[i] = taylor(P.equations[i].subs(cur, GiNaC::subs_options::no_pattern), eps, order);
+    for (unsigned j = 0; j < d; ++j) {
+      ex acc = z[j];
+      for (unsigned i = 0; i < d; ++i) acc -= Ji(j, i) * r[i];
+      z[j] = taylor(GiNaC::expand(acc), eps, order);
+    }
+  }
+  GiNaC::exmap sol;
+  for (unsigned j = 0; j < d; ++j) sol[P.unknowns[j]] = z[j];
+  for (const auto& e : P.equations) {
+    const ex res = taylor(e.subs(sol, GiNaC::subs_options::no_pattern), eps, order);
+    if (!GiNaC::normal(res).is_zero()) {
+      why = fmt::format("the series of the family does not converge to order {} (residual {})",
+                        order, to_string(res));
+      return std::nullopt;
+    }
+  }
+  return sol;
+}
+
+std::string key_of(const Model& m, const DesignOptions& o) {
+  std::string k = m.file + "|" + m.name + "|";
+  for (const auto& e : m.field()) k += to_string(e) + ",";
+  for (const auto& e : m.h) k += to_string(e) + ",";
+  for (const auto& p : m.params)
+    k += p.name + "=" + (p.value ? to_string(*p.value) : std::string("?")) + ",";
+  for (const auto& s : m.all_symbols()) {
+    const Interval b = m.box(s);
+    k += s.get_name() + "[" + to_string(b.lo) + "," + to_string(b.hi) + "]";
+  }
+  for (const auto& kv : o.values)
+    if (kv.first.rfind("el-", 0) == 0) k += "#" + kv.first + "=" + kv.second;
+  return k;
+}
+
+int order_option(const DesignOptions& o, const std::string& name, int dflt) {
+  const auto v = real_option(o, name);
+  if (!v) return dflt;
+  if (!v->is_integer() || *v < 1 || *v > 20)
+    throw UserError(SourceLoc{},
+                    fmt::format("--{}: expected an integer in 1..20, got {}", name, to_string(*v)));
+  return v->to_int();
+}
+
+ExtendedLinearization run(const Model& m, const DesignOptions& o) {
+  ExtendedLinearization r;
+  const std::size_t n = m.n();
+  // Options first: bad options are errors whatever the model.
+  r.poles = real_list_option(o, "el-poles");
+  r.poles_given = !r.poles.empty();
+  if (r.poles_given) {
+    if (r.poles.size() != n)
+      throw UserError(SourceLoc{},
+                      fmt::format("--el-poles: {} poles given, the model has n = {} states",
+                                  r.poles.size(), n));
+    for (const auto& q : r.poles)
+      if (!q.is_negative())
+        throw UserError(SourceLoc{}, fmt::format("--el-poles: pole {} is not negative (the error "
+                                                 "dynamics must be stable)",
+                                                 to_string(q)));
+  } else {
+    for (std::size_t k = 0; k < n; ++k) r.poles.push_back(-numeric(static_cast<long>(k + 1)));
+  }
+  const std::string inj_mode =
+      choice_option(o, "el-injection", {"auto", "closed", "series"}).value_or("auto");
+  const std::string fam_mode = choice_option(o, "el-family", {"auto", "series"}).value_or("auto");
+  const int m_order = order_option(o, "el-order", kDefaultOrder);
+  const int fam_order = order_option(o, "el-family-order", m_order);
+
+  if (m.p() != 1) {
+    r.failures.push_back(
+        fmt::format("the model has p = {} outputs; extended linearization is built "
+                    "here for one output (seed 001 §5, p = 1)",
+                    m.p()));
+    return r;
+  }
+  if (m.m() == 0) {
+    r.failures.push_back(
+        "the model has no input: there is no family of equilibria x_eps, u_eps "
+        "(seed 001 §5 needs a controlled system)");
+    return r;
+  }
+  if (m.feedthrough()) {
+    r.failures.push_back(
+        "the output depends on the input (y = h(x, u)); the seed assumes y = h(x)");
+    return r;
+  }
+  if (n > kMaxStates) {
+    r.failures.push_back(
+        fmt::format("n = {} > {}: the symbolic Ackermann gain schedule is not "
+                    "attempted",
+                    n, kMaxStates));
+    return r;
+  }
+  const GiNaC::exmap params = param_point(m);
+  const GiNaC::symbol& eps = r.eps;
+
+  // Base point: --el-base (x0 and the first input), else the origin with the nominal input.
+  const std::vector<numeric> base = real_list_option(o, "el-base");
+  if (!base.empty() && base.size() != n + 1)
+    throw UserError(SourceLoc{}, fmt::format("--el-base: expected n + 1 = {} numbers (the states, "
+                                             "then the first input), got {}",
+                                             n + 1, base.size()));
+  Problem P;
+  GiNaC::exmap other_inputs;
+  for (std::size_t j = 0; j < m.m(); ++j) {
+    const numeric uj = j == 0 && !base.empty() ? base[n]
+                       : j < m.nominal.size()  ? m.nominal[j]
+                                               : numeric(0);
+    r.u0.push_back(uj);
+    if (j > 0) other_inputs[m.inputs[j]] = uj;
+  }
+  for (const auto& e : m.field())
+    P.F.push_back(e.subs(other_inputs, GiNaC::subs_options::no_pattern));
+  P.h = m.h[0];
+  for (std::size_t i = 0; i < n; ++i) {
+    P.unknowns.push_back(m.states[i]);
+    r.x0.push_back(base.empty() ? numeric(0) : base[i]);
+    P.base[m.states[i]] = r.x0.back();
+  }
+  P.unknowns.push_back(m.inputs[0]);
+  P.base[m.inputs[0]] = r.u0[0];
+  r.y0 = simplify(P.h.subs(P.base, GiNaC::subs_options::no_pattern));
+
+  SampleBoxes boxes = SampleBoxes::from_model(m);
+  ExVec F0;
+  bool equilibrium = true;
+  for (const auto& e : P.F) {
+    F0.push_back(simplify(e.subs(P.base, GiNaC::subs_options::no_pattern)));
+    if (!is_zero_verdict(zero_test(F0.back(), boxes))) equilibrium = false;
+  }
+  if (!equilibrium) {
+    r.failures.push_back(fmt::format(
+        "the base point x0 = ({}) with u = {} is not an equilibrium: f(x0) + g(x0, u0) = {} (seed "
+        "001 eq. 27 needs f(0, 0) = 0; give an equilibrium with --el-base)",
+        poles_list(r.x0), to_string(ex(r.u0[0])), vec_text(F0)));
+    return r;
+  }
+  for (const auto& e : P.F) P.equations.push_back(e);
+  P.equations.push_back(P.h - r.y0 - eps);
+
+  // Linearisation at the base point and constraints (i)-(iii).
+  GiNaC::matrix A0(static_cast<unsigned>(n), static_cast<unsigned>(n)),
+      B0(static_cast<unsigned>(n), 1), H0(1, static_cast<unsigned>(n));
+  for (unsigned i = 0; i < n; ++i) {
+    for (unsigned j = 0; j < n; ++j)
+      A0(i, j) = P.F[i].diff(m.states[j]).subs(P.base, GiNaC::subs_options::no_pattern);
+    B0(i, 0) = P.F[i].diff(m.inputs[0]).subs(P.base, GiNaC::subs_options::no_pattern);
+    H0(0, i) = P.h.diff(m.states[i]).subs(P.base, GiNaC::subs_options::no_pattern);
+  }
+  r.det_A0 = value_at(A0.determinant(), params);
+  GiNaC::matrix O0(static_cast<unsigned>(n), static_cast<unsigned>(n));
+  {
+    GiNaC::matrix row = H0;
+    for (unsigned k = 0; k < n; ++k) {
+      for (unsigned j = 0; j < n; ++j) O0(k, j) = row(0, j);
+      row = row.mul(A0);
+    }
+  }
+  const double det_O0 = value_at(O0.determinant(), params);
+  r.obs_rank = std::isfinite(det_O0) && std::fabs(det_O0) > kTiny ? n : n - 1;
+  const std::string at_params =
+      params.empty() ? std::string() : " (free parameters at the centre of their boxes)";
+  const bool c1 = std::isfinite(r.det_A0) && std::fabs(r.det_A0) > kTiny;
+  const bool c2 = r.obs_rank == n;
+  r.notes.push_back(
+      fmt::format("base point x0 = ({}), u0 = {}, y0 = h(x0) = {}; A0 = d(f+g)/dx = {}, "
+                  "B0 = d(f+g)/du = {}, H0 = dh/dx = {}{}",
+                  poles_list(r.x0), to_string(ex(r.u0[0])), to_string(r.y0), mat_text(A0),
+                  mat_text(B0), mat_text(H0), at_params));
+  if (c1) {
+    r.dy_deps = value_at((H0.mul(A0.inverse()).mul(B0))(0, 0) * -1, params);
+  } else {
+    r.dy_deps = std::numeric_limits<double>::quiet_NaN();
+  }
+  const bool c3 = c1 && std::isfinite(r.dy_deps) && std::fabs(r.dy_deps) > kTiny;
+  r.notes.push_back(
+      fmt::format("constraint (i) {}: det A0 = {}", c1 ? "holds" : "fails", num_text(r.det_A0)));
+  r.notes.push_back(fmt::format("constraint (ii) {}: det O(A0, H0) = {} (rank {} of n = {})",
+                                c2 ? "holds" : "fails", num_text(det_O0), c2 ? n : r.obs_rank, n));
+  r.notes.push_back(fmt::format("constraint (iii) {}: dy_eps/deps = -H0 A0^-1 B0 = {}",
+                                c3 ? "holds" : "fails",
+                                c1 ? num_text(r.dy_deps) : std::string("undefined (A0 singular)")));
+  if (!c1)
+    r.failures.push_back(fmt::format("constraint (i) fails: det(d(f+g)/dx) at the base point = {}",
+                                     num_text(r.det_A0)));
+  if (!c2)
+    r.failures.push_back(
+        fmt::format("constraint (ii) fails: (A0, H0) not observable, det of its "
+                    "observability matrix = {}",
+                    num_text(det_O0)));
+  if (c1 && !c3)
+    r.failures.push_back(fmt::format("constraint (iii) fails: dy_eps/deps = -H0 A0^-1 B0 = {}",
+                                     num_text(r.dy_deps)));
+  if (!r.failures.empty()) return r;
+
+  // The equilibrium family.
+  std::optional<GiNaC::exmap> fam;
+  std::string why;
+  if (fam_mode == "auto") fam = closed_family(m, P, eps, params);
+  if (fam) {
+    r.family_closed = true;
+  } else {
+    fam = series_family(P, eps, fam_order, why);
+    if (!fam) {
+      r.failures.push_back("no equilibrium family: " + why);
+      return r;
+    }
+    r.family_order = fam_order;
+  }
+  for (const auto& x : m.states) r.x_eps.push_back(fam->at(x));
+  r.u_eps = fam->at(m.inputs[0]);
+
+  // Gain schedule by Ackermann's formula on the family.
+  GiNaC::exmap on_family = *fam;
+  for (const auto& kv : other_inputs) on_family[kv.first] = kv.second;
+  GiNaC::matrix A(static_cast<unsigned>(n), static_cast<unsigned>(n)),
+      H(1, static_cast<unsigned>(n));
+  // Series family: entries stay unsimplified (the Taylor expansion below does the work).
+  auto tidy = [&](const ex& e) { return r.family_closed ? simplify(e) : e; };
+  for (unsigned i = 0; i < n; ++i) {
+    for (unsigned j = 0; j < n; ++j)
+      A(i, j) = tidy(P.F[i].diff(m.states[j]).subs(on_family, GiNaC::subs_options::no_pattern));
+    H(0, i) = tidy(P.h.diff(m.states[i]).subs(on_family, GiNaC::subs_options::no_pattern));
+  }
+  GiNaC::matrix O(static_cast<unsigned>(n), static_cast<unsigned>(n));
+  {
+    GiNaC::matrix row = H;
+    for (unsigned k = 0; k < n; ++k) {
+      for (unsigned j = 0; j < n; ++j) O(k, j) = row(0, j);
+      row = row.mul(A);
+    }
+  }
+  GiNaC::matrix en(static_cast<unsigned>(n), 1);
+  en(static_cast<unsigned>(n - 1), 0) = 1;
+  GiNaC::matrix v;
+  try {
+    v = O.inverse().mul(en);
+  } catch (const std::exception& e) {
+    r.failures.push_back(std::string("the observability matrix along the family is singular: ") +
+                         e.what());
+    return r;
+  }
+  GiNaC::matrix pA = GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(static_cast<unsigned>(n)));
+  for (const auto& q : r.poles)
+    pA = pA.mul(A.sub(
+        GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(static_cast<unsigned>(n))).mul_scalar(q)));
+  const GiNaC::matrix c = pA.mul(v);
+  for (unsigned i = 0; i < n; ++i) {
+    const ex ci =
+        r.family_closed ? simplify(c(i, 0)) : taylor(c(i, 0), eps, std::max(0, m_order - 1));
+    r.c_eps.push_back(ci);
+  }
+
+  // Self-check: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole), identically in eps
+  // (closed form) or up to eps^(m-1) (series).
+  {
+    const GiNaC::symbol lambda("lambda");
+    GiNaC::matrix M(static_cast<unsigned>(n), static_cast<unsigned>(n));
+    for (unsigned i = 0; i < n; ++i)
+      for (unsigned j = 0; j < n; ++j) M(i, j) = A(i, j) - r.c_eps[i] * H(0, j);
+    ex want = 1;
+    for (const auto& q : r.poles) want *= lambda - q;
+    const ex diff = GiNaC::expand(M.charpoly(lambda) - want);
+    bool ok = true;
+    SampleBoxes eboxes = SampleBoxes::from_model(m);
+    eboxes.by_name[eps.get_name()] = Interval{numeric(-1, 20), numeric(1, 20)};
+    for (unsigned k = 0; k < n && ok; ++k) {
+      const ex coef = diff.coeff(lambda, static_cast<int>(k));
+      ok = r.family_closed ? is_zero_verdict(zero_test(coef, eboxes))
+                           : GiNaC::normal(taylor(coef, eps, std::max(0, m_order - 1))).is_zero();
+    }
+    if (!ok) {
+      r.failures.push_back(
+          "internal check failed: the characteristic polynomial of A_eps - c(eps) H_eps "
+          "is not the prescribed one");
+      return r;
+    }
+    r.notes.push_back(
+        r.family_closed
+            ? "checked: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole) identically in "
+              "eps"
+            : fmt::format("checked: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole) + "
+                          "O(eps^{})",
+                          m_order));
+  }
+
+  // The injection k(y) = int_0^{y - y0} c(e) de.
+  const ex shift = r.y - r.y0;
+  bool closed = false;
+  if (inj_mode != "series") {
+    if (!r.family_closed) {
+      r.injection_reason = fmt::format(
+          "the equilibrium family is a series (order {}), so c(eps) is too", r.family_order);
+    } else {
+      ExVec k;
+      closed = true;
+      for (unsigned i = 0; i < n && closed; ++i) {
+        const Integral I = integrate(r.c_eps[i], eps);
+        if (!I.value) {
+          closed = false;
+          r.injection_reason = fmt::format("no antiderivative of c_{}(eps) = {} found: {}", i + 1,
+                                           to_string(r.c_eps[i]), I.reason);
+          break;
+        }
+        const ex at0 = I.value->subs(eps == 0);
+        GiNaC::exmap z0 = params;
+        if (!std::isfinite(value_at(at0, z0))) {
+          closed = false;
+          r.injection_reason =
+              fmt::format("the antiderivative of c_{} is undefined at eps = 0", i + 1);
+          break;
+        }
+        k.push_back(simplify(I.value->subs(eps == shift) - at0));
+      }
+      if (closed) r.injection = k;
+    }
+    if (!closed && inj_mode == "closed") {
+      r.failures.push_back("--el-injection closed: " + r.injection_reason);
+      return r;
+    }
+  } else {
+    r.injection_reason = "--el-injection series";
+  }
+  r.injection_closed = closed;
+  if (!closed) {
+    r.injection_order = m_order;
+    r.injection.clear();
+    for (unsigned i = 0; i < n; ++i) {
+      const ex ci = taylor(r.c_eps[i], eps, m_order - 1);
+      ex k = 0;
+      for (int j = 0; j < m_order; ++j) k += ci.coeff(eps, j) / (j + 1) * GiNaC::pow(shift, j + 1);
+      r.injection.push_back(k);
+    }
+  }
+  return r;
+}
+
+std::string poles_text(const std::vector<numeric>& p) {
+  std::vector<std::string> s;
+  for (const auto& q : p) s.push_back(to_string(ex(q)));
+  return fmt::format("{}", fmt::join(s, ", "));
+}
+
+std::string family_text(const Model& m, const ExtendedLinearization& r) {
+  std::vector<std::string> parts;
+  for (std::size_t i = 0; i < m.n(); ++i)
+    parts.push_back(fmt::format("{} = {}", m.states[i].get_name(), to_string(r.x_eps[i])));
+  parts.push_back(fmt::format("{} = {}", m.inputs[0].get_name(), to_string(r.u_eps)));
+  return fmt::format(
+      "{} ({})", fmt::join(parts, ", "),
+      r.family_closed
+          ? "closed form"
+          : fmt::format("Taylor polynomial to eps^{}, implicit function theorem", r.family_order));
+}
+
+std::string injection_kind(const ExtendedLinearization& r) {
+  if (r.injection_closed) return "closed form (eq. 40, integrals by the project's integrator)";
+  return fmt::format("series to order m = {} (eq. 42-45; dk/dy(y_eps) = c(eps) + O(eps^{})): {}",
+                     r.injection_order, r.injection_order, r.injection_reason);
+}
+
+Verdict applies(const Analysis& a) {
+  Verdict v;
+  const ExtendedLinearization* r = nullptr;
+  try {
+    r = &extended_linearization(a.model, DesignOptions{});
+  } catch (const std::exception& e) {
+    v.reasons.push_back(std::string("the design failed: ") + e.what());
+    return v;
+  }
+  if (!r->failures.empty()) {
+    v.reasons = r->failures;
+    // The base point and the constraints that hold (the failed ones are already listed).
+    for (const auto& nt : r->notes)
+      if (nt.find(" fails") == std::string::npos) v.reasons.push_back(nt);
+    return v;
+  }
+  v.applies = true;
+  v.reasons.push_back(fmt::format(
+      "constraints (i)-(iii) hold at the base point (det A0 = {}, (A0, H0) observable, dy_eps/deps "
+      "= {}); equilibrium family {}; the linearized error has eigenvalues {} for every eps (local "
+      "result near the family); injection {}",
+      num_text(r->det_A0), num_text(r->dy_deps),
+      r->family_closed ? "in closed form" : "as a series", poles_text(r->poles),
+      r->injection_closed ? "in closed form" : "as a series"));
+  return v;
+}
+
+GeneratedFunction fn(const std::string& name, const std::string& doc, std::vector<FunctionArg> args,
+                     ExVec out, const std::string& out_type) {
+  GeneratedFunction f;
+  f.name = name;
+  f.doc = doc;
+  f.args = std::move(args);
+  f.out_rows = out.size();
+  f.outputs = std::move(out);
+  f.out_type = out_type;
+  return f;
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  const ExtendedLinearization& r = extended_linearization(m, o);
+  if (!r.failures.empty())
+    throw UserError(SourceLoc{m.file, 0, 0},
+                    fmt::format("method 'extended-linearization' does not apply: {}",
+                                fmt::join(r.failures, "; ")));
+  const std::size_t n = m.n();
+  // The output symbol of the generated functions, unique against the model's names.
+  std::set<std::string> used;
+  for (const auto& s : m.all_symbols()) used.insert(s.get_name());
+  for (const auto& p : m.params) used.insert(p.name);
+  std::string yname = "y";
+  while (used.count(yname)) yname += "_";
+  used.insert(yname);
+  std::string yhname = "yh";
+  while (used.count(yhname)) yhname += "_";
+  const GiNaC::symbol y(yname), yh(yhname);
+  ExVec k_y, rhs;
+  const ExVec F = m.field();
+  for (std::size_t i = 0; i < n; ++i) {
+    const ex ki = r.injection[i];
+    k_y.push_back(ki.subs(r.y == y));
+    rhs.push_back(F[i] + ki.subs(r.y == y) - ki.subs(r.y == yh));
+  }
+  ObserverSpec spec;
+  spec.method = "extended-linearization";
+  spec.class_suffix = "ExtendedLinearization";
+  spec.state_size = n;
+  spec.params = runtime_params(m);
+  spec.functions = model_functions(m);
+  spec.functions.push_back(
+      fn("injection", "Output injection k(y) with dk/dy(y_eps) = C(eps)^T (seed 001 eq. 34, 40).",
+         {output_arg({y})}, k_y, "State"));
+  GeneratedFunction x_rhs =
+      fn("x_rhs", "xh' = f(xh) + g(xh, u) + k(y) - k(h(xh))  (seed 001 eq. 29).",
+         {state_arg(m), input_arg(m), output_arg({y})}, rhs, "State");
+  x_rhs.lets.push_back({yh, m.h[0]});
+  spec.functions.push_back(x_rhs);
+  spec.state_name = "xh";
+  spec.state_doc = "the estimate itself";
+  spec.init = InitKind::identity;
+  spec.update = UpdateKind::ode;
+  spec.roles.rhs = "x_rhs";
+  spec.estimate = EstimateKind::identity;
+
+  spec.title = "Extended linearization observer (Baumann-Rugh; seed 001 §5)";
+  spec.description = {
+      "Observer: extended linearization (Baumann-Rugh 1986; seed 001 §5, eq. 27-45)",
+      fmt::format("Eigenvalues of the linearized error along the equilibrium family: {}{}",
+                  poles_text(r.poles), r.poles_given ? "" : " (default)"),
+      fmt::format("Injection k(y): {}",
+                  r.injection_closed
+                      ? std::string("closed form (eq. 40)")
+                      : fmt::format("series to order {} (eq. 42-45)", r.injection_order))};
+  spec.class_doc = {
+      "  xh' = f(xh) + g(xh, u) + k(y) - k(h(xh)),  dk/dy(y_eps) = C(eps)^T (Ackermann),",
+      "so the error dynamics linearized at every equilibrium x_eps of the family have the",
+      "prescribed eigenvalues (a local design: near the family)."};
+  spec.constants.push_back({"poles", r.poles, "eigenvalues of the linearized error dynamics"});
+  spec.report = {
+      {"equations",
+       "xh' = f(xh, u) + k(y) - k(h(xh)) (seed 001 eq. 29), dk/dy(y_eps) = C(eps)^T (eq. 34)"},
+      {"parametrisation",
+       "eps = y - y0, the output level of the equilibrium (regular by constraint (iii)); u is the "
+       "model's first input"}};
+  for (const auto& nt : r.notes) spec.report.push_back({"constraints", nt});
+  spec.report.push_back({"equilibrium family", family_text(m, r)});
+  spec.report.push_back(
+      {"poles", fmt::format("{} ({})", poles_text(r.poles),
+                            r.poles_given ? "given with --el-poles" : "default -1, -2, ..., -n")});
+  spec.report.push_back({"gain schedule C(eps)^T",
+                         fmt::format("{} (Ackermann: p(A_eps) O_eps^-1 e_n{})", vec_text(r.c_eps),
+                                     r.family_closed ? "" : ", as a series")});
+  spec.report.push_back(
+      {"injection k(y)", fmt::format("{}; {}", vec_text(r.injection), injection_kind(r))});
+  spec.summary = fmt::format(
+      "Extended linearization observer (Baumann-Rugh): linearized error eigenvalues {} along the "
+      "equilibrium family ({}); injection {}",
+      poles_text(r.poles), r.family_closed ? "closed form" : "series", injection_kind(r));
+  return spec;
+}
+
+}  // namespace
+
+const ExtendedLinearization& extended_linearization(const Model& m, const DesignOptions& o) {
+  static std::map<std::string, ExtendedLinearization> cache;
+  const std::string key = key_of(m, o);
+  auto it = cache.find(key);
+  if (it == cache.end()) {
+    ExtendedLinearization r;
+    try {
+      r = run(m, o);
+    } catch (const UserError&) {
+      throw;
+    } catch (const std::exception& e) {
+      // A symbolic step failed (e.g. a series at a singular point): the design does not apply.
+      r = ExtendedLinearization{};
+      r.failures.push_back(std::string("the symbolic construction failed (the seed needs f, g and "
+                                       "h analytic at the base point and along the family): ") +
+                           e.what());
+    }
+    it = cache.emplace(key, r).first;
+  }
+  return it->second;
+}
+
+Design extended_linearization_design() {
+  Design d;
+  d.name = "extended-linearization";
+  d.summary =
+      "Extended linearization (Baumann-Rugh, seed 001 §5): nonlinear injection, linearized error "
+      "eigenvalues invariant along the equilibrium family";
+  d.options = {
+      {"el-poles", "extended-linearization: eigenvalues of the linearized error, n negative reals",
+       "-1, -2, ..., -n"},
+      {"el-injection",
+       "extended-linearization: injection k(y): auto (closed form when the integrals "
+       "exist), closed, or series",
+       "auto"},
+      {"el-order", "extended-linearization: order m of the series injection (eq. 42-45)", "6"},
+      {"el-family",
+       "extended-linearization: equilibrium family: auto (closed form when found) or series",
+       "auto"},
+      {"el-family-order", "extended-linearization: order of the family's power series", "el-order"},
+      {"el-base",
+       "extended-linearization: base equilibrium, n + 1 numbers: the states, then the first input",
+       "the origin, nominal input"}};
+  d.applies = applies;
+  d.build = build;
+  return d;
+}
+
+}  // namespace obsynth
