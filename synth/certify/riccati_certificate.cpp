@@ -211,9 +211,7 @@ RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& 
   RiccatiParameters P = params;
   auto fill = [&](matrix& M, unsigned r, unsigned k, const char* name, const matrix& def,
                   const char* def_text) {
-    const bool unset =
-        (M.rows() == 0 && M.cols() == 0) || (M.rows() == 1 && M.cols() == 1 && M(0, 0).is_zero());
-    if (unset) {
+    if (M.rows() == 0 && M.cols() == 0) {
       M = def;
       c.defaults_used.push_back(fmt::format("{} = {}", name, def_text));
     } else if (M.rows() != r || M.cols() != k) {
@@ -235,7 +233,12 @@ RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& 
   const ExVec F = m.field();
   const matrix A = jacobian(F, m.states);
   const matrix Dh = jacobian(m.h, m.states);
-  const matrix Rinv = P.R.inverse();
+  matrix Rinv;
+  try {
+    Rinv = P.R.inverse();
+  } catch (const std::exception&) {
+    throw UserError(where, "riccati: R must be invertible (R > 0)");
+  }
   const matrix H = Rinv.mul(Dh);
   const matrix D2f = stacked_hessians(F, m.states, c.D2f_zero);
   const matrix D2h = stacked_hessians(m.h, m.states, c.D2h_zero);

@@ -96,11 +96,14 @@ bool pow_int(arb_ptr r, arb_srcptr x, long k) {
 // Natural-domain semantics: the enclosure covers the points of the ball where the power is
 // defined (a ball [0, 4] comes out of Arb as [-3.7e-9, 4.0000001]: its negative sliver has
 // no real value).
-bool pow_rat(arb_ptr r, arb_srcptr x, long p, long q) {
+bool pow_rat(arb_ptr r, arb_srcptr x, long p, long q, bool& clamped) {
   Ball lo, hi;
   endpoints(x, lo.v, hi.v);
   if (arb_is_negative(hi.v)) return false;
-  if (arb_is_negative(lo.v)) arb_zero(lo.v);
+  if (arb_is_negative(lo.v)) {
+    arb_zero(lo.v);
+    clamped = true;
+  }
   if (p < 0 && !arb_is_positive(lo.v)) return false;
   fmpq_t a;
   fmpq_init(a);
@@ -286,6 +289,7 @@ bool Tape::eval_point(const std::vector<double>& x, BallVec& out) {
 }
 
 bool Tape::run(BallVec& out) {
+  clamped_ = false;
   if (!supported()) return false;
   Ball t;
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
@@ -313,7 +317,7 @@ bool Tape::run(BallVec& out) {
         ok = pow_int(r, arg(0), n.var);
         break;
       case Op::powq:
-        ok = pow_rat(r, arg(0), n.p, n.q);
+        ok = pow_rat(r, arg(0), n.p, n.q, clamped_);
         break;
       case Op::powgen:
         ok = arb_is_positive(arg(0));

@@ -12,7 +12,7 @@
 
 namespace obsynth::certify::detail {
 
-inline constexpr slong kPrec = 96;
+inline constexpr slong kPrec = 64;  // bits; box widths are far wider than 2^-64
 
 // A vector of Arb balls (RAII).
 class BallVec {
@@ -65,6 +65,10 @@ class Tape {
   bool eval_box(const std::vector<double>& lo, const std::vector<double>& hi, BallVec& out);
   // Balls of the outputs at an exact double point (radius from the arithmetic only).
   bool eval_point(const std::vector<double>& x, BallVec& out);
+  // Whether the last ball evaluation clipped a negative part off a rational power's argument
+  // (natural-domain semantics): the mean-value form is not used on such boxes.
+  bool clamped() const { return clamped_; }
+  std::size_t size() const { return nodes_.size(); }
   // Double evaluation (NaN where undefined).
   void eval_double(const std::vector<double>& x, std::vector<double>& out) const;
 
@@ -101,6 +105,7 @@ class Tape {
   std::vector<int> outputs_;
   std::size_t nvars_;
   std::string why_;
+  bool clamped_ = false;
   BallVec consts_;  // ball value of constant nodes (indexed like nodes_)
   BallVec work_;
   std::map<GiNaC::ex, int, GiNaC::ex_is_less> memo_;
