@@ -517,8 +517,8 @@ std::string arb_method(const BBResult& r) {
   return fmt::format("Arb balls, {} boxes", r.boxes);
 }
 
-std::string sampled_method(std::size_t n, const std::string& why) {
-  return fmt::format("sampled, {} points ({})", n, why);
+std::string sampled_method(const std::string& sampled, const std::string& why) {
+  return fmt::format("{} ({})", sampled, why);
 }
 
 // Max over sample points of a scalar function of the output values.
@@ -528,19 +528,25 @@ Bound sampled_max(const PointEval& pe, const Box& box, std::size_t samples, F sc
   b.kind = BoundKind::sampled;
   b.value = -kInf;
   const auto pts = sample_points(box, std::max<std::size_t>(samples, 1));
+  std::size_t undefined = 0;
   for (const auto& p : pts) {
     const double v = score(pe(p));
-    if (std::isnan(v)) {
-      b.value = std::nan("");
-      b.worst_point = p;
-      break;
+    if (std::isnan(v)) {  // undefined there (0/0, a pole): not a value of the function
+      ++undefined;
+      continue;
     }
     if (v > b.value || b.worst_point.empty()) {
       b.value = v;
       b.worst_point = p;
     }
   }
-  b.method = fmt::format("sampled, {} points", pts.size());
+  if (b.worst_point.empty()) {
+    b.value = std::nan("");
+    b.worst_point = pts.front();
+  }
+  b.method = undefined ? fmt::format("sampled, {} points, {} of them undefined and skipped",
+                                     pts.size(), undefined)
+                       : fmt::format("sampled, {} points", pts.size());
   return b;
 }
 
@@ -593,13 +599,14 @@ Bound drive(const std::vector<ex>& outs, const Box& box, const EnclosureBudget& 
       return b;
     }
     Bound b = sampled_max(pe, box, 4096, score);
-    b.method = sampled_method(4096, fmt::format("Arb could not bound it on {} boxes: a pole or a "
-                                                "branch cut in the box?",
-                                                r.boxes));
+    b.method =
+        sampled_method(b.method, fmt::format("Arb could not bound it on {} boxes: a pole or a "
+                                             "branch cut in the box?",
+                                             r.boxes));
     return b;
   }
   Bound b = sampled_max(pe, box, 4096, score);
-  b.method = sampled_method(4096, "no ball arithmetic for " + tape.why());
+  b.method = sampled_method(b.method, "no ball arithmetic for " + tape.why());
   return b;
 }
 
@@ -673,8 +680,10 @@ DefinitenessVerdict negative_definite(const GiNaC::matrix& S, const Box& box,
     const BBResult r = branch_and_bound(
         box, obj, budget, false,
         [&budget](double ub, double best) {
-          // proven with a tight bound, or failed at a point
-          return (ub < 0 && ub - best <= budget.relative_gap * std::fabs(best)) || best > 0;
+          // The sign is decided (proven negative, or a point with lambda_max >= 0) and the bound
+          // is tight, so the worst point is the worst within relative_gap.
+          const bool tight = ub - best <= std::max(budget.relative_gap * std::fabs(best), 1e-12);
+          return tight && (ub < 0 || best >= 0);
         },
         tape.used_vars());
     out.worst_point = r.best_point;
@@ -743,7 +752,7 @@ DefinitenessVerdict negative_definite(const GiNaC::matrix& S, const Box& box,
   out.kind = BoundKind::sampled;
   out.max_eigenvalue_bound = b.value;
   out.worst_point = b.worst_point;
-  out.method = sampled_method(4096, "no ball arithmetic for " + tape.why());
+  out.method = sampled_method(b.method, "no ball arithmetic for " + tape.why());
   return out;
 }
 
