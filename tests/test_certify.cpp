@@ -347,4 +347,26 @@ TEST(Enclosure, RandomTranscendentalSumsNeverBelowDenseSampling) {
   }
 }
 
+TEST(Enclosure, DegenerateBoxes) {
+  // A point box, a constant, a variable the expression does not use, an invalid range.
+  const Bound p = sup_abs(sin(x) * y, Box{{x, y}, {{0.5, 0.5}, {2, 2}}});
+  EXPECT_EQ(p.kind, BoundKind::rigorous);
+  EXPECT_GE(p.value, 2 * std::sin(0.5));
+  EXPECT_LE(p.value, 2 * std::sin(0.5) * (1 + 1e-12));
+  const Bound c = sup_abs(GiNaC::ex(GiNaC::numeric(-7, 3)), Box{{x}, {{-1, 1}}});
+  EXPECT_EQ(c.kind, BoundKind::rigorous);
+  EXPECT_GE(c.value, 7.0 / 3);
+  EXPECT_LE(c.value, 7.0 / 3 * (1 + 1e-12));
+  const Bound u = sup_abs(cos(x), Box{{x, y}, {{0, 1}, {-100, 100}}});
+  EXPECT_GE(u.value, 1.0);
+  EXPECT_LE(u.value, 1.05);
+  EXPECT_THROW(sup_abs(x, Box{{x}, {{1, 0}}}), std::invalid_argument);
+  EXPECT_THROW(sup_abs(x, Box{{x}, {}}), std::invalid_argument);
+  // Pi is evaluated as a ball: sup |sin(x + Pi)| on [0, 1] = sin 1.
+  const Bound pi = sup_abs(sin(x + GiNaC::Pi), Box{{x}, {{0, 1}}});
+  EXPECT_EQ(pi.kind, BoundKind::rigorous);
+  EXPECT_GE(pi.value, std::sin(1.0));
+  EXPECT_LE(pi.value, std::sin(1.0) * 1.05);
+}
+
 }  // namespace
