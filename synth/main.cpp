@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "analysis/analysis.hpp"
+#include "analysis/persistence.hpp"
 #include "app/design_report.hpp"
 #include "app/output_dir.hpp"
 #include "app/report.hpp"
@@ -188,6 +189,9 @@ Model load_bound_model(const std::string& path, const std::vector<std::string>& 
 
 struct CheckCommand {
   std::string model, format = "text";
+  std::string input;  // strong persistence check along this input (seed 002)
+  double horizon = 20;
+  std::string thetas;
   bool no_timings = false;
   std::vector<std::string> params;
   CommonOptions common;
@@ -217,6 +221,14 @@ CLI::App* add_check(CLI::App& app, CheckCommand& c) {
       ->capture_default_str();
   check->add_flag("--no-timings", c.no_timings,
                   "omit stage timings (byte-identical output between runs)");
+  check->add_option("--input", c.input,
+                    "strong persistence check (seed 002) along this input: expressions in t, "
+                    "one per input; JSON key \"persistence\"");
+  check->add_option("--horizon", c.horizon, "horizon of the persistence check")
+      ->capture_default_str();
+  check->add_option("--thetas", c.thetas,
+                    "theta values of the persistence check, comma-separated (default 1, 2, 5, "
+                    "10, 20, 50)");
   add_param_option(check, c.params);
   add_common(check, c.common);
   return check;
@@ -301,8 +313,26 @@ int run_check(const CheckCommand& c) {
     publish_stage("report");
     PrintCache::Use use(printed);
     const StageOutcome* stopped = a.stopped_stage();
-    std::fputs((stopped ? render_report(a, format, ro) : render_check(a, format, ro)).c_str(),
-               stdout);
+    std::string text = stopped ? render_report(a, format, ro) : render_check(a, format, ro);
+    if (!c.input.empty() && !stopped) {
+      PersistenceOptions po;
+      po.input_text = c.input;
+      po.horizon = c.horizon;
+      if (!c.thetas.empty()) {
+        po.thetas.clear();
+        for (const auto& v : split_list(c.thetas))
+          po.thetas.push_back(parse_real_number(v, "--thetas").to_double());
+      }
+      const PersistenceResult pr = check_persistence(m, po);
+      if (format == ReportFormat::json) {
+        auto j = nlohmann::ordered_json::parse(text);
+        j["persistence"] = persistence_json(pr);
+        text = j.dump(2) + "\n";
+      } else {
+        text += render_persistence(pr, c.format);
+      }
+    }
+    std::fputs(text.c_str(), stdout);
     if (stopped) {
       std::fflush(stdout);
       print_stop(stopped->name, stopped->reason);

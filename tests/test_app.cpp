@@ -66,6 +66,26 @@ TEST(OutputDir, AFailedWriteLeavesTheDirectoryAsItWas) {
   fs::remove_all(d);
 }
 
+// A move into place that fails half-way (the third target is a non-empty directory) puts back
+// the files already replaced and removes the new ones: the directory holds the old set.
+TEST(OutputDir, AFailedMoveRollsBackTheFilesAlreadyMoved) {
+  const fs::path d = fresh_dir("rollback");
+  write_output_dir(d.string(), {{"a.hpp", "old A"}});
+  fs::create_directories(d / "c.md" / "occupied");
+  EXPECT_THROW(write_output_dir(d.string(), {{"a.hpp", "new A"}, {"b.json", "B"}, {"c.md", "C"}}),
+               UserError);
+  EXPECT_EQ(read(d / "a.hpp"), "old A");
+  EXPECT_FALSE(fs::exists(d / "b.json"));
+  EXPECT_TRUE(fs::is_directory(d / "c.md" / "occupied"));
+  std::size_t entries = 0;
+  for (const auto& e : fs::directory_iterator(d)) {
+    ++entries;
+    EXPECT_EQ(e.path().filename().string().find(".obsynth-staging"), std::string::npos);
+  }
+  EXPECT_EQ(entries, 2u);
+  fs::remove_all(d);
+}
+
 TEST(Synthesize, AutoChoosesCanonicalWhenTheBracketsHoldAndSaysWhy) {
   const Analysis a = analysed("slawinski17");
   std::string why;
@@ -77,21 +97,32 @@ TEST(Synthesize, AutoChoosesCanonicalWhenTheBracketsHoldAndSaysWhy) {
 TEST(Synthesize, AllIsEveryDesignThatApplies) {
   std::string why;
   EXPECT_EQ(resolve_methods(analysed("slawinski17"), {"all"}, why),
-            (std::vector<std::string>{"canonical", "perfect"}));
-  EXPECT_TRUE(resolve_methods(analysed("lorenz"), {"all"}, why).empty());
+            (std::vector<std::string>{"canonical", "perfect", "riccati"}));
+  EXPECT_EQ(resolve_methods(analysed("lorenz"), {"all"}, why),
+            (std::vector<std::string>{"riccati"}));
+  EXPECT_TRUE(resolve_methods(analysed("stuart_landau"), {"all"}, why).empty());
 }
 
-TEST(Synthesize, AutoOnANonLinearizableModelListsEveryDesignsReason) {
+TEST(Synthesize, AutoOnANonLinearizableModelFallsBackToRiccatiAndSaysWhy) {
   const Analysis a = analysed("rayleigh");
+  std::string why;
+  EXPECT_EQ(resolve_methods(a, {"auto"}, why), std::vector<std::string>{"riccati"});
+  EXPECT_NE(why.find("chose 'riccati'"), std::string::npos) << why;
+  EXPECT_NE(why.find("canonical: "), std::string::npos) << why;
+  EXPECT_NE(why.find("perfect: "), std::string::npos) << why;
+}
+
+TEST(Synthesize, AutoOnAnUnobservableModelListsEveryDesignsReason) {
+  const Analysis a = analysed("stuart_landau");
   std::string why;
   try {
     resolve_methods(a, {"auto"}, why);
-    FAIL() << "auto chose a design for rayleigh";
+    FAIL() << "auto chose a design for stuart_landau";
   } catch (const UserError& e) {
     const std::string msg = e.diagnostics().at(0).message;
     EXPECT_NE(msg.find("canonical: "), std::string::npos) << msg;
-    EXPECT_NE(msg.find("perfect: "), std::string::npos) << msg;
-    EXPECT_NE(msg.find("not implemented yet: riccati"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("riccati: "), std::string::npos) << msg;
+    EXPECT_NE(msg.find("not implemented yet: high-gain"), std::string::npos) << msg;
   }
 }
 
@@ -103,4 +134,21 @@ TEST(Synthesize, TheMainJobWritesTheAutoAliasAndTheReports) {
   for (const auto& f : s.files) names.push_back(f.name);
   EXPECT_EQ(names, (std::vector<std::string>{"slawinski17_canonical.hpp", "slawinski17_auto.hpp",
                                              "slawinski17_report.md", "slawinski17_report.json"}));
+}
+
+// The C back end's report shows C usage in a C fence and names the C way to set parameters.
+TEST(Synthesize, TheCReportShowsCUsage) {
+  SynthesisOptions o;
+  o.methods = {"canonical"};
+  o.emit.language = Language::c;
+  o.emit.source_name = "models/pendulum_params.sym";
+  const Synthesis s = synthesize(analysed("pendulum_params"), o);
+  std::string md;
+  for (const auto& f : s.files)
+    if (f.name == "pendulum_params_report.md") md = f.content;
+  ASSERT_FALSE(md.empty());
+  EXPECT_NE(md.find("```c\n/* Usage of pendulum_params_canonical"), std::string::npos);
+  EXPECT_EQ(md.find("```cpp"), std::string::npos);
+  EXPECT_EQ(md.find("set_params()"), std::string::npos);
+  EXPECT_NE(md.find("`prm` member"), std::string::npos);
 }

@@ -29,17 +29,31 @@ inline void unpack_symmetric(const Eigen::Matrix<Scalar, NW, 1>& w,
     }
 }
 
-/// Whether the packed symmetric block is (numerically) positive definite: its Cholesky
-/// factorisation succeeds with finite, positive pivots.
+/// Whether the packed symmetric block is (numerically) positive definite: the pivots of its
+/// square-root-free Cholesky factorisation M = L D L^T (no pivoting) are all finite and > 0,
+/// which is exactly when the Cholesky factorisation (LLT) exists. Reads the packed triangle
+/// in place: no unpacking, no square roots, one division per column.
 template <int Offset, int D, class Scalar, int NW>
 inline bool packed_positive_definite(const Eigen::Matrix<Scalar, NW, 1>& w) noexcept {
-  Eigen::Matrix<Scalar, D, D> M;
-  unpack_symmetric<Offset, D>(w, M);
-  const Eigen::LLT<Eigen::Matrix<Scalar, D, D>> llt(M);
-  if (llt.info() != Eigen::Success) return false;
-  const auto L = llt.matrixLLT();
-  for (int i = 0; i < D; ++i)
-    if (!(L(i, i) > Scalar(0)) || !std::isfinite(L(i, i))) return false;
+  static_assert(Offset + D * (D + 1) / 2 <= NW, "packed block outside the observer state");
+  // Row r of the packed triangle starts at Offset + r D - r (r - 1) / 2.
+  auto at = [&w](int r, int c) noexcept -> Scalar {
+    return w(Offset + r * D - r * (r - 1) / 2 + (c - r));  // r <= c
+  };
+  Scalar L[D][D];  // L(i, j) d_j for i > j (the scaled column), then divided
+  Scalar d[D];
+  for (int j = 0; j < D; ++j) {
+    Scalar s = at(j, j);
+    for (int k = 0; k < j; ++k) s -= L[j][k] * L[j][k] * d[k];
+    if (!(s > Scalar(0)) || !std::isfinite(s)) return false;
+    d[j] = s;
+    const Scalar inv = Scalar(1) / s;
+    for (int i = j + 1; i < D; ++i) {
+      Scalar t = at(j, i);
+      for (int k = 0; k < j; ++k) t -= L[i][k] * L[j][k] * d[k];
+      L[i][j] = t * inv;
+    }
+  }
   return true;
 }
 

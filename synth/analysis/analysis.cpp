@@ -144,8 +144,24 @@ class StageLog {
 };
 
 void run_stages(const Model& m, const AnalysisOptions& opt, Budget& budget, Analysis& a) {
-  analyse_observability(m, budget, opt.observability, &a.observability);
-  if (a.observability.jets)  // no symbolic Lie derivatives: nothing for r, the frame, T
+  // With direct feedthrough the drift analysis reads y = h(x, u0) at the nominal input; the
+  // canonical form (y = h(x)) does not apply.
+  Model drift_model;
+  const bool feedthrough = m.feedthrough();
+  if (feedthrough) {
+    drift_model = m;
+    const GiNaC::exmap u0 = m.nominal_inputs();
+    for (auto& e : drift_model.h) e = e.subs(u0);
+  }
+  const Model& dm = feedthrough ? drift_model : m;
+  analyse_observability(dm, budget, opt.observability, &a.observability);
+  a.under_inputs =
+      analyse_observability_under_inputs(m, a.observability, opt.observability, opt.budget);
+  if (feedthrough)
+    a.canonical.not_applicable =
+        "does not apply: the output depends on the input (direct feedthrough y = h(x,u)); the "
+        "observer canonical form needs y = h(x)";
+  else if (a.observability.jets)  // no symbolic Lie derivatives: nothing for r, the frame, T
     a.canonical.not_applicable = "skipped: " + a.observability.symbolic_skipped +
                                  "; r, the frame, the brackets, T and l need them";
   else

@@ -12,6 +12,7 @@
 #include "analysis/budget.hpp"
 #include "analysis/canonical.hpp"
 #include "analysis/observability.hpp"
+#include "analysis/observability_inputs.hpp"
 #include "front/model.hpp"
 
 namespace obsynth {
@@ -47,6 +48,9 @@ struct AnalysisOptions {
 struct Analysis {
   Model model;
   Observability observability;
+  // Observability with the inputs as constant symbols, uniform observability (issue 8);
+  // computed right after the drift observability, under its own budget.
+  ObservabilityUnderInputs under_inputs;
   CanonicalForm canonical;
   std::map<std::string, double> timings_ms;
   std::vector<StageOutcome> stages;  // every stage of the pipeline, in order

@@ -134,12 +134,13 @@ std::string render_generated_markdown(const std::vector<GeneratedObserver>& g) {
     md += "| design | value |\n|---|---|\n";
     for (const auto& r : o.rows) md += fmt::format("| {} | {} |\n", r.key, r.value);
     if (!o.params.empty()) {
-      md += "\nRun-time parameters (`Params`, set with `set_params()`):\n\n";
+      md += o.c_language ? "\nRun-time parameters (fields of the observer's `prm` member):\n\n"
+                         : "\nRun-time parameters (`Params`, set with `set_params()`):\n\n";
       for (const auto& p : o.params)
         md += fmt::format("- `{}`: default {} ({})\n", p.name, to_string(p.default_value),
                           p.default_reason);
     }
-    md += fmt::format("\nUsage:\n\n```cpp\n{}```\n", o.usage_example);
+    md += fmt::format("\nUsage:\n\n```{}\n{}```\n", o.c_language ? "c" : "cpp", o.usage_example);
   }
   return md;
 }

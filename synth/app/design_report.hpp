@@ -17,6 +17,7 @@ namespace obsynth {
 // One generated observer, as the report shows it.
 struct GeneratedObserver {
   std::string method, file, class_name, summary, usage_example;
+  bool c_language = false;  // --language c: a C struct, parameters in its `prm` member
   std::vector<ReportRow> rows;
   std::vector<RuntimeParam> params;
 };

@@ -228,6 +228,119 @@ std::string latex_text(const std::string& t) {
   return e;
 }
 
+// Observability under inputs (issue 8): JSON and report lines.
+ordered_json triangular_json(const TriangularForm& t) {
+  return {{"convention",
+           "output first: z' = A(u) z + phi(u, z), y = z1, a_i(u) on the "
+           "superdiagonal (seed 002 eq. 1-2)"},
+          {"coordinates", coordinates_name(t.coordinates)},
+          {"z_of_x", expr_list(t.z_of_x)},
+          {"a", expr_list(t.a)},
+          {"phi", expr_list(t.phi)}};
+}
+
+const char* tri_state(const std::optional<bool>& b) {
+  return !b ? "undecided" : *b ? "true" : "false";
+}
+
+ordered_json under_inputs_json(const Analysis& a) {
+  const ObservabilityUnderInputs& u = a.under_inputs;
+  ordered_json j;
+  auto opt_bool = [](const std::optional<bool>& b) {
+    return b ? ordered_json(*b) : ordered_json(nullptr);
+  };
+  j["computed"] = u.computed;
+  j["generic_rank"] = u.computed ? ordered_json(u.generic_rank) : ordered_json(nullptr);
+  j["rank_method"] = u.computed ? ordered_json(u.rank_method) : ordered_json(nullptr);
+  j["det"] = u.det ? ordered_json(to_string(*u.det)) : ordered_json(nullptr);
+  ordered_json sing = ordered_json::array(), in_box = ordered_json::array();
+  for (const auto& s : u.singular) {
+    sing.push_back(to_string(s.factor));
+    in_box.push_back(
+        {{"factor", to_string(s.factor)},
+         {"vanishes_in_box", s.in_box.kind == BoxZeros::somewhere ? ordered_json(true)
+                             : s.in_box.kind == BoxZeros::never   ? ordered_json(false)
+                                                                  : ordered_json(nullptr)},
+         {"detail", s.in_box.detail}});
+  }
+  j["singular_inputs"] = sing;
+  j["singular_inputs_in_box"] = in_box;
+  j["rank_drop"] = expr_list(u.rank_drop);
+  j["observation_space_rank"] =
+      u.observation_space_rank ? ordered_json(*u.observation_space_rank) : ordered_json(nullptr);
+  j["observable_for_some_input"] = opt_bool(u.observable_for_some_input);
+  j["uniformly_observable"] = opt_bool(u.uniformly_observable);
+  j["reason"] = u.reason;
+  j["triangular_form"] = u.triangular ? triangular_json(*u.triangular) : ordered_json(nullptr);
+  j["triangular_note"] = u.triangular_note;
+  return j;
+}
+
+std::vector<std::string> under_inputs_lines(const Analysis& a) {
+  const ObservabilityUnderInputs& u = a.under_inputs;
+  std::vector<std::string> out;
+  if (!a.model.nominal_note.empty()) out.push_back(a.model.nominal_note);
+  if (a.model.feedthrough())
+    out.push_back(
+        "the output depends on the input (direct feedthrough): the drift rank above "
+        "reads h at the nominal input");
+  if (!u.computed) {
+    out.push_back(u.reason.empty() ? "not computed" : u.reason);
+    return out;
+  }
+  out.push_back(
+      fmt::format("generic rank of O_u (rows dL_{{f+g(.,u)}}^k h, inputs as constants): "
+                  "{} of n = {} ({})",
+                  u.generic_rank, u.n, u.rank_method));
+  if (u.det) out.push_back(fmt::format("det O_u = {}", to_string(*u.det)));
+  if (u.generic_rank == u.n) {
+    if (u.singular.empty()) {
+      out.push_back(u.det ? "singular inputs: none" : "singular inputs: not computed");
+    }
+    for (const auto& s : u.singular)
+      out.push_back(fmt::format("singular input: {} = 0 ({})", to_string(s.factor),
+                                s.in_box.kind == BoxZeros::never
+                                    ? std::string("never zero on the input box")
+                                    : s.in_box.detail));
+  }
+  if (u.observation_space_rank && u.generic_rank < u.n)
+    out.push_back(
+        fmt::format("observation space rank (all input sequences): {}", *u.observation_space_rank));
+  if (u.triangular) {
+    const TriangularForm& t = *u.triangular;
+    out.push_back(fmt::format(
+        "triangular form (seed 002, output first) in the {}: z = [{}], a(u) = [{}], phi = [{}]",
+        t.coordinates == TriangularForm::Coordinates::states ? "states"
+                                                             : "coordinates (h, L_f h, ...)",
+        fmt::join(to_strings(t.z_of_x), ", "), fmt::join(to_strings(t.a), ", "),
+        fmt::join(to_strings(t.phi), ", ")));
+  }
+  out.push_back(
+      fmt::format("uniformly observable: {}; {}", tri_state(u.uniformly_observable), u.reason));
+  if (u.observable_for_some_input == true && a.observability.generic_rank < a.model.n())
+    out.push_back(std::string("designs that work under persistent inputs: ") +
+                  persistent_input_designs());
+  return out;
+}
+
+// The drift rank's deficit line: "NOT observable" only when no input helps.
+std::string drift_deficit_text(const Analysis& a) {
+  const Observability& ob = a.observability;
+  const ObservabilityUnderInputs& u = a.under_inputs;
+  if (u.computed && u.observable_for_some_input == true)
+    return fmt::format(
+        "rank deficit {} for the drift alone (inputs at {}); observable under "
+        "inputs (see below)",
+        ob.n - ob.generic_rank, a.model.nominal.empty() ? "0" : "u0");
+  if (u.computed && u.observable_for_some_input == false)
+    return fmt::format("NOT observable: rank deficit {} everywhere, for every input",
+                       ob.n - ob.generic_rank);
+  if (a.model.m() == 0)
+    return fmt::format("NOT observable: rank deficit {} everywhere", ob.n - ob.generic_rank);
+  return fmt::format("rank deficit {} for the drift alone; under inputs: {}",
+                     ob.n - ob.generic_rank, u.reason.empty() ? "undecided" : u.reason);
+}
+
 ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   const Model& m = a.model;
   const Observability& ob = a.observability;
@@ -273,7 +386,15 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
                                                                    : ordered_json(nullptr);
   o["rank_drop"] = ob.jets ? ordered_json(nullptr) : expr_list(ob.rank_drop);
   o["undefined"] = ob.jets ? ordered_json(nullptr) : expr_list(ob.undefined);
+  o["under_inputs"] = under_inputs_json(a);
   j["observability"] = o;
+  if (!m.nominal_note.empty()) {
+    ordered_json nom = ordered_json::object();
+    for (std::size_t i = 0; i < m.inputs.size(); ++i)
+      nom[m.inputs[i].get_name()] = to_string(i < m.nominal.size() ? m.nominal[i] : 0);
+    j["nominal_input"] = {{"values", nom}, {"note", m.nominal_note}};
+  }
+  if (m.feedthrough()) j["feedthrough"] = true;
   const bool app = cf.applicable;
   j["canonical_applicable"] = app;
   j["canonical_note"] = cf.not_applicable;
@@ -370,8 +491,7 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
   if (ob.p > 1) line(fmt::format("  observability indices {}", fmt::join(ob.indices, ", ")));
   if (ob.jets) {
     line("  " + jets_inputs_text(ob));
-    if (ob.generic_rank < ob.n)
-      line(fmt::format("  NOT observable: rank deficit {} everywhere", ob.n - ob.generic_rank));
+    if (ob.generic_rank < ob.n) line("  " + drift_deficit_text(a));
     line("  det O and the rank-drop set: not computed (they need the symbolic O)");
   } else if (ob.generic_rank == ob.n) {
     line(fmt::format("  det O{} = {}", ob.p > 1 ? " (selected rows)" : "", to_string(ob.det)));
@@ -379,11 +499,14 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
                               : fmt::format("  the rank drops where any of these vanish: {}",
                                             fmt::join(to_strings(ob.rank_drop), "; ")));
   } else {
-    line(fmt::format("  NOT observable: rank deficit {} everywhere", ob.n - ob.generic_rank));
+    line("  " + drift_deficit_text(a));
   }
   if (!ob.undefined.empty())
     line(fmt::format("  O is undefined where any of these vanish: {}",
                      fmt::join(to_strings(ob.undefined), "; ")));
+  line("");
+  line("Observability under inputs");
+  for (const auto& t : under_inputs_lines(a)) line("  " + t);
   marks.mark("frame");
   line("");
   line("Linearization by output injection (observer canonical form)");
@@ -485,6 +608,11 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
     for (const auto& f : ob.rank_drop) line(fmt::format("- rank drops on ${} = 0$", to_latex(f)));
   }
   for (const auto& f : ob.undefined) line(fmt::format("- $O$ undefined on ${} = 0$", to_latex(f)));
+  if (ob.generic_rank < ob.n) line("- " + drift_deficit_text(a));
+  line("");
+  line("### Observability under inputs");
+  line("");
+  for (const auto& t : under_inputs_lines(a)) line("- " + t);
   line("");
   marks.mark("frame");
   line("## Linearization by output injection");
@@ -565,6 +693,11 @@ std::string render_latex(const Analysis& a) {
   if (!ob.jets && ob.generic_rank == ob.n)
     line(fmt::format("  , & \\det O &= {}", to_latex(ob.det)));
   line("\\end{align*}");
+  line("\\paragraph{Observability under inputs}");
+  line("\\begin{itemize}");
+  if (ob.generic_rank < ob.n) line("  \\item " + latex_text(drift_deficit_text(a)));
+  for (const auto& t : under_inputs_lines(a)) line("  \\item " + latex_text(t));
+  line("\\end{itemize}");
   marks.mark("frame");
   if (cf.applicable) {
     line("\\begin{align*}");

@@ -26,12 +26,24 @@ std::string implemented_methods() {
   return fmt::format("{}", fmt::join(names, ", "));
 }
 
+// "Not observable" only when no input makes the model observable (issue 8).
 std::string not_observable_note(const Analysis& a) {
+  const ObservabilityUnderInputs& ui = a.under_inputs;
   if (a.observability.generic_rank >= a.model.n()) return "";
-  return fmt::format(
-      "; the model is not observable (generic rank {} < n = {}): no observer can reconstruct the "
-      "whole state; reduce the model to its observable part",
-      a.observability.generic_rank, a.model.n());
+  if (ui.computed && ui.observable_for_some_input == false)
+    return fmt::format(
+        "; the model is not observable for any input ({}): no observer can reconstruct the whole "
+        "state; reduce the model to its observable part",
+        ui.reason);
+  if (ui.computed && ui.observable_for_some_input == true)
+    return fmt::format(
+        "; the drift alone (u = {}) has rank {} < n = {}, but the model is observable under "
+        "inputs (rank O_u = {}; {}): designs that work under persistent inputs: {}",
+        a.model.nominal.empty() ? "0" : "u0", a.observability.generic_rank, a.model.n(),
+        ui.generic_rank, ui.reason, persistent_input_designs());
+  return fmt::format("; the drift alone has rank {} < n = {}; observability under inputs: {}",
+                     a.observability.generic_rank, a.model.n(),
+                     ui.reason.empty() ? "not computed" : ui.reason);
 }
 
 std::string choose_auto(const Analysis& a, std::string& explanation) {
@@ -84,14 +96,33 @@ std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<st
   return methods;
 }
 
+DesignOptions with_model_options(const Model& m, const DesignOptions& given) {
+  DesignOptions out = given;
+  const auto known = all_design_options();
+  for (const auto& opt : m.options) {
+    const bool declared = std::any_of(
+        known.begin(), known.end(), [&](const DesignOptionInfo& i) { return i.name == opt.name; });
+    if (!declared) {
+      std::vector<std::string> names;
+      for (const auto& i : known) names.push_back(i.name);
+      throw UserError(opt.loc, fmt::format("option '{}' is not a parameter of any registered "
+                                           "design (known: {})",
+                                           opt.name, fmt::join(names, ", ")));
+    }
+    out.values.emplace(opt.name, opt.value);  // a command-line value, already there, wins
+  }
+  return out;
+}
+
 ObserverSpec build_design(const Analysis& a, const std::string& method, const DesignOptions& o) {
   const Design* d = find_design(method);
   OBSYNTH_ASSERT(d != nullptr, "build_design: unresolved method " + method);
-  return d->build(a, o);
+  return d->build(a, with_model_options(a.model, o));
 }
 
 Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   Synthesis s;
+  with_model_options(a.model, opt.design);  // unknown option lines fail before any work
   const bool auto_asked =
       std::find(opt.methods.begin(), opt.methods.end(), "auto") != opt.methods.end();
   s.chosen = resolve_methods(a, opt.methods, s.explanation);
@@ -108,7 +139,7 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
     generated.push_back({method, h.filename, type,
                          fmt::format("`{}`: {} `{}`, {} arithmetic operations in its functions.",
                                      h.filename, spec.summary, type, h.operations),
-                         h.usage_example, spec.report, spec.params});
+                         h.usage_example, c, spec.report, spec.params});
     if (auto_asked && !c && method == s.chosen.front()) {
       const EmittedHeader alias = emit_cxx_auto_alias(a, h, method);
       s.files.push_back({alias.filename, alias.text});

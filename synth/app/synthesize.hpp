@@ -29,7 +29,12 @@ struct Synthesis {
 std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<std::string>& asked,
                                          std::string& explanation);
 
-// Builds the spec of one registered method (UserError when it does not apply).
+// The design options with the model file's `option` lines added; a value given on the command
+// line wins. An option no registered design declares is a UserError at its line.
+DesignOptions with_model_options(const Model& m, const DesignOptions& given);
+
+// Builds the spec of one registered method (the model's `option` lines merged in) (UserError when
+// it does not apply).
 ObserverSpec build_design(const Analysis& a, const std::string& method, const DesignOptions& o);
 
 Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt);

@@ -311,7 +311,9 @@ Design canonical_design() {
   d.name = "canonical";
   d.summary = "Luenberger observer in observer canonical form (seed 003; error exactly linear)";
   d.options = {
-      {"poles", "canonical observer error poles, comma-separated negative reals",
+      {"poles",
+       "error poles, comma-separated negative reals (canonical: of A - K e_n^T; high-gain: of A "
+       "- K C, scaled by theta)",
        "-2, -2.5, -3, ..."},
       {"realisation", "canonical observer realisation: z or x", "z when T^-1 is closed-form"},
       {"integrator", "canonical z realisation: exact (zero-order-hold Phi, Gamma) or rk4",

@@ -5,7 +5,12 @@
 #include <algorithm>
 
 #include "designs/canonical.hpp"
+#include "designs/high_gain.hpp"
+#include "designs/kalman_theta.hpp"
+#include "designs/kou.hpp"
 #include "designs/perfect.hpp"
+#include "designs/riccati.hpp"
+#include "designs/thau.hpp"
 
 namespace obsynth {
 
@@ -17,14 +22,17 @@ const std::vector<Design>& design_registry() {
   static const std::vector<Design> designs = {
       canonical_design(),
       perfect_design(),
+      high_gain_design(),
+      riccati_design(),
+      kalman_theta_design(),
+      thau_design(),
+      kou_design(),
   };
   return designs;
 }
 
 const std::vector<std::string>& planned_methods() {
-  static const std::vector<std::string> planned = {
-      "riccati",    "high-gain", "kalman-theta", "thau", "kou", "extended-linearization",
-      "finite-time"};
+  static const std::vector<std::string> planned = {"extended-linearization", "finite-time"};
   return planned;
 }
 

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <map>
+
 #include "front/diagnostics.hpp"
 
 #ifndef OBSYNTH_VERSION
@@ -195,7 +197,7 @@ const char* kStepRk4 = R"(
 // ODE observers with a gain solve and/or symmetric blocks that must stay positive definite.
 const char* kStepRk4Guarded = R"(
 /* One RK4 step of length dt with u and y held over the step; rejected (state kept,
- * {{P}}_singular) when a gain solve fails in any stage{{guard_doc}}. */
+ * {{P}}_singular) {{guard_doc}}. */
 {{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
   Scalar k1[N], k2[N], k3[N], k4[N], t[N], w[N];
   int i, ok;
@@ -214,15 +216,18 @@ const char* kStepRk4Guarded = R"(
 }
 )";
 
-// Cholesky and LU with partial pivoting for the gain solve, in place, row-major d x d.
-const char* kSolvers = R"(
+// Helpers of guarded ODE updates; each is emitted only when the spec uses it (strict C flags
+// reject unused static functions). Row-major d x d, in place.
+const char* kUnpack = R"(
 /* Unpacks the symmetric d x d block stored as its upper triangle, row by row, at w + off. */
 static void unpack_symmetric(const Scalar* w, int off, int d, Scalar* M) {
   int r, c, k = off;
   for (r = 0; r < d; ++r)
     for (c = r; c < d; ++c, ++k) M[r * d + c] = M[c * d + r] = w[k];
 }
+)";
 
+const char* kSolveCholesky = R"(
 /* M = L L^T in place (lower triangle); 0 when M is not positive definite. */
 static int cholesky(Scalar* M, int d) {
   int i, j, k;
@@ -255,7 +260,9 @@ static int solve_cholesky(Scalar* M, int d, const Scalar* v, Scalar* x) {
   }
   return all_finite(x, d);
 }
+)";
 
+const char* kSolveLu = R"(
 /* LU with partial pivoting; 0 when a pivot is below d * epsilon times the largest. */
 static int solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x) {
   int i, j, k;
@@ -292,11 +299,29 @@ static int solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x) {
   }
   return all_finite(x, d);
 }
+)";
 
+// Positive definiteness of a packed block: the pivots of its square-root-free Cholesky
+// factorisation L D L^T are finite and > 0 (exactly when L L^T exists), read in place.
+const char* kPackedPositiveDefinite = R"(
+/* 1 when the symmetric d x d block packed at w + off (upper triangle, row by row) is positive
+ * definite: every pivot of its L D L^T factorisation is finite and > 0. */
 static int packed_positive_definite(const Scalar* w, int off, int d) {
-  Scalar M[{{max_dim}} * {{max_dim}}];
-  unpack_symmetric(w, off, d, M);
-  return cholesky(M, d);
+  Scalar L[{{max_dim}} * {{max_dim}}], D[{{max_dim}}];
+  int i, j, k;
+  for (j = 0; j < d; ++j) {
+    const int row = off + j * d - j * (j - 1) / 2; /* (j, j) */
+    Scalar s = w[row];
+    for (k = 0; k < j; ++k) s -= L[j * d + k] * L[j * d + k] * D[k];
+    if (!(s > {{zero}}) || !isfinite(s)) return 0;
+    D[j] = s;
+    for (i = j + 1; i < d; ++i) {
+      Scalar t = w[row + (i - j)];
+      for (k = 0; k < j; ++k) t -= L[i * d + k] * L[j * d + k] * D[k];
+      L[i * d + j] = t / s;
+    }
+  }
+  return 1;
 }
 )";
 
@@ -333,6 +358,146 @@ void {{P}}_init({{P}}_observer* o) {
 }
 )";
 
+// The perfect observer's differentiators (runtime/obsynth/differentiator.hpp in C): a linear
+// high-gain differentiator per signal, discretised exactly with a first-order hold.
+const char* kJets = R"(
+/* binomial(n, k) as a Scalar (small arguments: exact). */
+static Scalar binomial(int n, int k) {
+  Scalar r = {{one}};
+  int i;
+  for (i = 1; i <= k; ++i) r = r * (Scalar)(n - k + i) / (Scalar)i;
+  return r;
+}
+
+/* Phi(h) = e^{-h} sum_{j=0..K} (h N)^j / j! with N = M + I nilpotent (exact, no truncation),
+ * row-major (K+1) x (K+1); Horner: P = I + (h/j) N P, j = K..1. */
+static void jet_transition(Scalar* phi, int K, Scalar h) {
+  Scalar Nm[{{d}} * {{d}}], Pm[{{d}} * {{d}}], Tm[{{d}} * {{d}}], e;
+  int i, j, k, d = K + 1;
+  if (h > (Scalar)200) { /* e^{-h} h^K / K! has underflowed: avoid 0 * Inf */
+    for (i = 0; i < d * d; ++i) phi[i] = {{zero}};
+    return;
+  }
+  for (i = 0; i < d * d; ++i) {
+    Nm[i] = {{zero}};
+    Pm[i] = i % (d + 1) == 0 ? {{one}} : {{zero}};
+  }
+  for (i = 0; i < d; ++i) {
+    if (i < K) Nm[i * d + i + 1] = {{one}};
+    Nm[i * d] -= binomial(K + 1, i + 1);
+    Nm[i * d + i] += {{one}};
+  }
+  for (j = K; j >= 1; --j) {
+    for (i = 0; i < d; ++i)
+      for (k = 0; k < d; ++k) {
+        Scalar acc = {{zero}};
+        int s;
+        for (s = 0; s < d; ++s) acc += Nm[i * d + s] * Pm[s * d + k];
+        Tm[i * d + k] = acc;
+      }
+    for (i = 0; i < d * d; ++i) Pm[i] = (i % (d + 1) == 0 ? {{one}} : {{zero}}) + (h / (Scalar)j) * Tm[i];
+  }
+  e = {{exp}}(-h);
+  for (i = 0; i < d * d; ++i) phi[i] = e * Pm[i];
+}
+
+/* Starts a differentiator at (y0, 0, ..., 0). */
+static void jet_reset(Scalar* eta, Scalar* y_prev, int K, Scalar y0) {
+  int i;
+  for (i = 0; i <= K; ++i) eta[i] = {{zero}};
+  eta[0] = y0;
+  *y_prev = y0;
+}
+
+/* Advances a differentiator by dt to the sample y; 0 (state kept) if dt or y is invalid. */
+static int jet_update(Scalar* eta, Scalar* phi, Scalar* cached_dt, Scalar* y_prev, int K,
+                      Scalar epsilon, Scalar dt, Scalar y) {
+  Scalar dv[{{d}}], next[{{d}}], slope;
+  int i, k, d = K + 1;
+  if (!isfinite(dt) || !isfinite(y) || !(dt > {{zero}})) return 0;
+  if (K == 0) {
+    eta[0] = y;
+    *y_prev = y;
+    return 1;
+  }
+  if (dt < *cached_dt || dt > *cached_dt) { /* exact cache key, recomputed when dt changes */
+    jet_transition(phi, K, dt / epsilon);
+    *cached_dt = dt;
+  }
+  slope = epsilon * ((y - *y_prev) / dt);
+  for (i = 0; i < d; ++i) dv[i] = eta[i];
+  dv[0] -= *y_prev;
+  dv[1] -= slope;
+  for (i = 0; i < d; ++i) {
+    Scalar acc = {{zero}};
+    for (k = 0; k < d; ++k) acc += phi[i * d + k] * dv[k];
+    next[i] = acc;
+  }
+  next[0] += y;
+  next[1] += slope;
+  if (!all_finite(next, d)) return 0;
+  for (i = 0; i < d; ++i) eta[i] = next[i];
+  *y_prev = y;
+  return 1;
+}
+
+/* Unscales eta_i = epsilon^i y^(i) into the jet (y, y', ..., y^(K)), stored with a stride. */
+static void jet_read(const Scalar* eta, int K, Scalar epsilon, Scalar* out, int stride) {
+  Scalar scale = {{one}};
+  int i;
+  for (i = 0; i <= K; ++i) {
+    out[i * stride] = eta[i] / scale;
+    scale *= epsilon;
+  }
+}
+)";
+
+const char* kStepJets = R"(
+/* Advances the differentiators with the samples u, y and rebuilds the state from the jets. */
+{{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
+  Scalar yj[{{ky1}}], uj[{{m1}} * {{ku1}}]; /* uj: m x (K_u + 1), column-major */
+  int j, ok = jet_update(o->y_eta, o->y_phi, &o->y_dt, &o->y_prev, {{ky}}, o->epsilon, dt, y[0]);
+  for (j = 0; j < {{P}}_m; ++j)
+    ok = jet_update(o->u_eta[j], o->u_phi[j], &o->u_dt[j], &o->u_prev[j], {{ku}}, o->epsilon, dt,
+                    u[j]) && ok;
+  if (!ok) return o->status = {{P}}_non_finite;
+  jet_read(o->y_eta, {{ky}}, o->epsilon, yj, 1);
+  uj[0] = {{zero}};
+  for (j = 0; j < {{P}}_m; ++j) jet_read(o->u_eta[j], {{ku}}, o->epsilon, uj + j, {{m1}});
+  {{reconstruct}}(yj, uj{{PRM}}, o->w);
+  return o->status = update_estimate(o);
+}
+)";
+
+// No closed-form inverse: Newton on T(x) = w seeded from the previous estimate, with the
+// inverse Jacobian (the frame [tau], column-major) given in closed form.
+const char* kEstimateNewton =
+    R"(  Scalar x[{{n}}], Tx[{{n}}], r[{{n}}], tau[{{n}} * {{n}}], z_norm = {{zero}}, r_norm;
+  int i, j, it;
+  for (i = 0; i < {{n}}; ++i) {
+    x[i] = o->xh[i];
+    z_norm = {{fabs}}(o->w[i]) > z_norm ? {{fabs}}(o->w[i]) : z_norm;
+  }
+  for (it = 0;; ++it) {
+    {{map}}(x{{PRM}}, Tx);
+    r_norm = {{zero}};
+    for (i = 0; i < {{n}}; ++i) {
+      r[i] = Tx[i] - o->w[i];
+      r_norm = {{fabs}}(r[i]) > r_norm ? {{fabs}}(r[i]) : r_norm;
+    }
+    if (!isfinite(r_norm)) return {{P}}_non_finite; /* estimate kept */
+    for (i = 0; i < {{n}}; ++i) o->xh[i] = x[i];
+    if (r_norm <= {{tolerance}} * ({{one}} + z_norm)) return {{P}}_ok;
+    if (it == {{iterations}}) return {{P}}_not_converged;
+    {{jacobian}}(x{{PRM}}, tau);
+    for (i = 0; i < {{n}}; ++i) {
+      Scalar dx = {{zero}};
+      for (j = 0; j < {{n}}; ++j) dx += tau[j * {{n}} + i] * r[j];
+      x[i] -= dx;
+    }
+  }
+)";
+
 const char* kUsage = R"(/* Usage of {{P}} (generated by obsynth from {{source}}). */
 #include <stdio.h>
 
@@ -359,6 +524,8 @@ class CBuilder {
   CBuilder(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt)
       : a_(a), s_(s), opt_(opt) {
     prefix_ = cxx_identifier(a.model.name) + "_" + s.method;
+    for (auto& ch : prefix_)
+      if (ch == '-') ch = '_';  // method names such as "high-gain" are not C identifiers
     const Model& m = a.model;
     for (const auto& x : m.states) local(x.get_name());
     for (const auto& x : m.inputs) local(x.get_name());
@@ -425,13 +592,20 @@ class CBuilder {
   std::map<std::string, std::string> local_;
 };
 
-void check_c_emittable(const Analysis& a, const ObserverSpec& s) {
-  if (s.update == UpdateKind::jets || s.estimate == EstimateKind::newton)
-    throw UserError(SourceLoc{a.model.file, 0, 0},
-                    "--language c: the " + s.method + " observer is not available in C yet");
-}
-
-std::string estimate_body(const ObserverSpec& s, const std::string& prm, CBuilder& b) {
+std::string estimate_body(const ObserverSpec& s, const std::string& prm, CBuilder& b,
+                          Precision precision) {
+  const bool single = precision == Precision::single;
+  if (s.estimate == EstimateKind::newton)
+    return render_template(kEstimateNewton, {{"n", std::to_string(s.state_size)},
+                                             {"zero", b.lit(0)},
+                                             {"one", b.lit(1)},
+                                             {"fabs", single ? "fabsf" : "fabs"},
+                                             {"map", b.fn(s.roles.newton_map)},
+                                             {"jacobian", b.fn(s.roles.newton_inverse_jacobian)},
+                                             {"PRM", prm},
+                                             {"P", b.prefix()},
+                                             {"tolerance", single ? "1e-6f" : "1e-13"},
+                                             {"iterations", std::to_string(s.newton_iterations)}});
   if (s.estimate == EstimateKind::identity)
     return "  int i;\n  for (i = 0; i < N; ++i) o->xh[i] = o->w[i];\n"
            "  return all_finite(o->xh, N) ? " +
@@ -453,12 +627,26 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
   const bool single = precision == Precision::single;
   std::size_t max_dim = 1;
   for (const auto& q : s.symmetric_blocks) max_dim = std::max(max_dim, q.dim);
-  std::string out =
-      render_template(kSolvers, {{"zero", b.lit(0)},
-                                 {"sqrt", single ? "sqrtf" : "sqrt"},
-                                 {"fabs", single ? "fabsf" : "fabs"},
-                                 {"epsilon", single ? "1.1920929e-7f" : "2.220446049250313e-16"},
-                                 {"max_dim", std::to_string(max_dim)}});
+  const std::map<std::string, std::string> lits = {
+      {"zero", b.lit(0)},
+      {"sqrt", single ? "sqrtf" : "sqrt"},
+      {"fabs", single ? "fabsf" : "fabs"},
+      {"epsilon", single ? "1.1920929e-7f" : "2.220446049250313e-16"},
+      {"max_dim", std::to_string(max_dim)}};
+  auto helper = [&](const char* text, std::vector<std::string> keys) {
+    std::map<std::string, std::string> v;
+    for (const auto& k : keys) v[k] = lits.at(k);
+    return render_template(text, v);
+  };
+  std::string out;
+  if (s.correction && !s.correction->matrix_block.empty()) out += kUnpack;
+  if (s.correction && s.correction->factor == SolveCorrection::Factor::cholesky)
+    out += helper(kSolveCholesky, {"zero", "sqrt"});
+  if (s.correction && s.correction->factor == SolveCorrection::Factor::lu)
+    out += helper(kSolveLu, {"zero", "fabs", "epsilon"});
+  bool pd = false;
+  for (const auto& q : s.symmetric_blocks) pd = pd || q.keep_positive_definite;
+  if (pd) out += helper(kPackedPositiveDefinite, {"zero", "max_dim"});
   const bool params = !prm.empty();
   std::string correction = "  return 1;\n", doc;
   if (s.correction) {
@@ -503,17 +691,16 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
         q.offset, q.dim, b.prefix(), q.name);
     names += (names.empty() ? "" : ", ") + q.name;
   }
-  return out +
-         render_template(kStepRk4Guarded,
-                         {{"P", b.prefix()},
-                          {"guard_doc", names.empty() ? ""
-                                                      : fmt::format(", or when {} is no longer "
-                                                                    "positive definite",
-                                                                    names)},
-                          {"PRM", prm},
-                          {"two", b.lit(2)},
-                          {"six", b.lit(6)},
-                          {"block_checks", checks}});
+  std::vector<std::string> why;
+  if (s.correction) why.push_back("when a gain solve fails in any stage");
+  if (!names.empty()) why.push_back(fmt::format("when {} is no longer positive definite", names));
+  const std::string guard_doc = fmt::format("{}", fmt::join(why, ", or "));
+  return out + render_template(kStepRk4Guarded, {{"P", b.prefix()},
+                                                 {"guard_doc", guard_doc},
+                                                 {"PRM", prm},
+                                                 {"two", b.lit(2)},
+                                                 {"six", b.lit(6)},
+                                                 {"block_checks", checks}});
 }
 
 std::string step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b) {
@@ -535,6 +722,64 @@ std::string step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b
                           {"six", b.lit(6)}});
 }
 
+// Status values beyond ok / non_finite that this observer can return.
+std::string extra_statuses(const ObserverSpec& s, const std::string& P) {
+  std::string out;
+  if (guarded(s)) out += fmt::format(", {}_singular = 2", P);
+  if (s.estimate == EstimateKind::newton) out += fmt::format(", {}_not_converged = 3", P);
+  return out;
+}
+
+// ---- the perfect observer's differentiators ---------------------------------------------
+
+std::string jet_members(const ObserverSpec& s, const std::string& P, std::size_t m) {
+  const std::size_t ky = s.y_jet_order + 1, ku = s.u_jet_order + 1,
+                    m1 = std::max<std::size_t>(m, 1);
+  return fmt::format(
+      "  {0}_scalar epsilon; /* the differentiators' time constant */\n"
+      "  {0}_scalar y_eta[{1}], y_phi[{1} * {1}], y_dt, y_prev; /* output differentiator */\n"
+      "  {0}_scalar u_eta[{2}][{3}], u_phi[{2}][{3} * {3}], u_dt[{2}], u_prev[{2}]; /* inputs */\n",
+      P, ky, m1, ku);
+}
+
+// Starts the output differentiator at h(xh0) and the input differentiators at 0.
+std::string jet_reset_body(const ObserverSpec& s, CBuilder& b, const std::string& prm) {
+  return fmt::format(
+      "  {{\n    Scalar y0[{0}_p];\n    {1}(xh0{2}, y0);\n"
+      "    jet_reset(o->y_eta, &o->y_prev, {3}, y0[0]);\n"
+      "    for (i = 0; i < {0}_m; ++i) jet_reset(o->u_eta[i], &o->u_prev[i], {4}, {5});\n  }}\n",
+      b.prefix(), b.fn("h"), prm, s.y_jet_order, s.u_jet_order, b.lit(0));
+}
+
+std::string jet_init_body(const ObserverSpec& s, CBuilder& b, Precision p) {
+  return fmt::format(
+      "  o->epsilon = {0};\n  o->y_dt = {1};\n"
+      "  {{\n    int j;\n    for (j = 0; j < {2}_m; ++j) o->u_dt[j] = {1};\n  }}\n",
+      c_scalar_literal(GiNaC::numeric(s.default_epsilon), p), b.lit(-1), b.prefix());
+}
+
+// The differentiator functions (before the lifecycle functions that call them).
+std::string jets_support_text(const ObserverSpec& s, CBuilder& b, Precision p) {
+  const std::size_t d = std::max(s.y_jet_order, s.u_jet_order) + 1;
+  return render_template(kJets, {{"zero", b.lit(0)},
+                                 {"one", b.lit(1)},
+                                 {"exp", p == Precision::single ? "expf" : "exp"},
+                                 {"d", std::to_string(d)}});
+}
+
+std::string jets_step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b,
+                           std::size_t m) {
+  return render_template(kStepJets, {{"P", b.prefix()},
+                                     {"ky", std::to_string(s.y_jet_order)},
+                                     {"ku", std::to_string(s.u_jet_order)},
+                                     {"ky1", std::to_string(s.y_jet_order + 1)},
+                                     {"ku1", std::to_string(s.u_jet_order + 1)},
+                                     {"m1", std::to_string(std::max<std::size_t>(m, 1))},
+                                     {"zero", b.lit(0)},
+                                     {"reconstruct", b.fn(s.roles.reconstruct)},
+                                     {"PRM", prm}});
+}
+
 std::string closed_loop(const ObserverSpec& s, Precision p) {
   std::vector<std::string> v;
   for (const auto& row : s.closed_loop)
@@ -545,11 +790,11 @@ std::string closed_loop(const ObserverSpec& s, Precision p) {
 }  // namespace
 
 EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt) {
-  check_c_emittable(a, s);
   const Model& m = a.model;
   CBuilder b(a, s, opt);
   const std::string& P = b.prefix();
   const bool exact = s.update == UpdateKind::linear_exact && !s.rk4_for_linear;
+  const bool jets = s.update == UpdateKind::jets;
   const bool params = b.has_params();
   const std::string prm = params ? ", &o->prm" : "";
   EmittedHeader h;
@@ -576,6 +821,7 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
         "  {0}_scalar dt;                  /* dt of E and Gamma (0: not yet computed) */\n",
         P, s.state_size * s.state_size);
   if (params) members += fmt::format("  {}_params prm;\n", P);
+  if (jets) members += jet_members(s, P, m.m());
   std::string guard = "OBSYNTH_GEN_" + P + "_H";
   for (auto& ch : guard) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
   const std::string scalar = precision_name(opt.precision);
@@ -592,7 +838,7 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
        {"m", std::to_string(m.m())},
        {"p", std::to_string(m.p())},
        {"w_size", std::to_string(s.state_size)},
-       {"singular", guarded(s) ? fmt::format(", {}_singular = 2", P) : ""},
+       {"singular", extra_statuses(s, P)},
        {"params_decl", params ? render_template(kParamsDecl, {{"fields", fields}, {"P", P}}) : ""},
        {"members", members},
        {"prototypes", prototypes}});
@@ -615,16 +861,22 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
   std::string reset_body = s.init == InitKind::function
                                ? fmt::format("  {}(xh0{}, o->w);\n", b.fn(s.roles.init), prm)
                                : "  for (i = 0; i < N; ++i) o->w[i] = xh0[i];\n";
+  if (jets) reset_body += jet_reset_body(s, b, prm);
   std::string init_body;
   if (params) init_body += fmt::format("  {}_params_init(&o->prm);\n", P);
+  if (jets) init_body += jet_init_body(s, b, opt.precision);
   if (exact) init_body += fmt::format("  o->dt = {};\n", b.lit(0));
   std::vector<std::string> zeros(m.n(), b.lit(0));
+  if (jets) src += jets_support_text(s, b, opt.precision);
   src += render_template(kLifecycle, {{"P", P},
-                                      {"estimate_body", estimate_body(s, prm, b)},
+                                      {"estimate_body", estimate_body(s, prm, b, opt.precision)},
                                       {"reset_body", reset_body},
                                       {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
                                       {"init_body", init_body}});
-  src += guarded(s) ? guarded_step_text(s, prm, b, opt.precision) : step_text(s, prm, b);
+  if (jets)
+    src += jets_step_text(s, prm, b, m.m());
+  else
+    src += guarded(s) ? guarded_step_text(s, prm, b, opt.precision) : step_text(s, prm, b);
   h.source_text = src;
   h.operations = b.operations_;
   std::string set_params;

@@ -115,7 +115,7 @@ const char* kStateClass = R"({{class_comment}}{{preamble}}
   /// Sets the observer's own state and recomputes the estimate.
   obsynth::Status set_observer_state(const {{WState}}& w) noexcept {
     {{w}}_ = w;
-    return status_ = update_estimate();
+{{set_state_checks}}    return status_ = update_estimate();
   }
 
  private:
@@ -144,7 +144,7 @@ const char* kStepOde = R"(  /// One RK4 step of length dt with u and y held over
 // that must stay positive definite: a failed solve or a lost definiteness rejects the step.
 const char* kStepOdeGuarded =
     R"(  /// One RK4 step of length dt with u and y held over the step. The step is rejected (state
-  /// kept, Status::singular) when a gain solve fails in any stage{{guard_doc}}.
+  /// kept, Status::singular) {{guard_doc}}.
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
     const ObserverState w_prev = {{w}}_;
     bool solved = true;
@@ -550,8 +550,10 @@ std::string guarded_step(const ObserverSpec& s, const ClassContext& c) {
                                             {"name", b.name}});
     names += (names.empty() ? "" : ", ") + b.name;
   }
-  const std::string guard_doc =
-      names.empty() ? "" : fmt::format(", or when {} is no longer positive definite", names);
+  std::vector<std::string> why;
+  if (s.correction) why.push_back("when a gain solve fails in any stage");
+  if (!names.empty()) why.push_back(fmt::format("when {} is no longer positive definite", names));
+  const std::string guard_doc = fmt::format("{}", fmt::join(why, ", or "));
   return render_template(kStepOdeGuarded, {{"w", s.state_name},
                                            {"P", c.P},
                                            {"capture", c.capture.empty() ? "" : "this, "},
@@ -676,6 +678,17 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOpti
   v["derivative_body"] = derivative_body(s, c);
   v["derivative_type"] = s.update == UpdateKind::ode && guarded(s) ? "obsynth::Status" : "void";
   v["WState"] = wstate;
+  // A state whose symmetric blocks are not positive definite is kept but reported singular
+  // (step() would reject every step from it).
+  std::string set_state_checks;
+  if (s.update == UpdateKind::ode)
+    for (const auto& b : s.symmetric_blocks)
+      if (b.keep_positive_definite)
+        set_state_checks += fmt::format(
+            "    if (!obsynth::packed_positive_definite<{}, {}>({}_)) {{  // {}\n"
+            "      return status_ = obsynth::Status::singular;\n    }}\n",
+            b.offset, b.dim, s.state_name, b.name);
+  v["set_state_checks"] = set_state_checks;
   v["state_doc"] = s.state_doc;
   v["w"] = s.state_name;
   v["estimate_body"] = estimate_body(s, opt, c);

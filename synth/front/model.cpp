@@ -30,4 +30,18 @@ ExVec Model::field() const {
   return out;
 }
 
+bool Model::feedthrough() const {
+  for (const auto& e : h)
+    for (const auto& u : inputs)
+      if (e.has(u)) return true;
+  return false;
+}
+
+GiNaC::exmap Model::nominal_inputs() const {
+  GiNaC::exmap out;
+  for (std::size_t i = 0; i < inputs.size(); ++i)
+    out[inputs[i]] = i < nominal.size() ? GiNaC::ex(nominal[i]) : GiNaC::ex(0);
+  return out;
+}
+
 }  // namespace obsynth

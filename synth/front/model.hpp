@@ -26,15 +26,29 @@ struct Param {
   SourceLoc loc;
 };
 
+// A design parameter given in the model file: `option <name> = <value text>`; the value text
+// is passed verbatim, as if given on the command line as --<name>.
+struct ModelOption {
+  std::string name;
+  std::string value;
+  SourceLoc loc;  // of the name
+};
+
 struct Model {
   std::string name;
   std::string file;
   std::vector<GiNaC::symbol> states;
   std::vector<GiNaC::symbol> inputs;
   std::vector<Param> params;
-  ExVec f;                                     // drift, g(x,0) = 0 split off
-  ExVec g;                                     // input part, zero at u = 0
-  ExVec h;                                     // outputs
+  ExVec f;  // drift, g(x,u0) = 0 split off
+  ExVec g;  // input part, zero at u = u0 (0 unless nominal)
+  ExVec h;  // outputs h(x) or h(x,u) (direct feedthrough)
+  // The nominal input u0 (one value per input) at which a field given as `F` was split:
+  // f = F(x,u0), g = F(x,u) - F(x,u0). Empty: u0 = 0 (design.md §1). nominal_note says how u0
+  // was chosen (a `nominal` line, or automatically because F is undefined at u = 0).
+  std::vector<GiNaC::numeric> nominal;
+  std::string nominal_note;
+  std::vector<ModelOption> options;            // `option` lines, in file order
   std::map<std::string, Interval> domain;      // states, inputs and free parameters
   std::map<std::string, SourceLoc> locations;  // where f, g, h, ... were given
 
@@ -51,6 +65,10 @@ struct Model {
   Interval box(const GiNaC::symbol& s) const;
   // f + g
   ExVec field() const;
+  // Some output depends on an input (y = h(x,u)).
+  bool feedthrough() const;
+  // u -> u0 (0 when no nominal input was set).
+  GiNaC::exmap nominal_inputs() const;
 };
 
 }  // namespace obsynth

@@ -25,8 +25,8 @@ constexpr long kMaxExactBits = 1L << 18;       // about 79,000 decimal digits
 constexpr long kMaxEvaluationBits = 1L << 24;  // exact evaluation of whole expressions
 
 const char* const kFunctions[] = {"sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "atan"};
-const char* const kKeywords[] = {"model", "states", "inputs", "params", "f",
-                                 "g",     "h",      "F",      "domain"};
+const char* const kKeywords[] = {"model", "states", "inputs", "params",  "f",     "g",
+                                 "h",     "F",      "domain", "nominal", "option"};
 // Names the analysis uses for its own symbols (output, canonical coordinates, time).
 bool is_reserved_name(const std::string& s) {
   if (s == "y" || s == "t") return true;
@@ -211,6 +211,67 @@ numeric parse_number(const std::string& s, const SourceLoc& loc) {
   return v * numeric(10).power(numeric(e10));
 }
 
+// `option <name> = <value text>` lines are taken out before lexing (the value text is passed
+// verbatim, as if given on the command line, so it is not tokenised); the line is blanked so
+// that every other position stays where it was.
+std::vector<ModelOption> take_option_lines(std::string& src, const std::string& file) {
+  std::vector<ModelOption> out;
+  std::size_t start = 0;
+  int line = 1;
+  int depth = 0;  // inside a bracketed list an "option" word is an expression
+  while (start <= src.size()) {
+    std::size_t end = src.find('\n', start);
+    if (end == std::string::npos) end = src.size();
+    std::size_t i = start;
+    while (i < end && (src[i] == ' ' || src[i] == '\t')) ++i;
+    const bool is_option = depth == 0 && end - i > 6 && src.compare(i, 6, "option") == 0 &&
+                           (src[i + 6] == ' ' || src[i + 6] == '\t');
+    if (is_option) {
+      std::size_t stop = src.find('#', i);
+      if (stop == std::string::npos || stop > end) stop = end;
+      std::size_t k = i + 6;
+      while (k < stop && (src[k] == ' ' || src[k] == '\t')) ++k;
+      const int name_col = static_cast<int>(k - start) + 1;
+      std::size_t name_end = k;
+      while (name_end < stop && (std::isalnum(static_cast<unsigned char>(src[name_end])) ||
+                                 src[name_end] == '_' || src[name_end] == '-'))
+        ++name_end;
+      const SourceLoc loc{file, line, name_col};
+      if (name_end == k)
+        throw UserError(loc, "expected an option name after 'option' (option NAME = VALUE)");
+      const std::string name = src.substr(k, name_end - k);
+      std::size_t e = name_end;
+      while (e < stop && (src[e] == ' ' || src[e] == '\t')) ++e;
+      if (e >= stop || src[e] != '=')
+        throw UserError(
+            {file, line, static_cast<int>(e - start) + 1},
+            fmt::format("expected '=' after the option name '{}' (option {} = VALUE)", name, name));
+      std::string value = src.substr(e + 1, stop - e - 1);
+      const auto first = value.find_first_not_of(" \t\r");
+      const auto last = value.find_last_not_of(" \t\r");
+      value = first == std::string::npos ? "" : value.substr(first, last - first + 1);
+      if (value.empty())
+        throw UserError({file, line, static_cast<int>(e - start) + 1},
+                        fmt::format("option '{}' has no value after '='", name));
+      for (const auto& o : out)
+        if (o.name == name)
+          throw UserError(loc, fmt::format("duplicate option '{}': already given at {}:{}", name,
+                                           o.loc.line, o.loc.col));
+      out.push_back({name, value, loc});
+      for (std::size_t q = start; q < end; ++q) src[q] = ' ';
+    } else {
+      for (std::size_t q = i; q < end; ++q) {
+        if (src[q] == '#') break;
+        if (src[q] == '[' || src[q] == '(') ++depth;
+        if ((src[q] == ']' || src[q] == ')') && depth > 0) --depth;
+      }
+    }
+    start = end + 1;
+    ++line;
+  }
+  return out;
+}
+
 struct Declared {
   enum Kind { state, input, param } kind;
   GiNaC::symbol sym;
@@ -268,6 +329,13 @@ class Parser {
   std::map<std::string, Declared> names_;
   std::vector<std::pair<ex, SourceLoc>> divisors_;
   std::optional<ExVec> f_, g_, h_, F_;
+  struct NominalValue {
+    GiNaC::symbol input;
+    numeric value;
+    SourceLoc loc;
+  };
+  std::optional<std::vector<NominalValue>> nominal_;
+  SourceLoc nominal_loc_;
   int depth_ = 0;
 
   const Token& peek() const { return toks_[i_]; }
@@ -313,8 +381,8 @@ class Parser {
     const Token& kw = next();
     if (kw.kind == Tok::newline) return;
     if (kw.kind != Tok::ident)
-      fail(kw, fmt::format("expected a keyword (model, states, inputs, params, f, g, h, domain), "
-                           "found {}",
+      fail(kw, fmt::format("expected a keyword (model, states, inputs, params, f, g, h, F, domain, "
+                           "nominal, option), found {}",
                            describe(kw)));
     const std::string& k = kw.text;
     model_.locations[k] = loc(kw);
@@ -324,6 +392,7 @@ class Parser {
     if (k == "params") return params_statement(kw);
     if (k == "f" || k == "g" || k == "h" || k == "F") return field_statement(kw);
     if (k == "domain") return domain_statement(kw);
+    if (k == "nominal") return nominal_statement(kw);
     std::vector<std::string> kws(std::begin(kKeywords), std::end(kKeywords));
     fail(kw, fmt::format("unknown keyword '{}'{}", k, suggestion(k, kws)));
   }
@@ -502,6 +571,38 @@ class Parser {
       model_.domain[t.text] = Interval{lo, hi};
     } while (accept_op(','));
     expect_end_of_statement("domain");
+  }
+
+  // nominal u = 1, v = 2: the input value at which a field given as F is split.
+  void nominal_statement(const Token& kw) {
+    if (nominal_) fail(kw, "duplicate 'nominal' statement");
+    nominal_.emplace();
+    nominal_loc_ = loc(kw);
+    do {
+      const Token& t = next();
+      if (t.kind != Tok::ident)
+        fail(t, fmt::format("expected an input name in 'nominal', found {}", describe(t)));
+      auto it = names_.find(t.text);
+      if (it == names_.end() || it->second.kind != Declared::input)
+        fail(t, fmt::format("'{}' is not a declared input ('nominal' gives input values; declare "
+                            "'inputs' first){}",
+                            t.text, suggestion(t.text, input_names())));
+      for (const auto& [sym, v, l] : *nominal_)
+        if (sym.get_name() == t.text)
+          fail(t, fmt::format("'{}' appears twice in 'nominal'", t.text));
+      expect_op('=', fmt::format("after '{}' in 'nominal'", t.text).c_str());
+      const Token& at = peek();
+      const numeric v =
+          numeric_value(expression(), at, fmt::format("the nominal value of '{}'", t.text));
+      nominal_->push_back({it->second.sym, v, loc(at)});
+    } while (accept_op(','));
+    expect_end_of_statement("nominal");
+  }
+
+  std::vector<std::string> input_names() const {
+    std::vector<std::string> out;
+    for (const auto& u : model_.inputs) out.push_back(u.get_name());
+    return out;
   }
 
   std::vector<std::string> declared_names() const {
@@ -884,35 +985,113 @@ class Parser {
     };
     GiNaC::exmap u_zero;
     for (const auto& u : model_.inputs) u_zero[u] = 0;
-    // Substituting u = 0 can throw (a pole such as 1/u): that is the user's model, not a bug.
-    auto at_u_zero = [&](const ex& e, const char* field, std::size_t i) -> ex {
-      const SourceLoc l = where(fmt::format("{}[{}]", field, i));
-      const auto undefined = [&](const std::string& why) {
-        return UserError(
-            l, fmt::format("{}[{}] is undefined at u = 0 ({}); the input part g(x,u) must "
-                           "be defined and zero at u = 0",
-                           field, i + 1, why));
-      };
-      // GiNaC leaks the half-built term when a pole makes subs() throw (x2/u*x2 with u = 0),
-      // so look for vanishing denominators first, innermost first.
+    // e at an input point, or nullopt with why: substituting can throw (a pole such as 1/u,
+    // log(u) at 0), and that is the user's model, not a bug. GiNaC leaks the half-built term
+    // when a pole makes subs() throw (x2/u*x2 with u = 0), so look for vanishing denominators
+    // first, innermost first.
+    auto value_at = [&](const ex& e, const GiNaC::exmap& at,
+                        std::string& why) -> std::optional<ex> {
       try {
-        check_poles_at_zero(e, u_zero, [&](const ex& base) {
-          throw undefined(fmt::format("it divides by {}, which vanishes there", to_string(base)));
+        std::optional<std::string> pole;
+        check_poles_at_zero(e, at, [&](const ex& base) {
+          if (!pole) pole = fmt::format("it divides by {}, which vanishes there", to_string(base));
         });
-        return e.subs(u_zero);
-      } catch (const UserError&) {
-        throw;
+        if (pole) {
+          why = *pole;
+          return std::nullopt;
+        }
+        return e.subs(at);
       } catch (const std::exception& err) {  // e.g. log(u)
-        throw undefined(err.what());
+        why = err.what();
+        return std::nullopt;
       }
     };
+    auto at_u_zero = [&](const ex& e, const char* field, std::size_t i) -> ex {
+      std::string why;
+      if (auto v = value_at(e, u_zero, why)) return *v;
+      throw UserError(where(fmt::format("{}[{}]", field, i)),
+                      fmt::format("{}[{}] is undefined at u = 0 ({}); the input part g(x,u) must "
+                                  "be defined and zero at u = 0",
+                                  field, i + 1, why));
+    };
+    auto point_text = [&](const std::vector<numeric>& v) {
+      std::vector<std::string> parts;
+      for (std::size_t k = 0; k < model_.inputs.size(); ++k)
+        parts.push_back(fmt::format("{} = {}", model_.inputs[k].get_name(), to_string(v[k])));
+      return fmt::format("{}", fmt::join(parts, ", "));
+    };
+    auto point_map = [&](const std::vector<numeric>& v) {
+      GiNaC::exmap at;
+      for (std::size_t k = 0; k < model_.inputs.size(); ++k) at[model_.inputs[k]] = v[k];
+      return at;
+    };
+    if (nominal_ && !F_)
+      throw UserError(nominal_loc_,
+                      "'nominal' sets where a field given as 'F = [...]' is split (f = F(x,u0), "
+                      "g = F - f); with 'f' and 'g' the split is already explicit");
     if (F_) {
       check_len("F", *F_);
+      // The nominal input u0: the 'nominal' line, else 0, else (F undefined at 0) the middle of
+      // the input box, stated in nominal_note; never a silent guess.
+      std::vector<numeric> u0(model_.inputs.size(), numeric(0));
+      if (nominal_) {
+        for (const auto& nv : *nominal_) {
+          std::size_t k = 0;
+          while (!(model_.inputs[k] == nv.input)) ++k;
+          u0[k] = nv.value;
+          const auto box = model_.domain.find(nv.input.get_name());
+          if (box != model_.domain.end() &&
+              (nv.value < box->second.lo || nv.value > box->second.hi))
+            throw UserError(nv.loc,
+                            fmt::format("the nominal value {} of '{}' is outside its "
+                                        "domain [{}, {}]",
+                                        to_string(nv.value), nv.input.get_name(),
+                                        to_string(box->second.lo), to_string(box->second.hi)));
+        }
+        model_.nominal = u0;
+        model_.nominal_note =
+            fmt::format("F split at the nominal input {} (the 'nominal' line)", point_text(u0));
+      } else {
+        for (std::size_t i = 0; i < n; ++i) {
+          std::string why;
+          if (value_at((*F_)[i], u_zero, why)) continue;
+          std::vector<numeric> mid;
+          for (const auto& u : model_.inputs) {
+            const Interval b = model_.box(u);
+            mid.push_back((b.lo + b.hi) / 2);
+          }
+          bool defined = true;
+          std::string why_mid;
+          for (std::size_t j = 0; j < n && defined; ++j)
+            defined = value_at((*F_)[j], point_map(mid), why_mid).has_value();
+          if (!defined)
+            throw UserError(
+                where(fmt::format("F[{}]", i)),
+                fmt::format("F[{}] is undefined at u = 0 ({}) and F at the middle of the input "
+                            "box ({}: {}); add a line 'nominal {} = VALUE' with an input value "
+                            "where F is defined, to split F there",
+                            i + 1, why, point_text(mid), why_mid,
+                            model_.inputs.empty() ? "u" : model_.inputs[0].get_name()));
+          u0 = mid;
+          model_.nominal = u0;
+          model_.nominal_note = fmt::format(
+              "F split at the nominal input {} (the middle of the input box), because F[{}] is "
+              "undefined at u = 0 ({}); a 'nominal' line sets another value",
+              point_text(u0), i + 1, why);
+          break;
+        }
+      }
+      const GiNaC::exmap at = point_map(u0);
       for (std::size_t i = 0; i < n; ++i) {
         const ex& c = (*F_)[i];
-        const ex c0 = at_u_zero(c, "F", i);
-        model_.f.push_back(c0);
-        model_.g.push_back(c - c0);
+        std::string why;
+        const auto c0 = value_at(c, at, why);
+        if (!c0)
+          throw UserError(where(fmt::format("F[{}]", i)),
+                          fmt::format("F[{}] is undefined at the nominal input {} ({})", i + 1,
+                                      point_text(u0), why));
+        model_.f.push_back(*c0);
+        model_.g.push_back(c - *c0);
       }
     } else {
       check_len("f", *f_);
@@ -933,13 +1112,22 @@ class Parser {
         model_.g.assign(n, ex(0));
       }
     }
+    // Outputs may depend on the inputs (direct feedthrough, y = h(x,u)); the drift analysis
+    // reads them at the nominal input, so they must be defined there.
     model_.h = *h_;
-    for (std::size_t i = 0; i < model_.h.size(); ++i)
-      for (const auto& u : model_.inputs)
-        if (model_.h[i].has(u))
+    {
+      std::vector<numeric> u0 = model_.nominal;
+      u0.resize(model_.inputs.size(), numeric(0));
+      for (std::size_t i = 0; i < model_.h.size(); ++i) {
+        if (!depends_on(model_.h[i], model_.inputs)) continue;
+        std::string why;
+        if (!value_at(model_.h[i], point_map(u0), why))
           throw UserError(where(fmt::format("h[{}]", i)),
-                          fmt::format("h[{}] depends on the input '{}'; outputs must be h(x)",
-                                      i + 1, u.get_name()));
+                          fmt::format("h[{}] is undefined at the input {} ({}); the drift "
+                                      "analysis reads the outputs there",
+                                      i + 1, point_text(u0), why));
+      }
+    }
     const SampleBoxes boxes = SampleBoxes::from_model(model_);
     check_exact_size(boxes);
     check_function_arguments(boxes);
@@ -965,9 +1153,13 @@ bool is_supported_function(const std::string& name) {
 }
 
 Model parse_model(std::string_view text, const std::string& filename, const ParseLimits& limits) {
-  Lexer lexer(text, filename, limits);
+  std::string src(text);
+  std::vector<ModelOption> options = take_option_lines(src, filename);
+  Lexer lexer(src, filename, limits);
   Parser parser(lexer.run(), filename, limits);
-  return parser.run();
+  Model m = parser.run();
+  m.options = std::move(options);
+  return m;
 }
 
 ExVec parse_expression_list(std::string_view text, const std::string& what,

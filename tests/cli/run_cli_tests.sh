@@ -136,21 +136,25 @@ check "main job time stop writes nothing" test ! -e "$tmp/job_time"
 "$bin" --list-methods >"$tmp/out" 2>&1
 check "--list-methods lists canonical" grep -q "^canonical " "$tmp/out"
 check "--list-methods lists perfect" grep -q "^perfect " "$tmp/out"
-check "--list-methods marks riccati planned" grep -q "^riccati .*planned" "$tmp/out"
+check "--list-methods lists riccati" grep -q "^riccati " "$tmp/out"
+check "--list-methods marks high-gain planned" grep -q "^high-gain .*planned" "$tmp/out"
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/auto" >"$tmp/out" 2>"$tmp/err"
 check "auto explains its choice" grep -q "auto: chose 'canonical' because the bracket conditions hold" "$tmp/out"
 check "auto writes the alias header" grep -q "using AutoObserver = Slawinski17Canonical<Scalar...>;" "$tmp/auto/slawinski17_auto.hpp"
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/all" --method all >"$tmp/out" 2>"$tmp/err"
 check "--method all writes canonical and perfect" test -e "$tmp/all/slawinski17_canonical.hpp" -a -e "$tmp/all/slawinski17_perfect.hpp"
 "$bin" "$src/models/lorenz.sym" -o "$tmp/lorenz" >"$tmp/out" 2>"$tmp/err"
-check "auto on a non-linearizable model exits 1" test $? -eq 1
-check "auto names why canonical does not apply" grep -q "canonical: not linearizable by output injection" "$tmp/err"
-check "auto names the planned designs" grep -q "not implemented yet: riccati" "$tmp/err"
-check "auto failure writes nothing" test ! -e "$tmp/lorenz"
+check "auto on a non-linearizable model falls back to riccati" grep -q "auto: chose 'riccati'" "$tmp/out"
+check "auto names why canonical does not apply" grep -q "canonical: not linearizable by output injection" "$tmp/out"
+check "auto fallback writes the riccati header" test -e "$tmp/lorenz/lorenz_riccati.hpp"
+"$bin" "$src/models/stuart_landau.sym" -o "$tmp/sl" >"$tmp/out" 2>"$tmp/err"
+check "auto on an unobservable model exits 1" test $? -eq 1
+check "auto names the planned designs" grep -q "not implemented yet: high-gain" "$tmp/err"
+check "auto failure writes nothing" test ! -e "$tmp/sl"
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/x" --method nonsense >"$tmp/out" 2>"$tmp/err"
 check "unknown method diagnostic" grep -q "unknown method 'nonsense' (known: auto, all, canonical, perfect" "$tmp/err"
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/x" --method thau >"$tmp/out" 2>"$tmp/err"
-check "planned method diagnostic" grep -q "method 'thau' is not implemented in this version of obsynth (implemented: canonical, perfect)" "$tmp/err"
+check "planned method diagnostic" grep -q "method 'thau' is not implemented in this version of obsynth (implemented: canonical, perfect, riccati)" "$tmp/err"
 
 # Run-time parameters and --param.
 "$bin" "$src/models/pendulum_params.sym" -o "$tmp/prm" --method canonical >"$tmp/out" 2>"$tmp/err"
@@ -246,18 +250,21 @@ check "--list-methods exits 0" test $? -eq 0
 for m in canonical perfect riccati high-gain; do
   check "--list-methods names $m" grep -q "$m" "$tmp/out"
 done
-"$bin" "$src/models/lorenz.sym" -o "$tmp/lorenz_out" >"$tmp/out" 2>"$tmp/err"
-check "auto on lorenz exits 1" test $? -eq 1
-check "auto on lorenz names canonical" grep -q "canonical:" "$tmp/err"
-check "auto on lorenz names perfect" grep -q "perfect:" "$tmp/err"
-check "auto on lorenz lists planned designs" grep -q "not implemented yet: riccati" "$tmp/err"
-check "auto on lorenz writes nothing" test ! -e "$tmp/lorenz_out"
+"$bin" "$src/models/stuart_landau.sym" -o "$tmp/sl_out" >"$tmp/out" 2>"$tmp/err"
+check "auto on stuart_landau exits 1" test $? -eq 1
+check "auto on stuart_landau names canonical" grep -q "canonical:" "$tmp/err"
+check "auto on stuart_landau names riccati" grep -q "riccati:" "$tmp/err"
+check "auto on stuart_landau lists planned designs" grep -q "not implemented yet: high-gain" "$tmp/err"
+check "auto on stuart_landau writes nothing" test ! -e "$tmp/sl_out"
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/m1" --method bogus >"$tmp/out" 2>"$tmp/err"
 check "unknown method exits 1" test $? -eq 1
 check "unknown method diagnostic" grep -q "unknown method 'bogus' (known: auto, all, " "$tmp/err"
-"$bin" "$src/models/slawinski17.sym" -o "$tmp/m2" --method riccati >"$tmp/out" 2>"$tmp/err"
+"$bin" "$src/models/slawinski17.sym" -o "$tmp/m2" --method high-gain >"$tmp/out" 2>"$tmp/err"
 check "planned method exits 1" test $? -eq 1
-check "planned method diagnostic" grep -q "method 'riccati' is not implemented in this version" "$tmp/err"
+check "planned method diagnostic" grep -q "method 'high-gain' is not implemented in this version" "$tmp/err"
+"$bin" "$src/models/slawinski17.sym" -o "$tmp/m3" --method riccati --Q0 1,2,3,1 >"$tmp/out" 2>"$tmp/err"
+check "riccati: non-symmetric --Q0 exits 1" test $? -eq 1
+check "riccati: --Q0 diagnostic" grep -q -- "--Q0: not symmetric" "$tmp/err"
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/all" --method all >"$tmp/out" 2>"$tmp/err"
 check "--method all exits 0" test $? -eq 0
 check "--method all writes canonical" test -s "$tmp/all/slawinski17_canonical.hpp"

@@ -1,0 +1,312 @@
+#include "analysis/observability_inputs.hpp"
+
+#include <fmt/format.h>
+
+#include <new>
+
+#include "symbolic/expr_print.hpp"
+#include "symbolic/symbolic.hpp"
+#include "symbolic/zero_test.hpp"
+
+namespace obsynth {
+
+using GiNaC::ex;
+using GiNaC::numeric;
+
+const char* persistent_input_designs() {
+  return "riccati (James-Baras), kalman-theta (Kalman-like, strongly persistent inputs) and "
+         "high-gain (uniformly observable systems)";
+}
+
+Model frozen_input_model(const Model& m) {
+  Model mu = m;
+  mu.f = m.field();
+  mu.g.assign(m.n(), ex(0));
+  mu.inputs.clear();
+  for (const auto& u : m.inputs) {
+    mu.domain[u.get_name()] = m.box(u);
+    mu.params.push_back(Param{u.get_name(), u, std::nullopt, SourceLoc{}});
+  }
+  return mu;
+}
+
+namespace {
+
+std::string rank_method_name(const Observability& ob) {
+  return ob.jets         ? "jets"
+         : ob.triangular ? "triangular"
+         : ob.rank_exact ? "exact"
+                         : "high-precision";
+}
+
+bool input_enters(const Model& m) {
+  if (m.inputs.empty()) return false;
+  for (const auto& e : m.g)
+    if (!e.is_zero()) return true;
+  for (const auto& e : m.h)
+    if (depends_on(e, m.inputs)) return true;
+  return false;
+}
+
+// The rank of the observation space: d of L_{X_k} ... L_{X_1} h, X_j = f + g(., v_j) with
+// independent input values v_j (and h(x, v_0)), words of length < n, several random input
+// tuples per length, at two random state points; the largest rank seen.
+std::size_t observation_space_rank(const Model& m, Budget& budget,
+                                   const ObservabilityOptions& opt) {
+  const std::size_t n = m.n();
+  const Symbols& x = m.states;
+  SampleBoxes boxes = SampleBoxes::from_model(m);
+  std::vector<std::vector<GiNaC::symbol>> v(n);
+  std::vector<GiNaC::exmap> to_v(n);
+  for (std::size_t k = 0; k < n; ++k)
+    for (const auto& u : m.inputs) {
+      const std::string name = fmt::format("{}__v{}", u.get_name(), k);
+      v[k].emplace_back(name);
+      boxes.by_name[name] = m.box(u);
+      to_v[k][u] = v[k].back();
+    }
+  const ExVec field = m.field();
+  std::vector<ExMatrix> grads;  // grads[k][i]: gradient of the length-k word for output i
+  std::vector<ex> phi;
+  for (const auto& h : m.h) phi.push_back(h.subs(to_v[0]));
+  for (std::size_t k = 0; k < n; ++k) {
+    if (k > 0) {
+      ExVec Fk;
+      for (const auto& e : field) Fk.push_back(e.subs(to_v[k]));
+      for (auto& p : phi) p = GiNaC::expand(lie_derivative(p, Fk, x));
+    }
+    ExMatrix rows;
+    for (const auto& p : phi) {
+      rows.push_back(gradient(p, x));
+      budget.check(expression_size(p));
+    }
+    grads.push_back(std::move(rows));
+  }
+  bool exact = true;
+  for (const auto& rows : grads)
+    for (const auto& r : rows)
+      for (const auto& e : r)
+        if (has_transcendental(e)) exact = false;
+  std::vector<GiNaC::symbol> syms(x);
+  for (const auto& s : m.free_params()) syms.push_back(s);
+  std::vector<GiNaC::symbol> vsyms;
+  for (const auto& vk : v) vsyms.insert(vsyms.end(), vk.begin(), vk.end());
+  const int tuples = static_cast<int>(n) + 2;
+  const auto xpoints = sample_points(syms, boxes, 8, opt.seed);
+  const auto vpoints = sample_points(vsyms, boxes, tuples, opt.seed + 1);
+  const numeric rounding = numeric(10).power(-(opt.float_digits - 10));
+  std::size_t best = 0;
+  int used = 0;
+  for (const auto& xp : xpoints) {
+    if (used >= 2) break;
+    std::vector<std::vector<numeric>> a;
+    bool valid = true;
+    for (std::size_t t = 0; t < vpoints.size() && valid; ++t) {
+      GiNaC::exmap pt = xp;
+      for (const auto& [s, val] : vpoints[t]) pt[s] = val;
+      for (std::size_t k = 0; k < n && valid; ++k)
+        for (const auto& row : grads[k]) {
+          std::vector<numeric> r;
+          for (const auto& e : row) {
+            numeric val, mag;
+            if (exact) {
+              ex e0;
+              try {
+                e0 = e.subs(pt);
+              } catch (const std::exception&) {
+                valid = false;
+                break;
+              }
+              if (!GiNaC::is_a<numeric>(e0)) {
+                valid = false;
+                break;
+              }
+              val = GiNaC::ex_to<numeric>(e0);
+            } else {
+              if (!evaluate_with_magnitude(e, pt, opt.float_digits, val, mag)) {
+                valid = false;
+                break;
+              }
+              if (GiNaC::abs(val) <= rounding * mag) val = 0;
+            }
+            r.push_back(val);
+          }
+          if (!valid) break;
+          a.push_back(std::move(r));
+        }
+    }
+    if (!valid) continue;
+    ++used;
+    best = std::max(best, numeric_rank(a, exact));
+    budget.check();
+    if (best == n) break;
+  }
+  if (used == 0)
+    throw UserError(SourceLoc{}, "the observation space is undefined at every sampled point");
+  return best;
+}
+
+std::string list_text(const std::vector<std::string>& v) {
+  return fmt::format("{}", fmt::join(v, "; "));
+}
+
+void decide(const Model& m, const Observability& drift, ObservabilityUnderInputs& r) {
+  const std::size_t n = m.n();
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const std::string drift_note =
+      drift.generic_rank < n
+          ? fmt::format(" (the drift alone, u = 0, has rank {} < n = {})", drift.generic_rank, n)
+          : "";
+  if (r.generic_rank < n) {
+    if (r.observation_space_rank && *r.observation_space_rank < n) {
+      r.observable_for_some_input = false;
+      r.uniformly_observable = false;
+      r.reason = fmt::format(
+          "no input makes the model observable: rank O_u = {} < n = {} for every constant input, "
+          "and the observation space (all input sequences) has rank {} < n",
+          r.generic_rank, n, *r.observation_space_rank);
+    } else if (r.observation_space_rank) {
+      r.observable_for_some_input = true;
+      r.uniformly_observable = false;
+      r.reason = fmt::format(
+          "rank O_u = {} < n = {} for every constant input, but the observation space has rank "
+          "n: only time-varying inputs make the model observable",
+          r.generic_rank, n);
+    } else {
+      r.uniformly_observable = false;
+      r.reason = fmt::format(
+          "rank O_u = {} < n = {} for every constant input; whether a time-varying input helps "
+          "is undecided",
+          r.generic_rank, n);
+    }
+    return;
+  }
+  r.observable_for_some_input = true;
+  // Singular inputs that are admissible: rank O_u < n for every x there (an analytic model
+  // with a constant input is then not observable anywhere).
+  std::vector<std::string> admissible, unsure;
+  for (const auto& s : r.singular) {
+    if (s.in_box.kind == BoxZeros::somewhere) admissible.push_back(s.in_box.detail);
+    if (s.in_box.kind == BoxZeros::unknown) unsure.push_back(s.in_box.detail);
+  }
+  if (r.triangular) {
+    const TriangularForm& t = *r.triangular;
+    std::vector<std::string> vanish, unknown;
+    for (std::size_t i = 0; i < t.a.size(); ++i) {
+      const BoxZeros z = zeros_in_box(t.a[i], boxes);
+      if (z.kind == BoxZeros::somewhere)
+        vanish.push_back(fmt::format("a_{}(u) = {}: {}", i + 1, to_string(t.a[i]), z.detail));
+      if (z.kind == BoxZeros::unknown)
+        unknown.push_back(fmt::format("a_{}(u) = {}: {}", i + 1, to_string(t.a[i]), z.detail));
+    }
+    const std::string where = t.coordinates == TriangularForm::Coordinates::states
+                                  ? "in the states"
+                                  : "in the coordinates (h, L_f h, ...)";
+    if (!vanish.empty()) {
+      r.uniformly_observable = false;
+      r.reason = fmt::format(
+          "triangular form (seed 002 eq. 1-2) {}; not uniformly observable: {}; observable "
+          "under inputs that keep it away from zero persistently{}",
+          where, list_text(vanish), drift_note);
+      return;
+    }
+    if (!unknown.empty()) {
+      r.reason = fmt::format("triangular form {}; undecided: {}", where, list_text(unknown));
+      return;
+    }
+    if (t.coordinates == TriangularForm::Coordinates::lie_derivatives) {
+      std::vector<std::string> chart_bad, chart_unknown;
+      for (const auto& f : drift.rank_drop) {
+        const BoxZeros z = zeros_in_box(f, boxes);
+        if (z.kind == BoxZeros::somewhere) chart_bad.push_back(z.detail);
+        if (z.kind == BoxZeros::unknown) chart_unknown.push_back(z.detail);
+      }
+      if (!drift.undefined.empty() || !chart_bad.empty() || !chart_unknown.empty()) {
+        r.reason = fmt::format(
+            "triangular form in the coordinates (h, L_f h, ...) with a_i = 1, but those "
+            "coordinates are singular or undefined somewhere in the domain box ({}); undecided",
+            list_text(!chart_bad.empty() ? chart_bad
+                      : !chart_unknown.empty()
+                          ? chart_unknown
+                          : std::vector<std::string>{"O has poles: " +
+                                                     list_text(to_strings(drift.undefined))}));
+        return;
+      }
+    }
+    r.uniformly_observable = true;
+    r.reason = fmt::format(
+        "triangular form (seed 002 eq. 1-2) {} with every a_i(u) nonzero on the input box "
+        "(proved){}",
+        where,
+        t.coordinates == TriangularForm::Coordinates::lie_derivatives
+            ? " and the coordinates' Jacobian det O nonzero on the domain box"
+            : "");
+    return;
+  }
+  if (!admissible.empty()) {
+    r.uniformly_observable = false;
+    r.reason = fmt::format(
+        "not uniformly observable: the singular input{} {} lie{} in the input box (rank O_u < n "
+        "for every state there); observable under inputs that avoid {} persistently",
+        admissible.size() == 1 ? "" : "s", list_text(admissible), admissible.size() == 1 ? "s" : "",
+        admissible.size() == 1 ? "it" : "them");
+    return;
+  }
+  r.reason = fmt::format(
+      "undecided: no triangular form ({}){}", r.triangular_note,
+      unsure.empty() ? std::string() : "; singular inputs not excluded: " + list_text(unsure));
+}
+
+}  // namespace
+
+ObservabilityUnderInputs analyse_observability_under_inputs(const Model& m,
+                                                            const Observability& drift,
+                                                            const ObservabilityOptions& opt,
+                                                            const BudgetLimits& limits) {
+  ObservabilityUnderInputs r;
+  r.n = m.n();
+  Budget budget(limits);
+  try {
+    budget.begin("inputs");
+    Observability frozen;
+    r.same_as_drift = !input_enters(m);
+    const Observability& ob =
+        r.same_as_drift ? drift
+                        : (frozen = analyse_observability(frozen_input_model(m), budget, opt));
+    r.generic_rank = ob.generic_rank;
+    r.rank_method = rank_method_name(ob);
+    if (!ob.jets && ob.generic_rank == r.n && ob.selected.size() == r.n) {
+      r.det = ob.det;
+      r.rank_drop = ob.rank_drop;
+      const SampleBoxes boxes = SampleBoxes::from_model(m);
+      for (const auto& f : dependent_factors(ob.det, m.inputs))
+        if (!depends_on(f, m.states)) r.singular.push_back({f, zeros_in_box(f, boxes)});
+    }
+    if (r.generic_rank < r.n) {
+      r.observation_space_rank = observation_space_rank(m, budget, opt);
+    } else {
+      r.observation_space_rank = r.generic_rank;
+    }
+    const ExVec* lie = !drift.jets && drift.lie.size() == 1 ? &drift.lie[0] : nullptr;
+    r.triangular = triangular_form(m, &r.triangular_note, lie);
+    r.computed = true;
+    decide(m, drift, r);
+  } catch (const BudgetExceeded& e) {
+    r = ObservabilityUnderInputs{};
+    r.n = m.n();
+    r.reason = "not computed: " + e.reason();
+  } catch (const UserError& e) {
+    r = ObservabilityUnderInputs{};
+    r.n = m.n();
+    r.reason = "not computed: " +
+               (e.diagnostics().empty() ? std::string(e.what()) : e.diagnostics()[0].message);
+  } catch (const std::bad_alloc&) {
+    r = ObservabilityUnderInputs{};
+    r.n = m.n();
+    r.reason = "not computed: ran out of memory";
+  }
+  budget.end();
+  return r;
+}
+
+}  // namespace obsynth

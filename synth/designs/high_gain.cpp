@@ -1,0 +1,367 @@
+#include "designs/high_gain.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+#include "designs/canonical.hpp"
+#include "designs/options.hpp"
+#include "symbolic/expr_print.hpp"
+#include "symbolic/lie.hpp"
+#include "symbolic/symbolic.hpp"
+#include "symbolic/zero_test.hpp"
+
+namespace obsynth {
+
+using GiNaC::ex;
+using GiNaC::numeric;
+
+std::vector<numeric> high_gain_K(const std::vector<numeric>& poles) {
+  const std::vector<numeric> c = gains_from_poles(poles);  // c_0 .. c_{n-1}
+  const std::size_t n = poles.size();
+  std::vector<numeric> K(n);
+  for (std::size_t i = 0; i < n; ++i) K[i] = c[n - 1 - i];
+  return K;
+}
+
+HighGainStructure high_gain_structure(const Model& m) {
+  HighGainStructure s;
+  const std::size_t n = m.n();
+  if (m.p() != 1) {
+    s.failures.push_back(fmt::format("the high-gain design is single-output (p = {})", m.p()));
+    return s;
+  }
+  const LieChain chain = lie_chain_with_gradients(m.h[0], m.f, m.states, n + 1);
+  s.Phi.assign(chain.derivatives.begin(), chain.derivatives.begin() + static_cast<long>(n));
+  s.O.assign(chain.gradients.begin(), chain.gradients.begin() + static_cast<long>(n));
+  GiNaC::matrix O(static_cast<unsigned>(n), static_cast<unsigned>(n));
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = 0; c < n; ++c)
+      O(static_cast<unsigned>(r), static_cast<unsigned>(c)) = s.O[r][c];
+  s.det = GiNaC::normal(O.determinant(GiNaC::determinant_algo::laplace));
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  if (is_zero_verdict(zero_test(s.det, boxes))) {
+    s.failures.push_back(
+        "det O = 0 identically: (h, L_f h, ..., L_f^{n-1} h) are not coordinates (the drift "
+        "alone does not make the system observable)");
+    return s;
+  }
+  // phi in x: z_i' = z_{i+1} + L_g L_f^{i-1} h, z_n' = L_f^n h + L_g L_f^{n-1} h.
+  const ExVec g = m.g;
+  for (std::size_t i = 0; i < n; ++i) {
+    ex Lg = 0;
+    for (std::size_t k = 0; k < n; ++k) Lg += chain.gradients[i][k] * g[k];
+    s.phi.push_back(simplify(i + 1 < n ? Lg : chain.derivatives[n] + Lg));
+  }
+  const GiNaC::matrix Oinv = O.inverse(GiNaC::solve_algo::gauss);
+  const ExMatrix Dphi = jacobian(s.phi, m.states);
+  s.J.assign(n, ExVec(n, 0));
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j) {
+      ex acc = 0;
+      for (std::size_t k = 0; k < n; ++k)
+        acc += Dphi[i][k] * Oinv(static_cast<unsigned>(k), static_cast<unsigned>(j));
+      s.J[i][j] = GiNaC::normal(acc);
+    }
+  std::vector<std::string> bad;
+  for (std::size_t i = 0; i + 1 < n; ++i)
+    for (std::size_t j = i + 1; j < n; ++j)
+      if (!is_zero_verdict(zero_test(GiNaC::numer(s.J[i][j]), boxes)))
+        bad.push_back(fmt::format("d phi_{}/d z_{} = {}", i + 1, j + 1, to_string(s.J[i][j])));
+  if (!bad.empty())
+    s.failures.push_back(fmt::format(
+        "not uniformly observable in the form z' = A z + phi(z, u) with phi triangular, z = (h, "
+        "L_f h, ...): {}",
+        fmt::join(bad, "; ")));
+  return s;
+}
+
+namespace {
+
+std::string numbers_text(const std::vector<numeric>& v) {
+  std::vector<std::string> s;
+  for (const auto& q : v) s.push_back(to_string(q));
+  return fmt::format("{}", fmt::join(s, ", "));
+}
+
+std::vector<numeric> chosen_poles(const DesignOptions& o, std::size_t n) {
+  std::vector<numeric> poles = real_list_option(o, "poles");
+  if (poles.empty()) return default_poles(n);
+  if (poles.size() != n)
+    throw UserError(SourceLoc{}, fmt::format("--poles: {} poles given, the model has n = {} states",
+                                             poles.size(), n));
+  for (const auto& q : poles)
+    if (!q.is_negative())
+      throw UserError(
+          SourceLoc{},
+          fmt::format("--poles: pole {} is not in the open left half-plane", to_string(q)));
+  return poles;
+}
+
+numeric chosen_theta(const DesignOptions& o) {
+  const auto t = real_option(o, "theta");
+  if (!t) return numeric(5);
+  if (!t->is_positive())
+    throw UserError(SourceLoc{}, fmt::format("--theta: {} is not positive", to_string(*t)));
+  return *t;
+}
+
+// lambda_max of P with (A - K C)^T P + P (A - K C) = -I (A upper shift, C = e_1).
+double lyapunov_lambda_max(const std::vector<numeric>& K) {
+  const auto n = static_cast<Eigen::Index>(K.size());
+  Eigen::MatrixXd Acl = Eigen::MatrixXd::Zero(n, n);
+  for (Eigen::Index i = 0; i + 1 < n; ++i) Acl(i, i + 1) = 1;
+  for (Eigen::Index i = 0; i < n; ++i) Acl(i, 0) -= K[static_cast<std::size_t>(i)].to_double();
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(n, n);
+  // vec(Acl^T P + P Acl) = (I (x) Acl^T + Acl^T (x) I) vec(P)
+  Eigen::MatrixXd L = Eigen::MatrixXd::Zero(n * n, n * n);
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index j = 0; j < n; ++j) {
+      L.block(i * n, j * n, n, n) += I(i, j) * Acl.transpose();
+      L.block(i * n, j * n, n, n) += Acl(j, i) * I;
+    }
+  Eigen::VectorXd rhs = -Eigen::Map<const Eigen::VectorXd>(I.data(), n * n);
+  const Eigen::VectorXd p = L.fullPivLu().solve(rhs);
+  Eigen::MatrixXd P = Eigen::Map<const Eigen::MatrixXd>(p.data(), n, n);
+  P = (P + P.transpose()) / 2;
+  return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(P).eigenvalues().maxCoeff();
+}
+
+// sup over the model's domain box (states, inputs, free parameters) of |e|.
+struct EntryBound {
+  double value = 0;
+  bool rigorous = false;
+  std::string method;
+};
+
+EntryBound sup_abs_over_domain(const ex& e, const Model& m) {
+  EntryBound b;
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const int count = 2048;
+  for (const auto& pt : sample_points(m.all_symbols(), boxes, count, 0x11b5)) {
+    numeric v;
+    if (!evaluate_real(e, pt, 20, v)) continue;
+    b.value = std::max(b.value, std::fabs(v.to_double()));
+  }
+  b.method = fmt::format("sampled, {} points", count);
+  return b;
+}
+
+struct Certificate {
+  double L = 0;           // Lipschitz constant of phi in z (spectral norm of entry bounds)
+  bool rigorous = true;   // every entry bound rigorous
+  double lambda_P = 0;    // lambda_max(P)
+  double theta_star = 0;  // max(1, 2 lambda_P L)
+  std::vector<std::string> entries;  // "|d phi_i/d z_j| <= b (kind)"
+};
+
+Certificate certify(const Model& m, const HighGainStructure& st, const std::vector<numeric>& K) {
+  Certificate c;
+  const std::size_t n = m.n();
+  Eigen::MatrixXd M =
+      Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j <= i; ++j) {
+      if (GiNaC::is_zero(st.J[i][j])) continue;
+      const EntryBound b = sup_abs_over_domain(st.J[i][j], m);
+      M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = b.value;
+      c.rigorous = c.rigorous && b.rigorous;
+      c.entries.push_back(
+          fmt::format("sup abs(d phi_{}/d z_{}) <= {:.4g} ({})", i + 1, j + 1, b.value, b.method));
+    }
+  c.L = M.norm() > 0 ? Eigen::JacobiSVD<Eigen::MatrixXd>(M).singularValues()(0) : 0.0;
+  c.lambda_P = lyapunov_lambda_max(K);
+  c.theta_star = std::max(1.0, 2 * c.lambda_P * c.L);
+  return c;
+}
+
+// Where det O vanishes: its x-dependent factors, and whether each meets the domain box.
+std::string singular_set(const Model& m, const HighGainStructure& st) {
+  const ExVec factors = dependent_factors(st.det, m.states);
+  if (factors.empty()) return fmt::format("never (det O = {})", to_string(st.det));
+  std::vector<std::string> parts;
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  for (const auto& f : factors) {
+    bool pos = false, neg = false, zero = false;
+    for (const auto& pt : sample_points(m.all_symbols(), boxes, 256, 0x51c9)) {
+      numeric v;
+      if (!evaluate_real(f, pt, 20, v)) continue;
+      if (v.is_zero())
+        zero = true;
+      else if (v.is_positive())
+        pos = true;
+      else
+        neg = true;
+    }
+    parts.push_back(fmt::format("{} = 0 ({})", to_string(f),
+                                (pos && neg) || zero ? "crosses the domain box (sampled)"
+                                                     : "no sign change sampled in the domain box"));
+  }
+  return fmt::format("where {}", fmt::join(parts, "; "));
+}
+
+Verdict applies(const Analysis& a) {
+  Verdict v;
+  if (a.model.p() != 1) {
+    v.reasons.push_back(fmt::format("single-output design (p = {})", a.model.p()));
+    return v;
+  }
+  const HighGainStructure st = high_gain_structure(a.model);
+  v.reasons = st.failures;
+  v.applies = v.reasons.empty();
+  if (v.applies)
+    v.reasons.push_back(
+        "uniformly observable: in z = (h, L_f h, ..., L_f^{n-1} h) the model is z' = A z + "
+        "phi(z, u) with phi triangular");
+  return v;
+}
+
+GeneratedFunction fn(const std::string& name, const std::string& doc, std::vector<FunctionArg> args,
+                     ExVec out, std::size_t cols, const std::string& out_type) {
+  GeneratedFunction f;
+  f.name = name;
+  f.doc = doc;
+  f.args = std::move(args);
+  f.out_rows = out.size() / cols;
+  f.out_cols = cols;
+  f.outputs = std::move(out);
+  f.out_type = out_type;
+  return f;
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  const HighGainStructure st = high_gain_structure(m);
+  if (!st.failures.empty())
+    throw UserError(SourceLoc{m.file, 0, 0}, fmt::format("method 'high-gain' does not apply: {}",
+                                                         fmt::join(st.failures, "; ")));
+  const std::size_t n = m.n();
+  const std::vector<numeric> poles = chosen_poles(o, n);
+  const std::vector<numeric> K = high_gain_K(poles);
+  const numeric theta = chosen_theta(o);
+  std::vector<numeric> gain;  // Delta_theta K
+  numeric th = 1;
+  for (std::size_t i = 0; i < n; ++i) {
+    th *= theta;
+    gain.push_back(th * K[i]);
+  }
+  const Certificate cert = certify(m, st, K);
+  const std::string where_singular = singular_set(m, st);
+
+  ObserverSpec s;
+  s.method = "high-gain";
+  s.class_suffix = "HighGain";
+  s.state_size = n;
+  s.state_name = "xh";
+  s.state_doc = "the estimate itself";
+  s.params = runtime_params(m);
+  s.functions = model_functions(m);
+  const FunctionArg w =
+      vector_arg("w", "ObserverState", m.states, FunctionArg::Kind::observer_state);
+  const GiNaC::symbol y("y");
+  const FunctionArg u = input_arg(m), yarg = output_arg({y});
+  const ExVec F = m.field();
+  s.functions.push_back(
+      fn("hg_rhs", "xh' = f(xh) + g(xh, u); the gain term is added by an LU solve with O(xh).",
+         {w, u, yarg}, F, 1, "ObserverState"));
+  ExVec Ocol;  // column-major
+  for (std::size_t c = 0; c < n; ++c)
+    for (std::size_t r = 0; r < n; ++r) Ocol.push_back(st.O[r][c]);
+  s.functions.push_back(
+      fn("observability_matrix",
+         "O(xh) = d(h, L_f h, ..., L_f^{n-1} h)/dx, the matrix of the gain solve.", {w, u}, Ocol, n,
+         "GainMatrix"));
+  ExVec v;
+  for (std::size_t i = 0; i < n; ++i) v.push_back(gain[i] * (y - m.h[0]));
+  s.functions.push_back(fn("gain_vector", "Delta_theta K (y - h(xh)), solved with O(xh).",
+                           {w, u, yarg}, v, 1, "GainVector"));
+  s.init = InitKind::identity;
+  s.update = UpdateKind::ode;
+  s.estimate = EstimateKind::identity;
+  s.roles.rhs = "hg_rhs";
+  SolveCorrection corr;
+  corr.factor = SolveCorrection::Factor::lu;
+  corr.matrix_function = "observability_matrix";
+  corr.vector_function = "gain_vector";
+  corr.target_offset = 0;
+  corr.dim = n;
+  corr.singular_doc = "O(xh) is singular " + where_singular;
+  s.correction = corr;
+
+  const bool guaranteed = theta.to_double() > cert.theta_star;
+  const std::string kind = cert.rigorous ? "rigorous" : "sampled";
+  s.title = "High-gain observer (Gauthier-Hammouri-Kupka), realised in the original coordinates";
+  s.description = {
+      "Observer: high-gain observer (Gauthier-Hammouri-Kupka; seed 002 eq. 3)",
+      fmt::format("theta = {}; poles of A - K C: {}; K = [{}]; Delta_theta K = [{}]",
+                  to_string(theta), numbers_text(poles), numbers_text(K), numbers_text(gain)),
+      "Gain applied by an LU solve with O(xh); O singular -> Status::singular, " + where_singular,
+      fmt::format("Lipschitz constant of phi in z: L = {:.4g} ({}); convergence guaranteed for "
+                  "theta > {:.4g}",
+                  cert.L, kind, cert.theta_star)};
+  s.class_doc = {"  xh' = f(xh) + g(xh, u) + O(xh)^-1 Delta_theta K (y - h(xh))",
+                 "with O = d(h, L_f h, ..., L_f^{n-1} h)/dx and Delta_theta = diag(theta, ..., "
+                 "theta^n); in z = (h, L_f h, ...) this is the",
+                 "observer zh' = A zh + phi(zh, u) + Delta_theta K (y - zh_1). A step where O(xh) "
+                 "is singular returns Status::singular."};
+  s.constants.push_back({"theta", {theta}, "high-gain parameter"});
+  s.constants.push_back(
+      {"poles", poles, "poles of A - K C (the error poles are theta times these)"});
+  s.constants.push_back(
+      {"K", K, "gain of the unscaled error system, char(A - K C) = prod (s - pole)"});
+  s.constants.push_back({"gain", gain, "Delta_theta K"});
+  s.report = {
+      {"coordinates", "z = (h, L_f h, ..., L_f^{n-1} h), output first (seed 002 convention)"},
+      {"theta", to_string(theta) + (o.find("theta") ? "" : " (default)")},
+      {"poles", numbers_text(poles) + (o.find("poles") ? "" : " (default)")},
+      {"K", numbers_text(K)},
+      {"Delta_theta K", numbers_text(gain)},
+      {"det O", to_string(st.det)},
+      {"O singular", where_singular},
+      {"phi (in x)", fmt::format("[{}]", fmt::join(to_strings(st.phi), ", "))},
+      {"Lipschitz bounds", fmt::format("{}", fmt::join(cert.entries, "; "))},
+      {"Lipschitz constant L",
+       fmt::format("{:.6g} ({}; spectral norm of the entry bounds)", cert.L, kind)},
+      {"lambda_max(P)", fmt::format("{:.6g} (P: (A - K C)^T P + P (A - K C) = -I)", cert.lambda_P)},
+      {"theta*", fmt::format("{:.6g} = max(1, 2 lambda_max(P) L) ({})", cert.theta_star, kind)},
+      {"convergence",
+       guaranteed
+           ? fmt::format("guaranteed: theta = {} > theta* = {:.4g} (while xh and x stay in the "
+                         "domain box, where L holds)",
+                         to_string(theta), cert.theta_star)
+           : fmt::format("not guaranteed by the theorem: theta = {} <= theta* = {:.4g} (short "
+                         "by {:.4g}); raise --theta",
+                         to_string(theta), cert.theta_star, cert.theta_star - theta.to_double())}};
+  s.summary = fmt::format(
+      "high-gain observer, theta = {}, poles {} (scaled by theta), gain Delta_theta K = [{}]; L = "
+      "{:.4g} ({}), theta* = {:.4g}: convergence {}",
+      to_string(theta), numbers_text(poles), numbers_text(gain), cert.L, kind, cert.theta_star,
+      guaranteed ? "guaranteed" : "not guaranteed");
+  return s;
+}
+
+}  // namespace
+
+Design high_gain_design() {
+  Design d;
+  d.name = "high-gain";
+  d.summary =
+      "high-gain observer for uniformly observable systems (seed 002 eq. 3; gain through an LU "
+      "solve with O(xh))";
+  d.options = {
+      {"poles",
+       "error poles, comma-separated negative reals (canonical: of A - K e_n^T; high-gain: "
+       "of A - K C, scaled by theta)",
+       "-2, -2.5, -3, ..."},
+      {"theta",
+       "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^n)); "
+       "kalman-theta: forgetting rate theta of S",
+       "5 (high-gain), 5 (kalman-theta)"}};
+  d.applies = applies;
+  d.build = build;
+  return d;
+}
+
+}  // namespace obsynth

@@ -1,0 +1,234 @@
+#include "designs/kalman_theta.hpp"
+
+#include <fmt/format.h>
+
+#include "analysis/persistence.hpp"
+#include "designs/options.hpp"
+#include "symbolic/expr_print.hpp"
+#include "symbolic/symbolic.hpp"
+
+namespace obsynth {
+
+using GiNaC::ex;
+using GiNaC::numeric;
+
+namespace {
+
+std::string numbers_text(const std::vector<numeric>& v) {
+  std::vector<std::string> s;
+  for (const auto& q : v) s.push_back(to_string(q));
+  return fmt::format("{}", fmt::join(s, ", "));
+}
+
+Verdict applies(const Analysis& a) {
+  Verdict v;
+  std::string why;
+  const auto form = triangular_in_x(a.model, &why);
+  if (!form) {
+    v.reasons.push_back("not in seed 002's form z' = A(u) z + phi(u, z), y = z1 in x: " + why);
+    return v;
+  }
+  v.applies = true;
+  std::vector<std::string> as;
+  for (const auto& e : form->a) as.push_back(to_string(e));
+  v.reasons.push_back(fmt::format(
+      "in seed 002's form in x with a(u) = [{}]: converges for strongly persistent inputs (check "
+      "with `obsynth check --input ... --horizon ...`)",
+      fmt::join(as, ", ")));
+  return v;
+}
+
+numeric chosen_theta(const DesignOptions& o) {
+  const auto t = real_option(o, "theta");
+  if (!t) return numeric(5);
+  if (!t->is_positive())
+    throw UserError(SourceLoc{}, fmt::format("--theta: {} is not positive", to_string(*t)));
+  return *t;
+}
+
+// S0 as a full symmetric matrix: one value s (s I), n values (diagonal) or n(n+1)/2 values
+// (packed upper triangle, row by row); must be positive definite.
+std::vector<std::vector<numeric>> chosen_S0(const DesignOptions& o, std::size_t n) {
+  std::vector<numeric> v = real_list_option(o, "S0");
+  std::vector<std::vector<numeric>> S(n, std::vector<numeric>(n, 0));
+  if (v.empty()) v = {1};
+  if (v.size() == 1) {
+    for (std::size_t i = 0; i < n; ++i) S[i][i] = v[0];
+  } else if (v.size() == n) {
+    for (std::size_t i = 0; i < n; ++i) S[i][i] = v[i];
+  } else if (v.size() == n * (n + 1) / 2) {
+    std::size_t k = 0;
+    for (std::size_t r = 0; r < n; ++r)
+      for (std::size_t c = r; c < n; ++c) S[r][c] = S[c][r] = v[k++];
+  } else {
+    throw UserError(SourceLoc{},
+                    fmt::format("--S0: expected 1, {} or {} numbers (s I, diagonal, packed upper "
+                                "triangle), got {}",
+                                n, n * (n + 1) / 2, v.size()));
+  }
+  // Positive definite: exact Sylvester criterion on leading minors.
+  GiNaC::matrix M(static_cast<unsigned>(n), static_cast<unsigned>(n));
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = 0; c < n; ++c)
+      M(static_cast<unsigned>(r), static_cast<unsigned>(c)) = S[r][c];
+  for (unsigned k = 1; k <= n; ++k) {
+    GiNaC::matrix L(k, k);
+    for (unsigned r = 0; r < k; ++r)
+      for (unsigned c = 0; c < k; ++c) L(r, c) = M(r, c);
+    const ex d = L.determinant();
+    if (!GiNaC::is_a<numeric>(d) || !GiNaC::ex_to<numeric>(d).is_positive())
+      throw UserError(SourceLoc{}, "--S0: the matrix is not positive definite");
+  }
+  return S;
+}
+
+GeneratedFunction fn(const std::string& name, const std::string& doc, std::vector<FunctionArg> args,
+                     ExVec out, const std::string& out_type) {
+  GeneratedFunction f;
+  f.name = name;
+  f.doc = doc;
+  f.args = std::move(args);
+  f.out_rows = out.size();
+  f.outputs = std::move(out);
+  f.out_type = out_type;
+  return f;
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  std::string why;
+  const auto form = triangular_in_x(m, &why);
+  if (!form)
+    throw UserError(SourceLoc{m.file, 0, 0},
+                    "method 'kalman-theta' does not apply: not in seed 002's form z' = A(u) z + "
+                    "phi(u, z), y = z1 in x: " +
+                        why);
+  const std::size_t n = m.n();
+  const numeric theta = chosen_theta(o);
+  const auto S0 = chosen_S0(o, n);
+
+  ObserverSpec s;
+  s.method = "kalman-theta";
+  s.class_suffix = "KalmanTheta";
+  s.state_name = "w";
+  s.state_doc = "(zh, S): the estimate zh = xh, then S packed (upper triangle, row by row)";
+  SymmetricBlock block;
+  block.name = "S";
+  block.offset = n;
+  block.dim = n;
+  block.keep_positive_definite = true;
+  s.state_size = n + block.packed_size();
+  s.symmetric_blocks.push_back(block);
+  s.params = runtime_params(m);
+  s.functions = model_functions(m);
+
+  // w symbols: the states (zh = xh in these coordinates), then S_r_c (r <= c).
+  std::vector<GiNaC::symbol> wsyms(m.states.begin(), m.states.end());
+  std::vector<std::vector<ex>> S(n, std::vector<ex>(n));
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = r; c < n; ++c) {
+      GiNaC::symbol sym(fmt::format("S_{}_{}", r + 1, c + 1));
+      wsyms.push_back(sym);
+      S[r][c] = S[c][r] = sym;
+    }
+  // A(u)
+  std::vector<std::vector<ex>> A(n, std::vector<ex>(n, 0));
+  for (std::size_t i = 0; i + 1 < n; ++i) A[i][i + 1] = form->a[i];
+  // rhs: zh' = A(u) zh + phi(u, zh) (= F(zh, u)); S' packed.
+  ExVec rhs = m.field();
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = r; c < n; ++c) {
+      ex acc = -theta * S[r][c] + (r == 0 && c == 0 ? 1 : 0);
+      for (std::size_t k = 0; k < n; ++k) acc -= A[k][r] * S[k][c] + S[r][k] * A[k][c];
+      rhs.push_back(acc);
+    }
+  const GiNaC::symbol y("y");
+  const FunctionArg w = vector_arg("w", "ObserverState", wsyms, FunctionArg::Kind::observer_state);
+  const FunctionArg u = input_arg(m), yarg = output_arg({y});
+  s.functions.push_back(fn("kt_rhs",
+                           "zh' = A(u) zh + phi(u, zh); S' = -theta S - A(u)^T S - S A(u) + C^T C "
+                           "(packed); the gain is added by a Cholesky solve with S.",
+                           {w, u, yarg}, rhs, "ObserverState"));
+  ExVec v(n, 0);
+  v[0] = y - m.states[0];  // -C^T (C zh - y)
+  s.functions.push_back(
+      fn("kt_gain_vector", "-C^T (C zh - y), solved with S.", {w, u, yarg}, v, "GainVector"));
+  ExVec init(m.states.begin(), m.states.end());
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = r; c < n; ++c) init.push_back(S0[r][c]);
+  s.functions.push_back(
+      fn("kt_init", "w = (xh0, S0 packed).", {state_arg(m)}, init, "ObserverState"));
+  ExVec est(m.states.begin(), m.states.end());
+  s.functions.push_back(
+      fn("kt_estimate", "xh = zh (the first n entries of w).", {w}, est, "State"));
+  s.init = InitKind::function;
+  s.roles.init = "kt_init";
+  s.update = UpdateKind::ode;
+  s.roles.rhs = "kt_rhs";
+  s.estimate = EstimateKind::function;
+  s.roles.estimate = "kt_estimate";
+  SolveCorrection corr;
+  corr.factor = SolveCorrection::Factor::cholesky;
+  corr.matrix_block = "S";
+  corr.vector_function = "kt_gain_vector";
+  corr.target_offset = 0;
+  corr.dim = n;
+  corr.singular_doc =
+      "S is not positive definite (it stays so in exact arithmetic; loss is numerical, e.g. a "
+      "non-persistent input over a long time)";
+  s.correction = corr;
+
+  std::vector<std::string> as;
+  for (const auto& e : form->a) as.push_back(to_string(e));
+  std::vector<numeric> S0packed;
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = r; c < n; ++c) S0packed.push_back(S0[r][c]);
+  s.title = "Kalman-like theta observer (Dufour-Flila-Hammouri)";
+  s.description = {"Observer: Kalman-like theta observer (seed 002 eq. 7/10)",
+                   fmt::format("Form in x: a(u) = [{}], y = {}; theta = {}; S0 (packed) = [{}]",
+                               fmt::join(as, ", "), m.states[0].get_name(), to_string(theta),
+                               numbers_text(S0packed)),
+                   "Gain S^-1 C^T (y - C zh) by a Cholesky solve; S not positive definite -> "
+                   "Status::singular"};
+  s.class_doc = {"  zh' = A(u) zh + phi(u, zh) - S^-1 C^T (C zh - y)",
+                 "  S'  = -theta S - A(u)^T S - S A(u) + C^T C",
+                 "Converges for strongly persistent inputs (seed 002, Theorem)."};
+  s.constants.push_back({"theta", {theta}, "forgetting rate of S"});
+  s.constants.push_back({"S0", S0packed, "initial S, packed upper triangle"});
+  s.report = {
+      {"form", fmt::format("z = x, a(u) = [{}], phi = [{}], C = e_1", fmt::join(as, ", "),
+                           fmt::join(to_strings(form->phi), ", "))},
+      {"theta", to_string(theta) + (o.find("theta") ? "" : " (default)")},
+      {"S0 (packed)", numbers_text(S0packed) + (o.find("S0") ? "" : " (default: identity)")},
+      {"gain", "S^-1 C^T (y - C zh), Cholesky solve with S"},
+      {"convergence",
+       "for strongly persistent inputs (seed 002's Theorem, phi globally Lipschitz in z); check "
+       "an input with `obsynth check model.sym --input \"...\" --horizon T`"}};
+  s.summary = fmt::format(
+      "Kalman-like theta observer, theta = {}, S0 = [{}] (packed); converges for strongly "
+      "persistent inputs",
+      to_string(theta), numbers_text(S0packed));
+  return s;
+}
+
+}  // namespace
+
+Design kalman_theta_design() {
+  Design d;
+  d.name = "kalman-theta";
+  d.summary =
+      "Kalman-like theta observer for systems not uniformly observable (seed 002 eq. 7/10; "
+      "needs a strongly persistent input)";
+  d.options = {
+      {"theta",
+       "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^n)); "
+       "kalman-theta: forgetting rate theta of S",
+       "5 (high-gain), 5 (kalman-theta)"},
+      {"S0", "kalman-theta: initial S (s, or n diagonal values, or the packed upper triangle)",
+       "identity"}};
+  d.applies = applies;
+  d.build = build;
+  return d;
+}
+
+}  // namespace obsynth

@@ -1,0 +1,20 @@
+// Kalman-like theta observer (Dufour-Flila-Hammouri, seed 002 eq. 7/10) for systems in the
+// form z' = A(u) z + phi(u, z), y = C z (C = e_1, a_i(u) on the superdiagonal, phi
+// triangular) that need not be uniformly observable (e.g. seed 002's example (4), where u = 0
+// makes the system unobservable). The observer state is w = (zh, S) with S symmetric,
+// stored as its packed upper triangle and kept positive definite:
+//   zh' = A(u) zh + phi(u, zh) - S^-1 C^T (C zh - y),
+//   S'  = -theta S - A(u)^T S - S A(u) + C^T C,
+// the gain S^-1 C^T (y - C zh) applied by a Cholesky solve with S (never an inverse); S losing
+// definiteness is Status::singular. Convergence needs a strongly persistent input
+// (analysis/persistence.hpp, `obsynth check --input ... --horizon ...`).
+// The form is detected when the model is already in it in x (analysis/persistence.hpp).
+#pragma once
+
+#include "designs/registry.hpp"
+
+namespace obsynth {
+
+Design kalman_theta_design();
+
+}  // namespace obsynth
