@@ -196,6 +196,9 @@ TEST(RiccatiCertificate, BadParametersAreUserErrors) {
   RiccatiParameters q;
   q.N = matrix{{t, 0}, {0, 1}};
   EXPECT_THROW(riccati_certificate(load("jamesbaras_sin"), q), UserError);
+  RiccatiParameters singular;
+  singular.R = matrix{{0}};  // R = 0: not invertible
+  EXPECT_THROW(riccati_certificate(load("jamesbaras_sin"), singular), UserError);
   RiccatiParameters z;
   z.N = matrix{{1, 0}, {0, 0}};  // rank N < n: r0 = 0
   const RiccatiCertificate c = riccati_certificate(load("jamesbaras_sin"), z);

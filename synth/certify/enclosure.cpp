@@ -8,6 +8,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <queue>
 
 #include "certify/tape.hpp"
@@ -93,6 +94,91 @@ class PointEval {
   const std::vector<ex>& outs_;
   const Box& box_;
   const Tape& tape_;
+};
+
+// ----- enclosures of several outputs over a box: natural interval extension intersected with
+// the mean-value form f(c) + grad f(X) (X - c) (second-order tight on small boxes) ------------
+
+class BoxEnclosure {
+ public:
+  BoxEnclosure(const std::vector<ex>& outs, const Box& box)
+      : m_(outs.size()), tape_(outs, box.vars) {
+    if (!tape_.supported()) return;
+    const std::vector<bool> used = tape_.used_vars();
+    for (std::size_t k = 0; k < used.size(); ++k)
+      if (used[k] && box.ranges[k].hi > box.ranges[k].lo) dvars_.push_back(k);
+    if (dvars_.empty()) return;
+    // Gradients symbolically; skipped for abs (not differentiable) and for huge tapes.
+    std::vector<ex> all = outs;
+    for (const auto& e : outs) {
+      if (e.has(GiNaC::abs(GiNaC::wild()))) return;
+      for (std::size_t k : dvars_) all.push_back(e.diff(box.vars[k]));
+    }
+    auto mv = std::make_unique<Tape>(all, box.vars);
+    if (!mv->supported() || mv->size() > 20 * tape_.size() + 2000) return;
+    mv_ = std::move(mv);
+    full_ = BallVec(all.size());
+    centre_ = BallVec(outs.size());
+  }
+
+  const Tape& tape() const { return tape_; }
+  bool supported() const { return tape_.supported(); }
+  const std::string& why() const { return tape_.why(); }
+  std::vector<bool> used_vars() const { return tape_.used_vars(); }
+
+  // Enclosures of the outputs over [lo, hi]; false when Arb cannot bound them there.
+  bool eval(const std::vector<double>& lo, const std::vector<double>& hi, BallVec& out) {
+    if (out.size() != m_) out = BallVec(m_);
+    if (!mv_) return tape_.eval_box(lo, hi, out);
+    // A gradient that Arb cannot bound (sqrt at 0) leaves the natural extension alone.
+    if (!mv_->eval_box(lo, hi, full_)) return tape_.eval_box(lo, hi, out);
+    for (std::size_t i = 0; i < m_; ++i) arb_set(out[i], full_[i]);
+    if (mv_->clamped()) return true;
+    std::vector<double> c(lo.size());
+    for (std::size_t k = 0; k < lo.size(); ++k) c[k] = 0.5 * (lo[k] + hi[k]);
+    if (!tape_.eval_point(c, centre_) || tape_.clamped()) return true;
+    const std::size_t nd = dvars_.size();
+    arb_t dx, t, e;
+    arb_init(dx);
+    arb_init(t);
+    arb_init(e);
+    arf_t a, b, cc;
+    arf_init(a);
+    arf_init(b);
+    arf_init(cc);
+    for (std::size_t i = 0; i < m_; ++i) {
+      arb_set(e, centre_[i]);
+      for (std::size_t j = 0; j < nd; ++j) {
+        const std::size_t k = dvars_[j];
+        // X_k - c_k, rounded outward.
+        arf_set_d(a, lo[k]);
+        arf_set_d(b, hi[k]);
+        arf_set_d(cc, c[k]);
+        arf_sub(a, a, cc, kPrec, ARF_RND_FLOOR);
+        arf_sub(b, b, cc, kPrec, ARF_RND_CEIL);
+        arb_set_interval_arf(dx, a, b, kPrec);
+        arb_mul(t, full_[m_ + i * nd + j], dx, kPrec);
+        arb_add(e, e, t, kPrec);
+      }
+      if (arb_is_finite(e) && arb_overlaps(e, out[i])) arb_intersection(out[i], out[i], e, kPrec);
+    }
+    arf_clear(a);
+    arf_clear(b);
+    arf_clear(cc);
+    arb_clear(dx);
+    arb_clear(t);
+    arb_clear(e);
+    return true;
+  }
+
+  bool eval_point(const std::vector<double>& x, BallVec& out) { return tape_.eval_point(x, out); }
+
+ private:
+  std::size_t m_;
+  Tape tape_;
+  std::unique_ptr<Tape> mv_;
+  std::vector<std::size_t> dvars_;
+  BallVec full_, centre_;
 };
 
 // ----- branch and bound ------------------------------------------------------------------
@@ -431,8 +517,8 @@ std::string arb_method(const BBResult& r) {
   return fmt::format("Arb balls, {} boxes", r.boxes);
 }
 
-std::string sampled_method(std::size_t n, const std::string& why) {
-  return fmt::format("sampled, {} points ({})", n, why);
+std::string sampled_method(const std::string& sampled, const std::string& why) {
+  return fmt::format("{} ({})", sampled, why);
 }
 
 // Max over sample points of a scalar function of the output values.
@@ -442,19 +528,25 @@ Bound sampled_max(const PointEval& pe, const Box& box, std::size_t samples, F sc
   b.kind = BoundKind::sampled;
   b.value = -kInf;
   const auto pts = sample_points(box, std::max<std::size_t>(samples, 1));
+  std::size_t undefined = 0;
   for (const auto& p : pts) {
     const double v = score(pe(p));
-    if (std::isnan(v)) {
-      b.value = std::nan("");
-      b.worst_point = p;
-      break;
+    if (std::isnan(v)) {  // undefined there (0/0, a pole): not a value of the function
+      ++undefined;
+      continue;
     }
     if (v > b.value || b.worst_point.empty()) {
       b.value = v;
       b.worst_point = p;
     }
   }
-  b.method = fmt::format("sampled, {} points", pts.size());
+  if (b.worst_point.empty()) {
+    b.value = std::nan("");
+    b.worst_point = pts.front();
+  }
+  b.method = undefined ? fmt::format("sampled, {} points, {} of them undefined and skipped",
+                                     pts.size(), undefined)
+                       : fmt::format("sampled, {} points", pts.size());
   return b;
 }
 
@@ -486,13 +578,14 @@ Bound drive(const std::vector<ex>& outs, const Box& box, const EnclosureBudget& 
             const std::function<double(const BallVec&)>& ub_of_balls,
             const std::function<double(const std::vector<double>&)>& score) {
   check_box(box);
-  Tape tape(outs, box.vars);
+  BoxEnclosure enc(outs, box);
+  const Tape& tape = enc.tape();
   PointEval pe(outs, box, tape);
   if (tape.supported()) {
     BallVec balls(outs.size());
     Objective obj;
     obj.upper = [&](const std::vector<double>& lo, const std::vector<double>& hi) {
-      if (!tape.eval_box(lo, hi, balls)) return kInf;
+      if (!enc.eval(lo, hi, balls)) return kInf;
       return ub_of_balls(balls);
     };
     obj.at = [&](const std::vector<double>& p) { return score(pe(p)); };
@@ -506,13 +599,14 @@ Bound drive(const std::vector<ex>& outs, const Box& box, const EnclosureBudget& 
       return b;
     }
     Bound b = sampled_max(pe, box, 4096, score);
-    b.method = sampled_method(4096, fmt::format("Arb could not bound it on {} boxes: a pole or a "
-                                                "branch cut in the box?",
-                                                r.boxes));
+    b.method =
+        sampled_method(b.method, fmt::format("Arb could not bound it on {} boxes: a pole or a "
+                                             "branch cut in the box?",
+                                             r.boxes));
     return b;
   }
   Bound b = sampled_max(pe, box, 4096, score);
-  b.method = sampled_method(4096, "no ball arithmetic for " + tape.why());
+  b.method = sampled_method(b.method, "no ball arithmetic for " + tape.why());
   return b;
 }
 
@@ -570,7 +664,8 @@ DefinitenessVerdict negative_definite(const GiNaC::matrix& S, const Box& box,
     throw std::invalid_argument("certify: negative_definite of a non-square matrix");
   const std::size_t n = S.rows();
   const std::vector<ex> outs = flatten(S, true);
-  Tape tape(outs, box.vars);
+  BoxEnclosure enc(outs, box);
+  Tape& tape = const_cast<Tape&>(enc.tape());
   PointEval pe(outs, box, tape);
   auto score = [n](const std::vector<double>& v) { return lambda_max_d(v, n); };
   DefinitenessVerdict out;
@@ -578,15 +673,17 @@ DefinitenessVerdict negative_definite(const GiNaC::matrix& S, const Box& box,
     BallVec balls(outs.size());
     Objective obj;
     obj.upper = [&](const std::vector<double>& lo, const std::vector<double>& hi) {
-      if (!tape.eval_box(lo, hi, balls)) return kInf;
+      if (!enc.eval(lo, hi, balls)) return kInf;
       return lambda_max_upper(balls, n);
     };
     obj.at = [&](const std::vector<double>& p) { return score(pe(p)); };
     const BBResult r = branch_and_bound(
         box, obj, budget, false,
         [&budget](double ub, double best) {
-          // proven with a tight bound, or failed at a point
-          return (ub < 0 && ub - best <= budget.relative_gap * std::fabs(best)) || best > 0;
+          // The sign is decided (proven negative, or a point with lambda_max >= 0) and the bound
+          // is tight, so the worst point is the worst within relative_gap.
+          const bool tight = ub - best <= std::max(budget.relative_gap * std::fabs(best), 1e-12);
+          return tight && (ub < 0 || best >= 0);
         },
         tape.used_vars());
     out.worst_point = r.best_point;
@@ -655,7 +752,7 @@ DefinitenessVerdict negative_definite(const GiNaC::matrix& S, const Box& box,
   out.kind = BoundKind::sampled;
   out.max_eigenvalue_bound = b.value;
   out.worst_point = b.worst_point;
-  out.method = sampled_method(4096, "no ball arithmetic for " + tape.why());
+  out.method = sampled_method(b.method, "no ball arithmetic for " + tape.why());
   return out;
 }
 

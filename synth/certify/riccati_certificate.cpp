@@ -211,9 +211,7 @@ RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& 
   RiccatiParameters P = params;
   auto fill = [&](matrix& M, unsigned r, unsigned k, const char* name, const matrix& def,
                   const char* def_text) {
-    const bool unset =
-        (M.rows() == 0 && M.cols() == 0) || (M.rows() == 1 && M.cols() == 1 && M(0, 0).is_zero());
-    if (unset) {
+    if (M.rows() == 0 && M.cols() == 0) {
       M = def;
       c.defaults_used.push_back(fmt::format("{} = {}", name, def_text));
     } else if (M.rows() != r || M.cols() != k) {
@@ -235,7 +233,12 @@ RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& 
   const ExVec F = m.field();
   const matrix A = jacobian(F, m.states);
   const matrix Dh = jacobian(m.h, m.states);
-  const matrix Rinv = P.R.inverse();
+  matrix Rinv;
+  try {
+    Rinv = P.R.inverse();
+  } catch (const std::exception&) {
+    throw UserError(where, "riccati: R must be invertible (R > 0)");
+  }
   const matrix H = Rinv.mul(Dh);
   const matrix D2f = stacked_hessians(F, m.states, c.D2f_zero);
   const matrix D2h = stacked_hessians(m.h, m.states, c.D2h_zero);
@@ -284,14 +287,27 @@ RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& 
   c.detectability = negative_definite(S, c.box, budget);
   c.alpha0 = {-c.detectability.max_eigenvalue_bound, c.detectability.kind, ">="};
   const bool detectable = c.detectability.holds && c.alpha0.value > 0;
-  if (!detectable)
-    c.failures.push_back(fmt::format(
-        "uniform detectability (3.3) fails for the given Lambda: the symmetric part of A + "
-        "Lambda H has largest eigenvalue {} {} at {} ({}; {})",
-        c.detectability.kind == BoundKind::rigorous && !c.detectability.holds ? ">= 0, bound"
-                                                                              : "up to",
-        num(c.detectability.max_eigenvalue_bound), point_text(c.box, c.detectability.worst_point),
-        bound_kind_name(c.detectability.kind), c.detectability.method));
+  if (!detectable) {
+    // The largest eigenvalue at the worst point, recomputed independently (GiNaC + Eigen).
+    Eigen::MatrixXd Sw = at_point(S, c.box, c.detectability.worst_point);
+    Sw = (0.5 * (Sw + Sw.transpose())).eval();
+    const double lam =
+        Sw.allFinite() ? Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Sw, Eigen::EigenvaluesOnly)
+                             .eigenvalues()
+                             .maxCoeff()
+                       : std::nan("");
+    if (c.detectability.kind == BoundKind::rigorous)
+      c.failures.push_back(fmt::format(
+          "uniform detectability (3.3) fails for the given Lambda (rigorous): at {} the symmetric "
+          "part of A + Lambda H has largest eigenvalue {} >= 0 (eta' (A + Lambda H) eta >= 0 "
+          "verified in ball arithmetic), so no alpha0 > 0 exists; it would need to be < 0",
+          point_text(c.box, c.detectability.worst_point), num(lam)));
+    else
+      c.failures.push_back(fmt::format(
+          "uniform detectability (3.3) is not established for the given Lambda (sampled): largest "
+          "eigenvalue of the symmetric part of A + Lambda H found {} at {}; {}",
+          num(lam), point_text(c.box, c.detectability.worst_point), c.detectability.method));
+  }
 
   const BoundKind consts = worst(worst(worst(c.Q0_norm.kind, c.N_norm.kind), c.r0.kind),
                                  worst(c.Rinv_norm.kind, c.P0_norm.kind));
@@ -444,8 +460,12 @@ std::vector<ReportRow> riccati_certificate_rows(const RiccatiCertificate& c) {
   rows.push_back({"||R^-1||", value_text(c.Rinv_norm)});
   rows.push_back(
       {"uniform detectability (3.3)",
-       fmt::format("{} ({}): lambda_max of sym(A + Lambda H) {} {}, worst point {}; {}",
-                   c.detectability.holds ? "holds" : "fails", bound_kind_name(c.detectability.kind),
+       fmt::format("{} ({}): largest eigenvalue of sym(A + Lambda H) {} {} over the box, worst "
+                   "point {}; {}",
+                   c.detectability.holds                         ? "holds"
+                   : c.detectability.kind == BoundKind::rigorous ? "fails"
+                                                                 : "not established",
+                   bound_kind_name(c.detectability.kind),
                    c.detectability.kind == BoundKind::rigorous ? "<=" : "~",
                    num(c.detectability.max_eigenvalue_bound),
                    point_text(c.box, c.detectability.worst_point), c.detectability.method)});

@@ -36,12 +36,12 @@
 
 namespace obsynth::certify {
 
-// Design parameters of (2.1)-(2.2). An unset matrix (GiNaC's default-constructed 1 x 1 zero
-// matrix, or 0 x 0) means the default:
+// Design parameters of (2.1)-(2.2). A 0 x 0 matrix (the member default) means the default:
 //   Q0 = I_n, N = I_n, R = I_p, Lambda = 0 (n x p).
 // Q0, N and R must be constant; Lambda may depend on the states, inputs and free parameters.
 struct RiccatiParameters {
-  GiNaC::matrix Q0, N, R, Lambda;
+  GiNaC::matrix Q0 = GiNaC::matrix(0, 0), N = GiNaC::matrix(0, 0), R = GiNaC::matrix(0, 0),
+                Lambda = GiNaC::matrix(0, 0);
 };
 
 // A derived number with its kind and, for a bound, its direction ("<=" upper, ">=" lower).

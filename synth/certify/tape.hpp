@@ -6,13 +6,14 @@
 #include <arb.h>
 #include <ginac/ginac.h>
 
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
 
 namespace obsynth::certify::detail {
 
-inline constexpr slong kPrec = 96;
+inline constexpr slong kPrec = 64;  // bits; box widths are far wider than 2^-64
 
 // A vector of Arb balls (RAII).
 class BallVec {
@@ -65,6 +66,10 @@ class Tape {
   bool eval_box(const std::vector<double>& lo, const std::vector<double>& hi, BallVec& out);
   // Balls of the outputs at an exact double point (radius from the arithmetic only).
   bool eval_point(const std::vector<double>& x, BallVec& out);
+  // Whether the last ball evaluation clipped a negative part off a rational power's argument
+  // (natural-domain semantics): the mean-value form is not used on such boxes.
+  bool clamped() const { return clamped_; }
+  std::size_t size() const { return nodes_.size(); }
   // Double evaluation (NaN where undefined).
   void eval_double(const std::vector<double>& x, std::vector<double>& out) const;
 
@@ -95,15 +100,18 @@ class Tape {
 
  private:
   int compile(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& vars);
+  std::uint64_t key(const GiNaC::ex& e);
   bool run(BallVec& out);
 
   std::vector<Node> nodes_;
   std::vector<int> outputs_;
   std::size_t nvars_;
   std::string why_;
+  bool clamped_ = false;
   BallVec consts_;  // ball value of constant nodes (indexed like nodes_)
   BallVec work_;
   std::map<GiNaC::ex, int, GiNaC::ex_is_less> memo_;
+  std::map<GiNaC::ex, std::uint64_t, GiNaC::ex_is_less> keys_;
 };
 
 // Upper bound (rounded up) and lower bound (rounded down) of a ball as doubles.
