@@ -270,9 +270,13 @@ ObservabilityUnderInputs analyse_observability_under_inputs(const Model& m,
     budget.begin("inputs");
     Observability frozen;
     r.same_as_drift = !input_enters(m);
+    // When the drift rank came from the jets (the symbolic chain was too large or not
+    // wanted), so does this one, and the symbolic parts below are skipped.
+    ObservabilityOptions fopt = opt;
+    if (drift.jets) fopt.rank_method = RankMethod::jets;
     const Observability& ob =
         r.same_as_drift ? drift
-                        : (frozen = analyse_observability(frozen_input_model(m), budget, opt));
+                        : (frozen = analyse_observability(frozen_input_model(m), budget, fopt));
     r.generic_rank = ob.generic_rank;
     r.rank_method = rank_method_name(ob);
     if (!ob.jets && ob.generic_rank == r.n && ob.selected.size() == r.n) {
@@ -282,13 +286,12 @@ ObservabilityUnderInputs analyse_observability_under_inputs(const Model& m,
       for (const auto& f : dependent_factors(ob.det, m.inputs))
         if (!depends_on(f, m.states)) r.singular.push_back({f, zeros_in_box(f, boxes)});
     }
-    if (r.generic_rank < r.n) {
-      r.observation_space_rank = observation_space_rank(m, budget, opt);
-    } else {
+    if (r.generic_rank == r.n)
       r.observation_space_rank = r.generic_rank;
-    }
+    else if (!drift.jets)
+      r.observation_space_rank = observation_space_rank(m, budget, opt);
     const ExVec* lie = !drift.jets && drift.lie.size() == 1 ? &drift.lie[0] : nullptr;
-    r.triangular = triangular_form(m, &r.triangular_note, lie);
+    r.triangular = triangular_form(m, &r.triangular_note, lie, !drift.jets);
     r.computed = true;
     decide(m, drift, r);
   } catch (const BudgetExceeded& e) {

@@ -284,7 +284,7 @@ std::optional<TriangularForm> in_lie_coordinates(const Model& m, const ExVec& F,
 }  // namespace
 
 std::optional<TriangularForm> triangular_form(const Model& m, std::string* why,
-                                              const ExVec* drift_lie) {
+                                              const ExVec* drift_lie, bool lie_coordinates) {
   std::string local;
   std::string& w = why ? *why : local;
   if (m.p() != 1) {
@@ -299,7 +299,10 @@ std::optional<TriangularForm> triangular_form(const Model& m, std::string* why,
   for (const auto& e : m.field()) F.push_back(simplify(e));
   std::string why_states, why_lie;
   if (auto t = in_states(m, F, why_states)) return t;
-  if (auto t = in_lie_coordinates(m, F, drift_lie, why_lie)) return t;
+  if (!lie_coordinates)
+    why_lie = "not tried: the symbolic Lie derivatives were skipped";
+  else if (auto t = in_lie_coordinates(m, F, drift_lie, why_lie))
+    return t;
   w = fmt::format("not in the form in the states ({}), nor in the coordinates (h, L_f h, ...) ({})",
                   why_states, why_lie);
   return std::nullopt;

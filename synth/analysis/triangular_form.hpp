@@ -45,9 +45,11 @@ const char* coordinates_name(TriangularForm::Coordinates c);  // "states", "lie_
 
 // The form for the model's whole field f + g (inputs as symbols), or nullopt with `why`
 // saying which step failed. One output, u-free output map only (y = z_1). drift_lie, when
-// given, is the drift chain L_f^k h, k = 0..n-1, already computed (Observability::lie[0]).
+// given, is the drift chain L_f^k h, k = 0..n-1, already computed (Observability::lie[0]);
+// lie_coordinates false skips the second way (it needs symbolic Lie derivatives).
 std::optional<TriangularForm> triangular_form(const Model& m, std::string* why = nullptr,
-                                              const ExVec* drift_lie = nullptr);
+                                              const ExVec* drift_lie = nullptr,
+                                              bool lie_coordinates = true);
 
 // Whether an expression in some variables (inputs, parameters, states) vanishes somewhere in
 // their boxes:

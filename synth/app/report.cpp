@@ -298,10 +298,11 @@ std::vector<std::string> under_inputs_lines(const Analysis& a) {
       out.push_back(u.det ? "singular inputs: none" : "singular inputs: not computed");
     }
     for (const auto& s : u.singular)
-      out.push_back(fmt::format("singular input: {} = 0 ({})", to_string(s.factor),
-                                s.in_box.kind == BoxZeros::never
-                                    ? std::string("never zero on the input box")
-                                    : s.in_box.detail));
+      out.push_back(fmt::format(
+          "singular input: {} = 0; {}", to_string(s.factor),
+          s.in_box.kind == BoxZeros::never       ? std::string("never on the input box (proved)")
+          : s.in_box.kind == BoxZeros::somewhere ? "in the input box: " + s.in_box.detail
+                                                 : s.in_box.detail));
   }
   if (u.observation_space_rank && u.generic_rank < u.n)
     out.push_back(

@@ -334,8 +334,9 @@ class JetsObserver {
 };
 
 struct Plant {
-  NumericFunction field, output, inputs;
+  NumericFunction field, output, inputs;  // output reads (x, u): h may depend on u
   Vec f(double t, const Vec& x) const { return field(concat(x, inputs({t}))); }
+  Vec y(double t, const Vec& x) const { return output(concat(x, inputs({t}))); }
 };
 
 std::size_t step_count(const SimulationOptions& opt, std::size_t n) {
@@ -364,8 +365,8 @@ Plant make_plant(const Model& m, const std::string& u_text, const GiNaC::exmap& 
   for (auto& e : field) e = e.subs(params);
   for (auto& e : h) e = e.subs(params);
   const auto xn = names_of(m.states);
-  return {NumericFunction(field, concat_names(xn, names_of(m.inputs))), NumericFunction(h, xn),
-          NumericFunction(u_of_t, {"t"})};
+  return {NumericFunction(field, concat_names(xn, names_of(m.inputs))),
+          NumericFunction(h, concat_names(xn, names_of(m.inputs))), NumericFunction(u_of_t, {"t"})};
 }
 
 struct Recorder {
@@ -401,13 +402,14 @@ void run_state_observer(const Plant& plant, SpecObserver& obs, const SimulationO
             const Vec xv(v.begin(), v.begin() + static_cast<long>(n));
             const Vec wv(v.begin() + static_cast<long>(n), v.end());
             const Vec u = plant.inputs({tt});
-            return concat(plant.field(concat(xv, u)), obs.derivative(wv, u, plant.output(xv)));
+            return concat(plant.field(concat(xv, u)),
+                          obs.derivative(wv, u, plant.output(concat(xv, u))));
           },
           t, opt.dt, xw);
       x.assign(xw.begin(), xw.begin() + static_cast<long>(n));
       obs.set_state(Vec(xw.begin() + static_cast<long>(n), xw.end()));
     } else {
-      obs.step(opt.dt, plant.inputs({t}), plant.output(x));
+      obs.step(opt.dt, plant.inputs({t}), plant.y(t, x));
       rk4([&](double tt, const Vec& xv) { return plant.f(tt, xv); }, t, opt.dt, x);
     }
     if (!obs.rejected().empty()) {
@@ -423,7 +425,7 @@ void run_state_observer(const Plant& plant, SpecObserver& obs, const SimulationO
 void run_jets_observer(const Plant& plant, JetsObserver& obs, const SimulationOptions& opt,
                        std::size_t steps, Recorder& rec) {
   Vec x = opt.x0;
-  obs.reset(opt.xhat0, plant.output(opt.xhat0)[0]);
+  obs.reset(opt.xhat0, plant.y(0, opt.xhat0)[0]);
   if (!rec.record(0, x, obs.estimate(), "observer")) return;
   for (std::size_t k = 0; k < steps; ++k) {
     const double t = static_cast<double>(k) * opt.dt, t1 = static_cast<double>(k + 1) * opt.dt;
@@ -432,7 +434,7 @@ void run_jets_observer(const Plant& plant, JetsObserver& obs, const SimulationOp
       rec.record(t1, x, obs.estimate(), "observer");
       return;
     }
-    obs.update(opt.dt, plant.inputs({t1}), plant.output(x)[0]);
+    obs.update(opt.dt, plant.inputs({t1}), plant.y(t1, x)[0]);
     if (!rec.record(t1, x, obs.estimate(), "observer")) return;
   }
 }

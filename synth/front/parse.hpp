@@ -1,6 +1,18 @@
 // Front end for the .sym model format (design.md §2): a hand-written lexer and
 // recursive-descent parser building GiNaC expressions directly, with real source positions,
 // exact rationals for decimals, a function whitelist and a nesting cap.
+//
+// Extensions of design.md §2 (issue 8):
+//   h = [ x1 + u ]          outputs may depend on the inputs (direct feedthrough); they must be
+//                           defined at the nominal input, where the drift analysis reads them.
+//   F = [ x2*log(u), ... ]  a whole field, split at the nominal input u0: f = F(x,u0),
+//                           g = F - f (so g(x,u0) = 0). u0 is 0, or the `nominal` line, or,
+//                           when F is undefined at u = 0 and no `nominal` line is given, the
+//                           middle of the input box; Model::nominal_note says which.
+//   nominal u = 1, v = 2    (after `inputs`, only with F) values inside the inputs' domain.
+//   option poles = -3, -4   a design parameter, one per line, the value text verbatim as if
+//                           given as --poles on the command line (which wins); names are
+//                           checked against the design registry when a design is built.
 #pragma once
 
 #include <string>
