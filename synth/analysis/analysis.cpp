@@ -145,7 +145,10 @@ class StageLog {
 
 void run_stages(const Model& m, const AnalysisOptions& opt, Budget& budget, Analysis& a) {
   analyse_observability(m, budget, opt.observability, &a.observability);
-  if (a.observability.jets)  // no symbolic Lie derivatives: nothing for r, the frame, T
+  if (!opt.canonical_form)
+    a.canonical.not_applicable =
+        "not analysed: the methods asked for do not need the canonical form";
+  else if (a.observability.jets)  // no symbolic Lie derivatives: nothing for r, the frame, T
     a.canonical.not_applicable = "skipped: " + a.observability.symbolic_skipped +
                                  "; r, the frame, the brackets, T and l need them";
   else
