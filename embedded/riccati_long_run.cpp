@@ -31,7 +31,7 @@
 #define OBSYNTH_RICCATI_STEPS 1000000L
 #endif
 #ifndef OBSYNTH_RICCATI_TOL
-#define OBSYNTH_RICCATI_TOL 5e-2
+#define OBSYNTH_RICCATI_TOL 8e-2
 #endif
 
 namespace {

@@ -127,7 +127,6 @@ struct RiccatiFunctions {
     const Scalar t0 = -x1;
     const Scalar t1 = t0 + y_;
     const Scalar t2 = Scalar(2) * std::cos(x1) + Scalar(1);
-    const Scalar t3 = Q_3_4 * Scalar(2);
     out(0) = Q_1_1 * t1 + x2;
     out(1) = t0 + Q_1_2 * t1 + x3 - std::sin(x1) * Scalar(2);
     out(2) = Q_1_3 * t1 + x4;
@@ -136,12 +135,12 @@ struct RiccatiFunctions {
     out(5) = Q_1_3 - Q_1_1 * Q_1_2 + Q_2_2 - Q_1_1 * t2;
     out(6) = -(Q_1_1 * Q_1_3) + Q_2_3 + Q_1_4;
     out(7) = Q_1_1 + Q_2_4 - Q_1_3 - Q_1_1 * Q_1_4;
-    out(8) = -(Q_1_2 * Scalar(2) * t2) + Scalar(1) + Q_2_3 * Scalar(2) - Q_1_2 * Q_1_2;
+    out(8) = (-(Q_1_2 * t2) + Q_2_3) * Scalar(2) + Scalar(1) - Q_1_2 * Q_1_2;
     out(9) = -(Q_1_3 * Q_1_2) + Q_2_4 + Q_3_3 - Q_1_3 * t2;
     out(10) = Q_1_2 - Q_1_2 * Q_1_4 + Q_3_4 - Q_2_3 - Q_1_4 * t2;
-    out(11) = -(Q_1_3 * Q_1_3) + t3 + Scalar(1);
+    out(11) = -(Q_1_3 * Q_1_3) + Q_3_4 * Scalar(2) + Scalar(1);
     out(12) = Q_1_3 - Q_1_3 * Q_1_4 + Q_4_4 - Q_3_3;
-    out(13) = Scalar(2) * Q_1_4 - Q_1_4 * Q_1_4 - t3 + Scalar(1);
+    out(13) = -(Q_1_4 * Q_1_4) + Scalar(1) + (-Q_3_4 + Q_1_4) * Scalar(2);
   }
 
   /// The estimate m: the first n entries of w.

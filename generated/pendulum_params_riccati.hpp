@@ -120,7 +120,7 @@ struct RiccatiFunctions {
     out(1) = -(mgl * std::sin(x1) / J) - b * x2 / J + Q_1_2 * t0 + u_ / J;
     out(2) = Scalar(1) - Q_1_1 * Q_1_1 + Q_1_2 * Scalar(2);
     out(3) = -(Q_1_1 * Q_1_2) + Q_2_2 - Q_1_1 * mgl * t1 / J - b * Q_1_2 / J;
-    out(4) = -(b * Q_2_2 * Scalar(2) / J) + Scalar(1) - Q_1_2 * Q_1_2 - Q_1_2 * mgl * Scalar(2) * t1 / J;
+    out(4) = Scalar(1) + (-(b * Q_2_2 / J) - Q_1_2 * mgl * t1 / J) * Scalar(2) - Q_1_2 * Q_1_2;
   }
 
   /// The estimate m: the first n entries of w.

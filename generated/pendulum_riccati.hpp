@@ -102,7 +102,7 @@ struct RiccatiFunctions {
     out(1) = Q_1_2 * t0 - x2 * Scalar(0.25) + u_ - std::sin(x1);
     out(2) = Scalar(1) - Q_1_1 * Q_1_1 + Q_1_2 * Scalar(2);
     out(3) = -(Q_1_2 * Scalar(0.25)) - Q_1_1 * Q_1_2 + Q_2_2 - Q_1_1 * t1;
-    out(4) = Scalar(1) - Q_1_2 * Scalar(2) * t1 - Scalar(0.5) * Q_2_2 - Q_1_2 * Q_1_2;
+    out(4) = Scalar(1) - Q_1_2 * Q_1_2 + (-(Q_1_2 * t1) - Q_2_2 * Scalar(0.25)) * Scalar(2);
   }
 
   /// The estimate m: the first n entries of w.

@@ -99,9 +99,9 @@ struct RiccatiFunctions {
     const Scalar t0 = -x1 + y_;
     out(0) = (x1 + Scalar(1)) * u_ - x2 + Q_1_1 * t0;
     out(1) = Q_1_2 * t0 - x1 * x2 + u_;
-    out(2) = Q_1_1 * Scalar(2) * u_ - Q_1_2 * Scalar(2) + Scalar(1) - Q_1_1 * Q_1_1;
+    out(2) = Scalar(1) + (Q_1_1 * u_ - Q_1_2) * Scalar(2) - Q_1_1 * Q_1_1;
     out(3) = -(Q_1_1 * x2) + Q_1_2 * u_ - Q_1_1 * Q_1_2 - Q_2_2 - x1 * Q_1_2;
-    out(4) = -(x1 * Q_2_2 * Scalar(2)) + Scalar(1) - Q_1_2 * x2 * Scalar(2) - Q_1_2 * Q_1_2;
+    out(4) = Scalar(1) + (-(x1 * Q_2_2) - Q_1_2 * x2) * Scalar(2) - Q_1_2 * Q_1_2;
   }
 
   /// The estimate m: the first n entries of w.

@@ -104,7 +104,7 @@ struct RiccatiFunctions {
     out(1) = t0 - t2 * x2 + Q_1_2 * t1 + u_;
     out(2) = Scalar(1) - Q_1_1 * Q_1_1 + Q_1_2 * Scalar(2);
     out(3) = -(Q_1_1 * Q_1_2) + Q_2_2 - Q_1_1 * t3 - t2 * Q_1_2;
-    out(4) = -(Q_1_2 * Scalar(2) * t3) + Scalar(1) - t2 * Q_2_2 * Scalar(2) - Q_1_2 * Q_1_2;
+    out(4) = (-(t2 * Q_2_2) - Q_1_2 * t3) * Scalar(2) + Scalar(1) - Q_1_2 * Q_1_2;
   }
 
   /// The estimate m: the first n entries of w.

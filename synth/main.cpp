@@ -90,6 +90,16 @@ AnalysisOptions analysis_options(const CommonOptions& c) {
   return o;
 }
 
+// Whether the methods asked for (a comma-separated list) need the canonical-form stages:
+// auto, all and names not registered keep the full analysis.
+bool need_canonical_form(const std::vector<std::string>& methods) {
+  for (const auto& name : methods) {
+    const Design* d = find_design(name);
+    if (!d || d->needs_canonical_form) return true;
+  }
+  return methods.empty();
+}
+
 void print_stop(const std::string& stage, const std::string& reason) {
   std::fprintf(stderr, "obsynth: error: stage '%s' %s\n", stage.c_str(), reason.c_str());
 }
@@ -356,7 +366,9 @@ int run_simulate(const SimulateCommand& c) {
     so.dt = c.dt;
     so.sampling = c.sampling == "zoh" ? Sampling::zoh : Sampling::continuous;
     const Model m = load_bound_model(c.model, c.params);
-    const Analysis a = analyse(m, analysis_options(c.common));
+    AnalysisOptions ao = analysis_options(c.common);
+    ao.canonical_form = need_canonical_form(split_list(c.method));
+    const Analysis a = analyse(m, ao);
     const SimulationResult r = simulate(a, so);
     const std::string stem = cxx_identifier(m.name) + "_" + c.method;
     write_output_dir(c.out, {{stem + ".csv", r.csv}, {stem + ".svg", r.svg}});
@@ -385,7 +397,9 @@ int run_main_job(const MainJob& c) {
     so.emit.source_name = c.model;
     so.emit.language = c.language == "c" ? Language::c : Language::cpp;
     const Model m = load_bound_model(c.model, c.params);
-    const Analysis a = analyse(m, analysis_options(c.common));
+    AnalysisOptions ao = analysis_options(c.common);
+    ao.canonical_form = need_canonical_form(so.methods);
+    const Analysis a = analyse(m, ao);
     const Synthesis s = synthesize(a, so);
     write_output_dir(c.out, s.files);
     std::string dir = c.out;

@@ -157,7 +157,10 @@ void run_stages(const Model& m, const AnalysisOptions& opt, Budget& budget, Anal
   analyse_observability(dm, budget, opt.observability, &a.observability);
   a.under_inputs =
       analyse_observability_under_inputs(m, a.observability, opt.observability, opt.budget);
-  if (feedthrough)
+  if (!opt.canonical_form)
+    a.canonical.not_applicable =
+        "not analysed: the methods asked for do not need the canonical form";
+  else if (feedthrough)
     a.canonical.not_applicable =
         "does not apply: the output depends on the input (direct feedthrough y = h(x,u)); the "
         "observer canonical form needs y = h(x)";

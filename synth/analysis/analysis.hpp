@@ -39,6 +39,9 @@ struct AnalysisOptions {
   // false: a budget stop throws BudgetExceeded (callers that need every stage, e.g. the main
   // job). true: analyse returns the results of the completed stages, complete() false.
   bool keep_partial = false;
+  // false: skip the canonical-form stages (frame, conditions, diffeomorphism: reported "not
+  // needed"), for designs that need only the model and the observability rank.
+  bool canonical_form = true;
   // Called as each stage begins with the results of the stages before it, the beginning stage
   // marked stopped with checkpoint_reason: what to report should the process die in it.
   std::function<void(const Analysis&)> on_checkpoint;

@@ -23,6 +23,9 @@ struct Design {
   std::string name;     // method name, e.g. "canonical"
   std::string summary;  // one line for --list-methods and reports
   std::vector<DesignOptionInfo> options;
+  // Whether applies()/build() read the canonical-form analysis (r, frame, brackets, T, l).
+  // When every method asked for says false, the command line skips those stages.
+  bool needs_canonical_form = true;
   Verdict (*applies)(const Analysis&) = nullptr;
   // Throws UserError (why it does not apply, or a bad option) on failure.
   ObserverSpec (*build)(const Analysis&, const DesignOptions&) = nullptr;

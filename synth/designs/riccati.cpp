@@ -227,7 +227,15 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   for (std::size_t r = 0; r < n; ++r)
     for (std::size_t c = r; c < n; ++c) {
       ex acc = NNt(static_cast<unsigned>(r), static_cast<unsigned>(c));
-      for (std::size_t k = 0; k < n; ++k) acc += A[r][k] * Qs[k][c] + Qs[r][k] * A[c][k];
+      if (r == c) {
+        // (A Q + Q A^T)_rr = 2 (A Q)_rr: bound once, so that the factor 2 is one product
+        // instead of being distributed over the sum's terms.
+        ex aq = 0;
+        for (std::size_t k = 0; k < n; ++k) aq += A[r][k] * Qs[k][r];
+        acc += 2 * bind(fmt::format("AQ_{}_{}", r + 1, r + 1), aq);
+      } else {
+        for (std::size_t k = 0; k < n; ++k) acc += A[r][k] * Qs[k][c] + Qs[r][k] * A[c][k];
+      }
       for (std::size_t k = 0; k < p; ++k) acc -= Gw[r][k] * G[c][k];
       rhs.outputs.push_back(acc);
     }
@@ -368,6 +376,7 @@ Design riccati_design() {
        "riccati: Lambda of the detectability test (3.3), n x p: n*p values (row-major); "
        "certificate only",
        "0"}};
+  d.needs_canonical_form = false;
   d.applies = applies;
   d.build = build;
   return d;

@@ -265,6 +265,10 @@ check "planned method diagnostic" grep -q "method 'high-gain' is not implemented
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/m3" --method riccati --Q0 1,2,3,1 >"$tmp/out" 2>"$tmp/err"
 check "riccati: non-symmetric --Q0 exits 1" test $? -eq 1
 check "riccati: --Q0 diagnostic" grep -q -- "--Q0: not symmetric" "$tmp/err"
+"$bin" "$src/models/lorenz.sym" -o "$tmp/ric" --method riccati >"$tmp/out" 2>"$tmp/err"
+check "riccati alone exits 0" test $? -eq 0
+check "riccati alone writes its header" test -e "$tmp/ric/lorenz_riccati.hpp"
+check "riccati alone skips the canonical stages" grep -q "not analysed: the methods asked for do not need the canonical form" "$tmp/ric/lorenz_report.md"
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/all" --method all >"$tmp/out" 2>"$tmp/err"
 check "--method all exits 0" test $? -eq 0
 check "--method all writes canonical" test -s "$tmp/all/slawinski17_canonical.hpp"
