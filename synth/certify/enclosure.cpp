@@ -1,0 +1,662 @@
+#include "certify/enclosure.hpp"
+
+#include <arb_mat.h>
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <queue>
+
+#include "certify/tape.hpp"
+
+namespace obsynth::certify {
+
+using detail::BallVec;
+using detail::kPrec;
+using detail::Tape;
+using GiNaC::ex;
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// ----- deterministic sample points -------------------------------------------------------
+
+double radical_inverse(std::size_t i, unsigned base) {
+  double f = 1, r = 0;
+  while (i > 0) {
+    f /= base;
+    r += f * static_cast<double>(i % base);
+    i /= base;
+  }
+  return r;
+}
+
+std::vector<std::vector<double>> sample_points(const Box& box, std::size_t n) {
+  static const unsigned primes[] = {2,  3,  5,  7,  11, 13, 17, 19, 23, 29, 31, 37, 41,
+                                    43, 47, 53, 59, 61, 67, 71, 73, 79, 83, 89, 97};
+  const std::size_t d = box.vars.size();
+  std::vector<std::vector<double>> pts;
+  std::vector<double> c(d);
+  for (std::size_t k = 0; k < d; ++k) c[k] = 0.5 * (box.ranges[k].lo + box.ranges[k].hi);
+  pts.push_back(c);
+  if (d <= 12) {
+    for (std::size_t mask = 0; mask < (std::size_t{1} << d) && pts.size() < n; ++mask) {
+      std::vector<double> p(d);
+      for (std::size_t k = 0; k < d; ++k)
+        p[k] = (mask >> k) & 1 ? box.ranges[k].hi : box.ranges[k].lo;
+      pts.push_back(p);
+    }
+  }
+  for (std::size_t i = 1; pts.size() < n; ++i) {
+    std::vector<double> p(d);
+    for (std::size_t k = 0; k < d; ++k) {
+      const double t = radical_inverse(i + 7 * (k / 25), primes[k % 25]);
+      p[k] = box.ranges[k].lo + t * (box.ranges[k].hi - box.ranges[k].lo);
+    }
+    pts.push_back(p);
+  }
+  return pts;
+}
+
+// ----- point values: the tape in doubles, or GiNaC when the tape cannot evaluate ---------
+
+class PointEval {
+ public:
+  PointEval(const std::vector<ex>& outs, const Box& box, const Tape& tape)
+      : outs_(outs), box_(box), tape_(tape) {}
+  std::vector<double> operator()(const std::vector<double>& x) const {
+    std::vector<double> out;
+    if (tape_.supported()) {
+      tape_.eval_double(x, out);
+      return out;
+    }
+    GiNaC::exmap sub;
+    for (std::size_t k = 0; k < box_.vars.size(); ++k) sub[box_.vars[k]] = GiNaC::numeric(x[k]);
+    for (const auto& e : outs_) {
+      double v = std::nan("");
+      try {
+        const ex r = GiNaC::evalf(e.subs(sub));
+        if (GiNaC::is_a<GiNaC::numeric>(r) && GiNaC::ex_to<GiNaC::numeric>(r).is_real())
+          v = GiNaC::ex_to<GiNaC::numeric>(r).to_double();
+      } catch (const std::exception&) {
+      }
+      out.push_back(v);
+    }
+    return out;
+  }
+
+ private:
+  const std::vector<ex>& outs_;
+  const Box& box_;
+  const Tape& tape_;
+};
+
+// ----- branch and bound ------------------------------------------------------------------
+
+struct Objective {
+  // Rigorous upper bound over [lo, hi]; +inf when Arb cannot bound it there.
+  std::function<double(const std::vector<double>&, const std::vector<double>&)> upper;
+  // Value at a point (NaN where undefined).
+  std::function<double(const std::vector<double>&)> at;
+};
+
+struct BBResult {
+  double upper = kInf;
+  double best = -kInf;
+  std::vector<double> best_point;
+  std::size_t boxes = 0;
+};
+
+BBResult branch_and_bound(const Box& box, const Objective& obj, const EnclosureBudget& budget,
+                          bool use_gap, const std::function<bool(double, double)>& stop,
+                          const std::vector<bool>& split_dims) {
+  const std::size_t d = box.vars.size();
+  BBResult res;
+  auto consider = [&](const std::vector<double>& p) {
+    const double v = obj.at(p);
+    if (!std::isnan(v) && (v > res.best || res.best_point.empty())) {
+      res.best = v;
+      res.best_point = p;
+    }
+  };
+  for (const auto& p : sample_points(box, 64)) consider(p);
+
+  struct Item {
+    double ub;
+    std::vector<double> lo, hi;
+    bool operator<(const Item& o) const { return ub < o.ub; }
+  };
+  std::vector<double> lo(d), hi(d), w0(d);
+  for (std::size_t k = 0; k < d; ++k) {
+    lo[k] = box.ranges[k].lo;
+    hi[k] = box.ranges[k].hi;
+    w0[k] = split_dims.empty() || split_dims[k] ? hi[k] - lo[k] : 0;  // 0: never split
+  }
+  std::priority_queue<Item> heap;
+  heap.push({obj.upper(lo, hi), lo, hi});
+  res.boxes = 1;
+  double finals = -kInf;
+  while (!heap.empty() && res.boxes < budget.max_boxes) {
+    const Item& top = heap.top();
+    if (stop && stop(top.ub, res.best)) break;
+    if (use_gap && std::isfinite(top.ub) &&
+        top.ub - res.best <= std::max(budget.relative_gap * std::fabs(res.best), 1e-12))
+      break;
+    Item it = top;
+    heap.pop();
+    std::size_t k = d;
+    double best_ratio = 0;
+    for (std::size_t j = 0; j < d; ++j) {
+      if (w0[j] <= 0) continue;
+      const double ratio = (it.hi[j] - it.lo[j]) / w0[j];
+      if (ratio > best_ratio) {
+        best_ratio = ratio;
+        k = j;
+      }
+    }
+    const double mid = 0.5 * (it.lo[k < d ? k : 0] + it.hi[k < d ? k : 0]);
+    if (k == d || best_ratio < 1e-12 || !(mid > it.lo[k] && mid < it.hi[k])) {
+      finals = std::max(finals, it.ub);  // cannot split further
+      continue;
+    }
+    Item a{0, it.lo, it.hi}, b{0, it.lo, it.hi};
+    a.hi[k] = mid;
+    b.lo[k] = mid;
+    for (Item* c : {&a, &b}) {
+      c->ub = obj.upper(c->lo, c->hi);
+      ++res.boxes;
+      std::vector<double> centre(d);
+      for (std::size_t j = 0; j < d; ++j) centre[j] = 0.5 * (c->lo[j] + c->hi[j]);
+      consider(centre);
+      heap.push(std::move(*c));
+    }
+  }
+  res.upper = finals;
+  if (!heap.empty()) res.upper = std::max(res.upper, heap.top().ub);
+  if (std::isnan(res.upper)) res.upper = kInf;
+  return res;
+}
+
+// ----- rigorous matrix bounds from balls -------------------------------------------------
+
+struct ArbMat {
+  ArbMat(slong r, slong c) { arb_mat_init(m, r, c); }
+  ~ArbMat() { arb_mat_clear(m); }
+  ArbMat(const ArbMat&) = delete;
+  ArbMat& operator=(const ArbMat&) = delete;
+  arb_mat_t m;
+};
+
+// Rigorous upper bound of the spectral radius of B'B (B r x c, entries >= 0 as doubles) by
+// Collatz-Wielandt with a power-iteration vector. With `square_only` (B symmetric, r == c):
+// of the spectral radius of B itself.
+double cw_bound(const std::vector<double>& B, std::size_t r, std::size_t c, bool symmetric) {
+  Eigen::MatrixXd M(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c));
+  for (std::size_t i = 0; i < r; ++i)
+    for (std::size_t j = 0; j < c; ++j)
+      M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = B[i * c + j];
+  if (M.maxCoeff() <= 0) return 0;
+  Eigen::MatrixXd G = symmetric ? M : Eigen::MatrixXd(M.transpose() * M);
+  Eigen::VectorXd v = Eigen::VectorXd::Ones(G.rows());
+  for (int it = 0; it < 60; ++it) {
+    Eigen::VectorXd w = G * v;
+    const double nw = w.maxCoeff();
+    if (!(nw > 0)) break;
+    v = w / nw;
+  }
+  const double vmax = v.maxCoeff();
+  for (Eigen::Index i = 0; i < v.size(); ++i) v(i) = std::max(v(i), 1e-9 * vmax) / vmax;
+  // In balls: w = G v (G = B'B or B), ratio_i = w_i / v_i.
+  BallVec t(r), w(c), acc(1);
+  arb_ptr s = acc[0];
+  double worst = 0;
+  // Generic computation (both cases).
+  const std::size_t n = symmetric ? r : c;
+  if (symmetric) {
+    for (std::size_t i = 0; i < n; ++i) {
+      arb_zero(s);
+      for (std::size_t j = 0; j < n; ++j) {
+        arb_t bij, vj;
+        arb_init(bij);
+        arb_init(vj);
+        arb_set_d(bij, B[i * c + j]);
+        arb_set_d(vj, v(static_cast<Eigen::Index>(j)));
+        arb_addmul(s, bij, vj, kPrec);
+        arb_clear(bij);
+        arb_clear(vj);
+      }
+      arb_t vi;
+      arb_init(vi);
+      arb_set_d(vi, v(static_cast<Eigen::Index>(i)));
+      arb_div(s, s, vi, kPrec);
+      arb_clear(vi);
+      worst = std::max(worst, detail::upper(s));
+    }
+    return worst;
+  }
+  for (std::size_t i = 0; i < r; ++i) {  // t = B v
+    arb_zero(t[i]);
+    for (std::size_t j = 0; j < c; ++j) {
+      arb_t bij, vj;
+      arb_init(bij);
+      arb_init(vj);
+      arb_set_d(bij, B[i * c + j]);
+      arb_set_d(vj, v(static_cast<Eigen::Index>(j)));
+      arb_addmul(t[i], bij, vj, kPrec);
+      arb_clear(bij);
+      arb_clear(vj);
+    }
+  }
+  for (std::size_t j = 0; j < c; ++j) {  // w = B' t, ratio
+    arb_zero(w[j]);
+    for (std::size_t i = 0; i < r; ++i) {
+      arb_t bij;
+      arb_init(bij);
+      arb_set_d(bij, B[i * c + j]);
+      arb_addmul(w[j], bij, t[i], kPrec);
+      arb_clear(bij);
+    }
+    arb_t vj;
+    arb_init(vj);
+    arb_set_d(vj, v(static_cast<Eigen::Index>(j)));
+    arb_div(w[j], w[j], vj, kPrec);
+    arb_clear(vj);
+    worst = std::max(worst, detail::upper(w[j]));
+  }
+  return worst;
+}
+
+// Is mu I - G positive definite (G symmetric n x n, given as balls)? Proven by Arb's Cholesky.
+bool verify_upper_eig(const ArbMat& G, std::size_t n, double mu) {
+  ArbMat X(static_cast<slong>(n), static_cast<slong>(n)),
+      L(static_cast<slong>(n), static_cast<slong>(n));
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j) {
+      arb_ptr x = arb_mat_entry(X.m, i, j);
+      arb_neg(x, arb_mat_entry(G.m, i, j));
+      if (i == j) {
+        arb_t m;
+        arb_init(m);
+        arb_set_d(m, mu);
+        arb_add(x, x, m, kPrec);
+        arb_clear(m);
+      }
+    }
+  return arb_mat_cho(L.m, X.m, kPrec) != 0;
+}
+
+// Rigorous upper bound of lambda_max of the symmetric ball matrix G whose radii are tiny.
+double point_lambda_max(const ArbMat& G, std::size_t n) {
+  Eigen::MatrixXd A(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j)
+      A(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) =
+          arf_get_d(arb_midref(arb_mat_entry(G.m, i, j)), ARF_RND_NEAR);
+  A = 0.5 * (A + A.transpose()).eval();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(A, Eigen::EigenvaluesOnly);
+  const double lam = es.eigenvalues().maxCoeff();
+  const double scale = std::max(es.eigenvalues().cwiseAbs().maxCoeff(), 1e-300);
+  double eps = 1e-13 * scale;
+  for (int k = 0; k < 8; ++k, eps *= 100)
+    if (verify_upper_eig(G, n, lam + eps)) return lam + eps;
+  return kInf;
+}
+
+// Upper bound of ||M||_2 for an r x c ball matrix (row-major in `b`).
+double norm_upper(const BallVec& b, std::size_t r, std::size_t c) {
+  std::vector<double> mag(r * c), rad(r * c), mid(r * c);
+  arb_t t;
+  arb_init(t);
+  for (std::size_t k = 0; k < r * c; ++k) {
+    mag[k] = detail::abs_upper(b[k]);
+    mid[k] = arf_get_d(arb_midref(b[k]), ARF_RND_NEAR);
+    arb_set_d(t, mid[k]);
+    arb_sub(t, b[k], t, kPrec);
+    rad[k] = detail::abs_upper(t);
+  }
+  arb_clear(t);
+  for (double v : mag)
+    if (!std::isfinite(v)) return kInf;
+  const double a = std::sqrt(cw_bound(mag, r, c, false));
+  // ||mid|| + ||rad||: ||mid||^2 = lambda_max(mid' mid), verified.
+  ArbMat G(static_cast<slong>(c), static_cast<slong>(c));
+  arb_t x, y;
+  arb_init(x);
+  arb_init(y);
+  for (std::size_t i = 0; i < c; ++i)
+    for (std::size_t j = 0; j < c; ++j) {
+      arb_ptr g = arb_mat_entry(G.m, i, j);
+      arb_zero(g);
+      for (std::size_t k = 0; k < r; ++k) {
+        arb_set_d(x, mid[k * c + i]);
+        arb_set_d(y, mid[k * c + j]);
+        arb_addmul(g, x, y, kPrec);
+      }
+    }
+  arb_clear(x);
+  arb_clear(y);
+  const double lm = point_lambda_max(G, c);
+  double bnd = a;
+  if (std::isfinite(lm)) {
+    arb_t s, q;
+    arb_init(s);
+    arb_init(q);
+    arb_set_d(s, std::max(lm, 0.0));
+    arb_sqrt(s, s, kPrec);
+    arb_set_d(q, cw_bound(rad, r, c, false));
+    arb_sqrt(q, q, kPrec);
+    arb_add(s, s, q, kPrec);
+    bnd = std::min(bnd, detail::upper(s));
+    arb_clear(s);
+    arb_clear(q);
+  }
+  return bnd;
+}
+
+// Upper bound of lambda_max for a symmetric n x n ball matrix (row-major in `b`).
+double lambda_max_upper(const BallVec& b, std::size_t n) {
+  // Gershgorin.
+  double gersh = -kInf;
+  arb_t s, t;
+  arb_init(s);
+  arb_init(t);
+  for (std::size_t i = 0; i < n; ++i) {
+    arb_set(s, b[i * n + i]);
+    for (std::size_t j = 0; j < n; ++j) {
+      if (j == i) continue;
+      arb_set_d(t, detail::abs_upper(b[i * n + j]));
+      arb_add(s, s, t, kPrec);
+    }
+    gersh = std::max(gersh, detail::upper(s));
+  }
+  // lambda_max(mid) + ||rad||_2 (Weyl). mid and rad are made exactly symmetric: Arb's Cholesky
+  // reads the lower triangle only, and ||rad||_2 = rho(rad) (Collatz-Wielandt) needs symmetry.
+  std::vector<double> rad(n * n);
+  ArbMat M(static_cast<slong>(n), static_cast<slong>(n));
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = i; j < n; ++j) {
+      const double m = arf_get_d(arb_midref(b[i * n + j]), ARF_RND_NEAR);
+      arb_set_d(arb_mat_entry(M.m, i, j), m);
+      arb_set_d(arb_mat_entry(M.m, j, i), m);
+      arb_set_d(t, m);
+      arb_sub(t, b[i * n + j], t, kPrec);
+      double r = detail::abs_upper(t);
+      arb_set_d(t, m);
+      arb_sub(t, b[j * n + i], t, kPrec);
+      r = std::max(r, detail::abs_upper(t));
+      rad[i * n + j] = rad[j * n + i] = r;
+    }
+  double bnd = gersh;
+  const double lm = point_lambda_max(M, n);
+  if (std::isfinite(lm)) {
+    arb_set_d(s, lm);
+    arb_set_d(t, cw_bound(rad, n, n, true));
+    arb_add(s, s, t, kPrec);
+    bnd = std::min(bnd, detail::upper(s));
+  }
+  arb_clear(s);
+  arb_clear(t);
+  return bnd;
+}
+
+std::vector<ex> flatten(const GiNaC::matrix& M, bool symmetrize) {
+  std::vector<ex> out;
+  for (unsigned i = 0; i < M.rows(); ++i)
+    for (unsigned j = 0; j < M.cols(); ++j)
+      out.push_back(symmetrize ? ex((M(i, j) + M(j, i)) / 2) : M(i, j));
+  return out;
+}
+
+std::vector<double> lows(const Box& b) {
+  std::vector<double> v;
+  for (const auto& r : b.ranges) v.push_back(r.lo);
+  return v;
+}
+
+void check_box(const Box& box) {
+  if (box.vars.size() != box.ranges.size())
+    throw std::invalid_argument("certify: box with " + std::to_string(box.vars.size()) +
+                                " variables and " + std::to_string(box.ranges.size()) + " ranges");
+  for (std::size_t k = 0; k < box.ranges.size(); ++k)
+    if (!(box.ranges[k].lo <= box.ranges[k].hi))
+      throw std::invalid_argument("certify: empty or invalid range for '" + box.vars[k].get_name() +
+                                  "'");
+}
+
+std::string arb_method(const BBResult& r) {
+  return fmt::format("Arb balls, {} boxes", r.boxes);
+}
+
+std::string sampled_method(std::size_t n, const std::string& why) {
+  return fmt::format("sampled, {} points ({})", n, why);
+}
+
+// Max over sample points of a scalar function of the output values.
+template <class F>
+Bound sampled_max(const PointEval& pe, const Box& box, std::size_t samples, F score) {
+  Bound b;
+  b.kind = BoundKind::sampled;
+  b.value = -kInf;
+  const auto pts = sample_points(box, std::max<std::size_t>(samples, 1));
+  for (const auto& p : pts) {
+    const double v = score(pe(p));
+    if (std::isnan(v)) {
+      b.value = std::nan("");
+      b.worst_point = p;
+      break;
+    }
+    if (v > b.value || b.worst_point.empty()) {
+      b.value = v;
+      b.worst_point = p;
+    }
+  }
+  b.method = fmt::format("sampled, {} points", pts.size());
+  return b;
+}
+
+double spectral_norm_d(const std::vector<double>& v, std::size_t r, std::size_t c) {
+  Eigen::MatrixXd M(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c));
+  for (std::size_t i = 0; i < r; ++i)
+    for (std::size_t j = 0; j < c; ++j) {
+      if (std::isnan(v[i * c + j])) return std::nan("");
+      M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = v[i * c + j];
+    }
+  if (r == 0 || c == 0) return 0;
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(M);
+  return svd.singularValues()(0);
+}
+
+double lambda_max_d(const std::vector<double>& v, std::size_t n) {
+  Eigen::MatrixXd M(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j) {
+      if (std::isnan(v[i * n + j])) return std::nan("");
+      M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = v[i * n + j];
+    }
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M, Eigen::EigenvaluesOnly);
+  return es.eigenvalues().maxCoeff();
+}
+
+// Common driver: rigorous by branch and bound when the tape evaluates, else sampled.
+Bound drive(const std::vector<ex>& outs, const Box& box, const EnclosureBudget& budget,
+            const std::function<double(const BallVec&)>& ub_of_balls,
+            const std::function<double(const std::vector<double>&)>& score) {
+  check_box(box);
+  Tape tape(outs, box.vars);
+  PointEval pe(outs, box, tape);
+  if (tape.supported()) {
+    BallVec balls(outs.size());
+    Objective obj;
+    obj.upper = [&](const std::vector<double>& lo, const std::vector<double>& hi) {
+      if (!tape.eval_box(lo, hi, balls)) return kInf;
+      return ub_of_balls(balls);
+    };
+    obj.at = [&](const std::vector<double>& p) { return score(pe(p)); };
+    const BBResult r = branch_and_bound(box, obj, budget, true, {}, tape.used_vars());
+    if (std::isfinite(r.upper)) {
+      Bound b;
+      b.kind = BoundKind::rigorous;
+      b.value = r.upper;
+      b.worst_point = r.best_point.empty() ? lows(box) : r.best_point;
+      b.method = arb_method(r);
+      return b;
+    }
+    Bound b = sampled_max(pe, box, 4096, score);
+    b.method = sampled_method(4096, fmt::format("Arb could not bound it on {} boxes: a pole or a "
+                                                "branch cut in the box?",
+                                                r.boxes));
+    return b;
+  }
+  Bound b = sampled_max(pe, box, 4096, score);
+  b.method = sampled_method(4096, "no ball arithmetic for " + tape.why());
+  return b;
+}
+
+}  // namespace
+
+const char* bound_kind_name(BoundKind k) {
+  return k == BoundKind::rigorous ? "rigorous" : "sampled";
+}
+
+Box model_box(const Model& m) {
+  Box b;
+  for (const auto& s : m.all_symbols()) {
+    const Interval iv = m.box(s);
+    b.vars.push_back(s);
+    b.ranges.push_back({detail::rational_lower(iv.lo), detail::rational_upper(iv.hi)});
+  }
+  return b;
+}
+
+Bound sup_abs(const ex& e, const Box& box, const EnclosureBudget& budget) {
+  return drive(
+      {e}, box, budget, [](const BallVec& b) { return detail::abs_upper(b[0]); },
+      [](const std::vector<double>& v) { return std::fabs(v[0]); });
+}
+
+Bound sup_abs_sampled(const ex& e, const Box& box, std::size_t samples) {
+  check_box(box);
+  const std::vector<ex> outs{e};
+  Tape tape(outs, box.vars);
+  PointEval pe(outs, box, tape);
+  return sampled_max(pe, box, samples,
+                     [](const std::vector<double>& v) { return std::fabs(v[0]); });
+}
+
+Bound matrix_norm_bound(const GiNaC::matrix& M, const Box& box, const EnclosureBudget& budget) {
+  const std::size_t r = M.rows(), c = M.cols();
+  return drive(
+      flatten(M, false), box, budget, [r, c](const BallVec& b) { return norm_upper(b, r, c); },
+      [r, c](const std::vector<double>& v) { return spectral_norm_d(v, r, c); });
+}
+
+Bound lipschitz_bound(const std::vector<ex>& phi, const std::vector<GiNaC::symbol>& x,
+                      const Box& box, const EnclosureBudget& budget) {
+  GiNaC::matrix J(static_cast<unsigned>(phi.size()), static_cast<unsigned>(x.size()));
+  for (std::size_t i = 0; i < phi.size(); ++i)
+    for (std::size_t j = 0; j < x.size(); ++j)
+      J(static_cast<unsigned>(i), static_cast<unsigned>(j)) = phi[i].diff(x[j]);
+  return matrix_norm_bound(J, box, budget);
+}
+
+DefinitenessVerdict negative_definite(const GiNaC::matrix& S, const Box& box,
+                                      const EnclosureBudget& budget) {
+  check_box(box);
+  if (S.rows() != S.cols())
+    throw std::invalid_argument("certify: negative_definite of a non-square matrix");
+  const std::size_t n = S.rows();
+  const std::vector<ex> outs = flatten(S, true);
+  Tape tape(outs, box.vars);
+  PointEval pe(outs, box, tape);
+  auto score = [n](const std::vector<double>& v) { return lambda_max_d(v, n); };
+  DefinitenessVerdict out;
+  if (tape.supported()) {
+    BallVec balls(outs.size());
+    Objective obj;
+    obj.upper = [&](const std::vector<double>& lo, const std::vector<double>& hi) {
+      if (!tape.eval_box(lo, hi, balls)) return kInf;
+      return lambda_max_upper(balls, n);
+    };
+    obj.at = [&](const std::vector<double>& p) { return score(pe(p)); };
+    const BBResult r = branch_and_bound(
+        box, obj, budget, false,
+        [&budget](double ub, double best) {
+          // proven with a tight bound, or failed at a point
+          return (ub < 0 && ub - best <= budget.relative_gap * std::fabs(best)) || best > 0;
+        },
+        tape.used_vars());
+    out.worst_point = r.best_point;
+    if (std::isfinite(r.upper) && r.upper < 0) {
+      out.holds = true;
+      out.kind = BoundKind::rigorous;
+      out.max_eigenvalue_bound = r.upper;
+      out.method = fmt::format(
+          "Arb balls, Gershgorin / midpoint-radius eigenvalue bounds, {} boxes", r.boxes);
+      return out;
+    }
+    // Try to prove failure at the worst point: v' S(p) v >= 0 in balls for the top eigenvector.
+    if (!r.best_point.empty() && r.best >= 0) {
+      const std::vector<double> v = pe(r.best_point);
+      Eigen::MatrixXd M(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+      for (std::size_t i = 0; i < n; ++i)
+        for (std::size_t j = 0; j < n; ++j)
+          M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = v[i * n + j];
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M);
+      Eigen::Index top = 0;
+      es.eigenvalues().maxCoeff(&top);
+      const Eigen::VectorXd ev = es.eigenvectors().col(top);
+      BallVec pb(outs.size());
+      if (tape.eval_point(r.best_point, pb)) {
+        arb_t q, t;
+        arb_init(q);
+        arb_init(t);
+        arb_zero(q);
+        for (std::size_t i = 0; i < n; ++i)
+          for (std::size_t j = 0; j < n; ++j) {
+            arb_set_d(t, ev(static_cast<Eigen::Index>(i)) * 1.0);
+            arb_mul(t, t, pb[i * n + j], kPrec);
+            arb_t vj;
+            arb_init(vj);
+            arb_set_d(vj, ev(static_cast<Eigen::Index>(j)));
+            arb_mul(t, t, vj, kPrec);
+            arb_clear(vj);
+            arb_add(q, q, t, kPrec);
+          }
+        const bool proven = arb_is_nonnegative(q);
+        arb_clear(q);
+        arb_clear(t);
+        if (proven) {
+          out.holds = false;
+          out.kind = BoundKind::rigorous;
+          out.max_eigenvalue_bound = r.upper;
+          out.method = fmt::format(
+              "Arb balls: fails at the worst point (v'Sv >= 0 verified in balls, lambda_max there "
+              "~ {:.6g}); {} boxes",
+              r.best, r.boxes);
+          return out;
+        }
+      }
+    }
+    out.holds = r.best < 0;
+    out.kind = BoundKind::sampled;
+    out.max_eigenvalue_bound = r.best;
+    out.method = fmt::format(
+        "sampled verdict: enclosure undecided after {} boxes (upper bound {:.6g}, largest "
+        "eigenvalue found {:.6g})",
+        r.boxes, r.upper, r.best);
+    return out;
+  }
+  const Bound b = sampled_max(pe, box, 4096, score);
+  out.holds = b.value < 0;
+  out.kind = BoundKind::sampled;
+  out.max_eigenvalue_bound = b.value;
+  out.worst_point = b.worst_point;
+  out.method = sampled_method(4096, "no ball arithmetic for " + tape.why());
+  return out;
+}
+
+}  // namespace obsynth::certify
