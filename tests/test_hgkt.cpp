@@ -167,6 +167,46 @@ TEST(HighGain, VanDerPolStructureByHand) {
   EXPECT_TRUE(zero(st.J[1][1] - (1 - x1 * x1)));
 }
 
+std::string row(const ObserverSpec& s, const std::string& key) {
+  for (const auto& r : s.report)
+    if (r.key == key) return r.value;
+  return "";
+}
+
+// Certificate on the box x1 in [-3, 3], x2 in [-4, 4]: sup |-1 - 2 x1 x2| = 25 (x1 x2 = 12),
+// sup |1 - x1^2| = 8, so M = [[0, 0], [25, 8]] and L = ||M||_2 = sqrt(625 + 64). P solves
+// Acl^T P + P Acl = -I for Acl = [[-9/2, 1], [-5, 0]] (poles -2, -5/2), here by GiNaC's lsolve
+// on the three entries; theta* = 2 lambda_max(P) L.
+TEST(HighGain, VanDerPolCertificateByHand) {
+  const Analysis a = analyse(model("vanderpol"));
+  const ObserverSpec s = find_design("high-gain")->build(a, {});
+  const double L = std::sqrt(689.0);
+  const std::string Lrow = row(s, "Lipschitz constant L");
+  EXPECT_NE(Lrow.find("rigorous"), std::string::npos) << Lrow;
+  const double Lrep = std::stod(Lrow);
+  EXPECT_GE(Lrep, L);  // rounded up, never below
+  EXPECT_LT(Lrep, L * (1 + 1e-6));
+  GiNaC::symbol p11("p11"), p12("p12"), p22("p22");
+  const GiNaC::matrix P = {{p11, p12}, {p12, p22}};
+  const GiNaC::matrix Acl = {{GiNaC::numeric(-9, 2), 1}, {-5, 0}};
+  const GiNaC::matrix E = Acl.transpose().mul(P).add(P.mul(Acl));
+  const GiNaC::ex sol = GiNaC::lsolve(GiNaC::lst{E(0, 0) == -1, E(0, 1) == 0, E(1, 1) == -1},
+                                      GiNaC::lst{p11, p12, p22});
+  const double a11 = GiNaC::ex_to<GiNaC::numeric>(GiNaC::ex(p11).subs(sol)).to_double();
+  const double a12 = GiNaC::ex_to<GiNaC::numeric>(GiNaC::ex(p12).subs(sol)).to_double();
+  const double a22 = GiNaC::ex_to<GiNaC::numeric>(GiNaC::ex(p22).subs(sol)).to_double();
+  const double lmax = (a11 + a22) / 2 + std::sqrt((a11 - a22) * (a11 - a22) / 4 + a12 * a12);
+  const double theta_star = std::stod(row(s, "theta*"));
+  EXPECT_NEAR(theta_star, 2 * lmax * L, 1e-6 * theta_star);
+  EXPECT_GE(theta_star, 2 * lmax * L);
+  EXPECT_NE(row(s, "convergence").find("not guaranteed"), std::string::npos);  // theta = 5
+  DesignOptions d;
+  d.values["theta"] = "60";
+  const ObserverSpec s60 = find_design("high-gain")->build(a, d);
+  EXPECT_NE(row(s60, "convergence").find("guaranteed: theta = 60 >"), std::string::npos)
+      << row(s60, "convergence");
+}
+
 TEST(HighGain, VanDerPolConverges) {
   const Model m = model("vanderpol");
   DesignOptions d;

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "certify/enclosure.hpp"
 #include "designs/canonical.hpp"
 #include "designs/options.hpp"
 #include "symbolic/expr_print.hpp"
@@ -129,7 +130,8 @@ double lyapunov_lambda_max(const std::vector<numeric>& K) {
   return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(P).eigenvalues().maxCoeff();
 }
 
-// sup over the model's domain box (states, inputs, free parameters) of |e|.
+// sup over the model's domain box (states, inputs, free parameters) of |e|: certify's Arb
+// enclosure (rigorous), or its sampled fallback (labelled so) where Arb cannot bound e.
 struct EntryBound {
   double value = 0;
   bool rigorous = false;
@@ -137,16 +139,14 @@ struct EntryBound {
 };
 
 EntryBound sup_abs_over_domain(const ex& e, const Model& m) {
-  EntryBound b;
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
-  const int count = 2048;
-  for (const auto& pt : sample_points(m.all_symbols(), boxes, count, 0x11b5)) {
-    numeric v;
-    if (!evaluate_real(e, pt, 20, v)) continue;
-    b.value = std::max(b.value, std::fabs(v.to_double()));
-  }
-  b.method = fmt::format("sampled, {} points", count);
-  return b;
+  const certify::Bound b = certify::sup_abs(e, certify::model_box(m));
+  return {b.value, b.kind == certify::BoundKind::rigorous,
+          fmt::format("{}, {}", certify::bound_kind_name(b.kind), b.method)};
+}
+
+// 9 significant digits, never below v (the bounds are upper bounds).
+std::string up9(double v) {
+  return fmt::format("{:.9g}", v * (1 + 1e-8));
 }
 
 struct Certificate {
@@ -171,8 +171,11 @@ Certificate certify(const Model& m, const HighGainStructure& st, const std::vect
       c.entries.push_back(
           fmt::format("sup abs(d phi_{}/d z_{}) <= {:.4g} ({})", i + 1, j + 1, b.value, b.method));
     }
-  c.L = M.norm() > 0 ? Eigen::JacobiSVD<Eigen::MatrixXd>(M).singularValues()(0) : 0.0;
-  c.lambda_P = lyapunov_lambda_max(K);
+  // L and lambda_max(P) are computed in double from the (rigorous) entry bounds and the exact K;
+  // both are rounded up by a relative 1e-9, far above the rounding of these small problems.
+  const double up = 1 + 1e-9;
+  c.L = up * (M.norm() > 0 ? Eigen::JacobiSVD<Eigen::MatrixXd>(M).singularValues()(0) : 0.0);
+  c.lambda_P = up * lyapunov_lambda_max(K);
   c.theta_star = std::max(1.0, 2 * c.lambda_P * c.L);
   return c;
 }
@@ -323,9 +326,11 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       {"phi (in x)", fmt::format("[{}]", fmt::join(to_strings(st.phi), ", "))},
       {"Lipschitz bounds", fmt::format("{}", fmt::join(cert.entries, "; "))},
       {"Lipschitz constant L",
-       fmt::format("{:.6g} ({}; spectral norm of the entry bounds)", cert.L, kind)},
-      {"lambda_max(P)", fmt::format("{:.6g} (P: (A - K C)^T P + P (A - K C) = -I)", cert.lambda_P)},
-      {"theta*", fmt::format("{:.6g} = max(1, 2 lambda_max(P) L) ({})", cert.theta_star, kind)},
+       fmt::format("{} ({}; spectral norm of the entry bounds, rounded up)", up9(cert.L), kind)},
+      {"lambda_max(P)",
+       fmt::format("{} (P: (A - K C)^T P + P (A - K C) = -I; rounded up)", up9(cert.lambda_P))},
+      {"theta*",
+       fmt::format("{} = max(1, 2 lambda_max(P) L) ({}, rounded up)", up9(cert.theta_star), kind)},
       {"convergence",
        guaranteed
            ? fmt::format("guaranteed: theta = {} > theta* = {:.4g} (while xh and x stay in the "
