@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=${1:-build/synth/obsynth}
 out=${2:-generated}
-models=(slawinski17 triangular4 flexible_joint pendulum pendulum_params vanderpol)
+models=(slawinski17 triangular4 flexible_joint pendulum pendulum_params vanderpol dufour4)
 mkdir -p "$out"
 cp runtime/LICENSE "$out/LICENSE"
 for m in "${models[@]}"; do
