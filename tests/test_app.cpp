@@ -77,20 +77,29 @@ TEST(Synthesize, AutoChoosesCanonicalWhenTheBracketsHoldAndSaysWhy) {
 TEST(Synthesize, AllIsEveryDesignThatApplies) {
   std::string why;
   EXPECT_EQ(resolve_methods(analysed("slawinski17"), {"all"}, why),
-            (std::vector<std::string>{"canonical", "perfect"}));
-  EXPECT_TRUE(resolve_methods(analysed("lorenz"), {"all"}, why).empty());
+            (std::vector<std::string>{"canonical", "perfect", "high-gain", "kalman-theta"}));
+  // Lorenz, y = x1: no canonical form, not in seed 002's form in x (row 2 depends on x3), but
+  // uniformly observable for the high-gain design (no input; det O = -100 x1 not identically 0).
+  EXPECT_EQ(resolve_methods(analysed("lorenz"), {"all"}, why),
+            (std::vector<std::string>{"high-gain"}));
 }
 
+// Rayleigh has no canonical form; auto now falls back to the high-gain design. Stuart-Landau
+// (y = x1^2 + x2^2) is unobservable for every input: no design applies.
 TEST(Synthesize, AutoOnANonLinearizableModelListsEveryDesignsReason) {
-  const Analysis a = analysed("rayleigh");
   std::string why;
+  EXPECT_EQ(resolve_methods(analysed("rayleigh"), {"auto"}, why),
+            (std::vector<std::string>{"high-gain"}));
+  const Analysis a = analysed("stuart_landau");
   try {
     resolve_methods(a, {"auto"}, why);
-    FAIL() << "auto chose a design for rayleigh";
+    FAIL() << "auto chose a design for stuart_landau";
   } catch (const UserError& e) {
     const std::string msg = e.diagnostics().at(0).message;
     EXPECT_NE(msg.find("canonical: "), std::string::npos) << msg;
     EXPECT_NE(msg.find("perfect: "), std::string::npos) << msg;
+    EXPECT_NE(msg.find("high-gain: "), std::string::npos) << msg;
+    EXPECT_NE(msg.find("kalman-theta: "), std::string::npos) << msg;
     EXPECT_NE(msg.find("not implemented yet: riccati"), std::string::npos) << msg;
   }
 }

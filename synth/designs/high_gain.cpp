@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "analysis/observability.hpp"
 #include "certify/enclosure.hpp"
 #include "designs/canonical.hpp"
 #include "designs/options.hpp"
@@ -205,19 +206,69 @@ std::string singular_set(const Model& m, const HighGainStructure& st) {
   return fmt::format("where {}", fmt::join(parts, "; "));
 }
 
+// Cheap decision for `check` and `--method auto` (the symbolic J is left to build()): the
+// analysis' O (rows dL_f^k h) must have generic rank n, and phi_i = dL_f^{i-1} h . g (i < n) must
+// depend on z_1..z_i only, i.e. rank [dz_1; ...; dz_i; dphi_i] = i, decided by the rank at
+// sampled points (numeric elimination at 40 digits).
 Verdict applies(const Analysis& a) {
   Verdict v;
-  if (a.model.p() != 1) {
-    v.reasons.push_back(fmt::format("single-output design (p = {})", a.model.p()));
+  const Model& m = a.model;
+  const std::size_t n = m.n();
+  if (m.p() != 1) {
+    v.reasons.push_back(fmt::format("single-output design (p = {})", m.p()));
     return v;
   }
-  const HighGainStructure st = high_gain_structure(a.model);
-  v.reasons = st.failures;
-  v.applies = v.reasons.empty();
-  if (v.applies)
-    v.reasons.push_back(
-        "uniformly observable: in z = (h, L_f h, ..., L_f^{n-1} h) the model is z' = A z + "
-        "phi(z, u) with phi triangular");
+  const Observability& ob = a.observability;
+  if (!a.completed("observability") || ob.O.size() != n) {
+    v.reasons.push_back("undecided: the symbolic observability matrix is not available (" +
+                        (ob.symbolic_skipped.empty() ? std::string("observability stage incomplete")
+                                                     : ob.symbolic_skipped) +
+                        ")");
+    return v;
+  }
+  if (ob.generic_rank < n) {
+    v.reasons.push_back(fmt::format(
+        "det O = 0 identically: (h, L_f h, ..., L_f^{{n-1}} h) are not coordinates (generic rank "
+        "{} < n = {}; the drift alone does not make the system observable)",
+        ob.generic_rank, n));
+    return v;
+  }
+  bool g_zero = true;
+  for (const auto& e : m.g) g_zero = g_zero && e.is_zero();
+  if (!g_zero) {
+    const SampleBoxes boxes = SampleBoxes::from_model(m);
+    const auto points = sample_points(m.all_symbols(), boxes, 3, 0x4a11);
+    for (std::size_t i = 0; i + 1 < n; ++i) {
+      ex phi = 0;
+      for (std::size_t k = 0; k < n; ++k) phi += ob.O[i][k] * m.g[k];
+      if (phi.is_zero()) continue;
+      const ExVec grad = gradient(phi, m.states);
+      std::size_t rank = 0;
+      for (const auto& pt : points) {
+        std::vector<std::vector<numeric>> rows;
+        bool ok = true;
+        for (std::size_t r = 0; r <= i + 1 && ok; ++r)
+          for (std::size_t c = 0; c < n && ok; ++c) {
+            if (c == 0) rows.emplace_back();
+            numeric val;
+            ok = evaluate_real(r <= i ? ob.O[r][c] : grad[c], pt, 40, val);
+            rows.back().push_back(val);
+          }
+        if (ok) rank = std::max(rank, numeric_rank(rows, false));
+      }
+      if (rank > i + 1) {
+        v.reasons.push_back(fmt::format(
+            "not uniformly observable in the form z' = A z + phi(z, u) with phi triangular, z = "
+            "(h, L_f h, ...): phi_{} = L_g L_f^{} h = {} depends on z_{}..z_n",
+            i + 1, i, to_string(phi), i + 2));
+        return v;
+      }
+    }
+  }
+  v.applies = true;
+  v.reasons.push_back(
+      "uniformly observable: in z = (h, L_f h, ..., L_f^{n-1} h) the model is z' = A z + "
+      "phi(z, u) with phi triangular");
   return v;
 }
 
