@@ -217,6 +217,19 @@ TEST(HighGain, VanDerPolConverges) {
   EXPECT_LT(final_error(r, 1), 1e-6);
 }
 
+// Models without a canonical form (design.md; issue 8): Lorenz with y = x1 (O singular only on
+// x1 = 0) and Rayleigh, from stated initial errors.
+TEST(HighGain, LorenzAndRayleighConverge) {
+  DesignOptions d;
+  d.values["theta"] = "10";
+  const auto lz = run(model("lorenz"), "high-gain", "0", {1, 1, 20}, {2, 0, 25}, 5, d);
+  ASSERT_TRUE(lz.diverged.empty()) << lz.diverged;
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_LT(final_error(lz, i), 1e-6) << i;
+  const auto ry = run(model("rayleigh"), "high-gain", "0.5*sin(t)", {1, 0}, {-1, 1}, 10);
+  ASSERT_TRUE(ry.diverged.empty()) << ry.diverged;
+  for (std::size_t i = 0; i < 2; ++i) EXPECT_LT(final_error(ry, i), 1e-6) << i;
+}
+
 // y = x1 with x1' = x2 + x1^2/4: z = (x1, x2 + x1^2/4), O = [[1, 0], [x1/2, 1]] (not the identity,
 // so the LU solve does real work); x2' = -x1 - x2 + u. Uniformly observable (phi_1 = 0).
 const char* kQuadratic = R"(model quad
