@@ -145,9 +145,12 @@ EntryBound sup_abs_over_domain(const ex& e, const Model& m) {
           fmt::format("{}, {}", certify::bound_kind_name(b.kind), b.method)};
 }
 
-// 9 significant digits, never below v (the bounds are upper bounds).
-std::string up9(double v) {
-  return fmt::format("{:.9g}", v * (1 + 1e-8));
+// 6 significant digits rounded up: never below v (the bounds are upper bounds), and
+// deterministic although the last bits of an Arb bound depend on GiNaC's term order.
+std::string up6(double v) {
+  if (!(v > 0) || !std::isfinite(v)) return fmt::format("{:g}", v);
+  const double unit = std::pow(10.0, std::floor(std::log10(v)) - 5);
+  return fmt::format("{:.6g}", std::ceil(v * (1 + 1e-12) / unit) * unit);
 }
 
 struct Certificate {
@@ -170,7 +173,7 @@ Certificate certify(const Model& m, const HighGainStructure& st, const std::vect
       M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = b.value;
       c.rigorous = c.rigorous && b.rigorous;
       c.entries.push_back(
-          fmt::format("sup abs(d phi_{}/d z_{}) <= {:.4g} ({})", i + 1, j + 1, b.value, b.method));
+          fmt::format("sup abs(d phi_{}/d z_{}) <= {} ({})", i + 1, j + 1, up6(b.value), b.method));
     }
   // L and lambda_max(P) are computed in double from the (rigorous) entry bounds and the exact K;
   // both are rounded up by a relative 1e-9, far above the rounding of these small problems.
@@ -352,9 +355,9 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       fmt::format("theta = {}; poles of A - K C: {}; K = [{}]; Delta_theta K = [{}]",
                   to_string(theta), numbers_text(poles), numbers_text(K), numbers_text(gain)),
       "Gain applied by an LU solve with O(xh); O singular -> Status::singular, " + where_singular,
-      fmt::format("Lipschitz constant of phi in z: L = {:.4g} ({}); convergence guaranteed for "
-                  "theta > {:.4g}",
-                  cert.L, kind, cert.theta_star)};
+      fmt::format("Lipschitz constant of phi in z: L = {} ({}); convergence guaranteed for "
+                  "theta > {}",
+                  up6(cert.L), kind, up6(cert.theta_star))};
   s.class_doc = {"  xh' = f(xh) + g(xh, u) + O(xh)^-1 Delta_theta K (y - h(xh))",
                  "with O = d(h, L_f h, ..., L_f^{n-1} h)/dx and Delta_theta = diag(theta, ..., "
                  "theta^n); in z = (h, L_f h, ...) this is the",
@@ -377,24 +380,24 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       {"phi (in x)", fmt::format("[{}]", fmt::join(to_strings(st.phi), ", "))},
       {"Lipschitz bounds", fmt::format("{}", fmt::join(cert.entries, "; "))},
       {"Lipschitz constant L",
-       fmt::format("{} ({}; spectral norm of the entry bounds, rounded up)", up9(cert.L), kind)},
+       fmt::format("{} ({}; spectral norm of the entry bounds, rounded up)", up6(cert.L), kind)},
       {"lambda_max(P)",
-       fmt::format("{} (P: (A - K C)^T P + P (A - K C) = -I; rounded up)", up9(cert.lambda_P))},
+       fmt::format("{} (P: (A - K C)^T P + P (A - K C) = -I; rounded up)", up6(cert.lambda_P))},
       {"theta*",
-       fmt::format("{} = max(1, 2 lambda_max(P) L) ({}, rounded up)", up9(cert.theta_star), kind)},
+       fmt::format("{} = max(1, 2 lambda_max(P) L) ({}, rounded up)", up6(cert.theta_star), kind)},
       {"convergence",
-       guaranteed
-           ? fmt::format("guaranteed: theta = {} > theta* = {:.4g} (while xh and x stay in the "
-                         "domain box, where L holds)",
-                         to_string(theta), cert.theta_star)
-           : fmt::format("not guaranteed by the theorem: theta = {} <= theta* = {:.4g} (short "
-                         "by {:.4g}); raise --theta",
-                         to_string(theta), cert.theta_star, cert.theta_star - theta.to_double())}};
+       guaranteed ? fmt::format("guaranteed: theta = {} > theta* = {} (while xh and x stay in the "
+                                "domain box, where L holds)",
+                                to_string(theta), up6(cert.theta_star))
+                  : fmt::format("not guaranteed by the theorem: theta = {} <= theta* = {} (short "
+                                "by {}); raise --theta",
+                                to_string(theta), up6(cert.theta_star),
+                                up6(cert.theta_star - theta.to_double()))}};
   s.summary = fmt::format(
       "high-gain observer, theta = {}, poles {} (scaled by theta), gain Delta_theta K = [{}]; L = "
-      "{:.4g} ({}), theta* = {:.4g}: convergence {}",
-      to_string(theta), numbers_text(poles), numbers_text(gain), cert.L, kind, cert.theta_star,
-      guaranteed ? "guaranteed" : "not guaranteed");
+      "{} ({}), theta* = {}: convergence {}",
+      to_string(theta), numbers_text(poles), numbers_text(gain), up6(cert.L), kind,
+      up6(cert.theta_star), guaranteed ? "guaranteed" : "not guaranteed");
   return s;
 }
 
