@@ -6,7 +6,7 @@ cd "$(dirname "$0")/.."
 bin=${1:-build/synth/obsynth}
 out=${2:-generated}
 models=(slawinski17 triangular4 flexible_joint pendulum pendulum_params vanderpol
-        jamesbaras_sin lorenz rayleigh cstr cart_pendulum)
+        jamesbaras_sin lorenz rayleigh cstr cart_pendulum dufour4)
 mkdir -p "$out"
 cp runtime/LICENSE "$out/LICENSE"
 for m in "${models[@]}"; do

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "analysis/observability.hpp"
+#include "certify/enclosure.hpp"
 #include "designs/canonical.hpp"
 #include "designs/options.hpp"
 #include "symbolic/expr_print.hpp"
@@ -129,7 +131,8 @@ double lyapunov_lambda_max(const std::vector<numeric>& K) {
   return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(P).eigenvalues().maxCoeff();
 }
 
-// sup over the model's domain box (states, inputs, free parameters) of |e|.
+// sup over the model's domain box (states, inputs, free parameters) of |e|: certify's Arb
+// enclosure (rigorous), or its sampled fallback (labelled so) where Arb cannot bound e.
 struct EntryBound {
   double value = 0;
   bool rigorous = false;
@@ -137,16 +140,17 @@ struct EntryBound {
 };
 
 EntryBound sup_abs_over_domain(const ex& e, const Model& m) {
-  EntryBound b;
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
-  const int count = 2048;
-  for (const auto& pt : sample_points(m.all_symbols(), boxes, count, 0x11b5)) {
-    numeric v;
-    if (!evaluate_real(e, pt, 20, v)) continue;
-    b.value = std::max(b.value, std::fabs(v.to_double()));
-  }
-  b.method = fmt::format("sampled, {} points", count);
-  return b;
+  const certify::Bound b = certify::sup_abs(e, certify::model_box(m));
+  return {b.value, b.kind == certify::BoundKind::rigorous,
+          fmt::format("{}, {}", certify::bound_kind_name(b.kind), b.method)};
+}
+
+// 6 significant digits rounded up: never below v (the bounds are upper bounds), and
+// deterministic although the last bits of an Arb bound depend on GiNaC's term order.
+std::string up6(double v) {
+  if (!(v > 0) || !std::isfinite(v)) return fmt::format("{:g}", v);
+  const double unit = std::pow(10.0, std::floor(std::log10(v)) - 5);
+  return fmt::format("{:.6g}", std::ceil(v * (1 + 1e-12) / unit) * unit);
 }
 
 struct Certificate {
@@ -169,10 +173,13 @@ Certificate certify(const Model& m, const HighGainStructure& st, const std::vect
       M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = b.value;
       c.rigorous = c.rigorous && b.rigorous;
       c.entries.push_back(
-          fmt::format("sup abs(d phi_{}/d z_{}) <= {:.4g} ({})", i + 1, j + 1, b.value, b.method));
+          fmt::format("sup abs(d phi_{}/d z_{}) <= {} ({})", i + 1, j + 1, up6(b.value), b.method));
     }
-  c.L = M.norm() > 0 ? Eigen::JacobiSVD<Eigen::MatrixXd>(M).singularValues()(0) : 0.0;
-  c.lambda_P = lyapunov_lambda_max(K);
+  // L and lambda_max(P) are computed in double from the (rigorous) entry bounds and the exact K;
+  // both are rounded up by a relative 1e-9, far above the rounding of these small problems.
+  const double up = 1 + 1e-9;
+  c.L = up * (M.norm() > 0 ? Eigen::JacobiSVD<Eigen::MatrixXd>(M).singularValues()(0) : 0.0);
+  c.lambda_P = up * lyapunov_lambda_max(K);
   c.theta_star = std::max(1.0, 2 * c.lambda_P * c.L);
   return c;
 }
@@ -202,19 +209,69 @@ std::string singular_set(const Model& m, const HighGainStructure& st) {
   return fmt::format("where {}", fmt::join(parts, "; "));
 }
 
+// Cheap decision for `check` and `--method auto` (the symbolic J is left to build()): the
+// analysis' O (rows dL_f^k h) must have generic rank n, and phi_i = dL_f^{i-1} h . g (i < n) must
+// depend on z_1..z_i only, i.e. rank [dz_1; ...; dz_i; dphi_i] = i, decided by the rank at
+// sampled points (numeric elimination at 40 digits).
 Verdict applies(const Analysis& a) {
   Verdict v;
-  if (a.model.p() != 1) {
-    v.reasons.push_back(fmt::format("single-output design (p = {})", a.model.p()));
+  const Model& m = a.model;
+  const std::size_t n = m.n();
+  if (m.p() != 1) {
+    v.reasons.push_back(fmt::format("single-output design (p = {})", m.p()));
     return v;
   }
-  const HighGainStructure st = high_gain_structure(a.model);
-  v.reasons = st.failures;
-  v.applies = v.reasons.empty();
-  if (v.applies)
-    v.reasons.push_back(
-        "uniformly observable: in z = (h, L_f h, ..., L_f^{n-1} h) the model is z' = A z + "
-        "phi(z, u) with phi triangular");
+  const Observability& ob = a.observability;
+  if (!a.completed("observability") || ob.O.size() != n) {
+    v.reasons.push_back("undecided: the symbolic observability matrix is not available (" +
+                        (ob.symbolic_skipped.empty() ? std::string("observability stage incomplete")
+                                                     : ob.symbolic_skipped) +
+                        ")");
+    return v;
+  }
+  if (ob.generic_rank < n) {
+    v.reasons.push_back(fmt::format(
+        "det O = 0 identically: (h, L_f h, ..., L_f^{{n-1}} h) are not coordinates (generic rank "
+        "{} < n = {}; the drift alone does not make the system observable)",
+        ob.generic_rank, n));
+    return v;
+  }
+  bool g_zero = true;
+  for (const auto& e : m.g) g_zero = g_zero && e.is_zero();
+  if (!g_zero) {
+    const SampleBoxes boxes = SampleBoxes::from_model(m);
+    const auto points = sample_points(m.all_symbols(), boxes, 3, 0x4a11);
+    for (std::size_t i = 0; i + 1 < n; ++i) {
+      ex phi = 0;
+      for (std::size_t k = 0; k < n; ++k) phi += ob.O[i][k] * m.g[k];
+      if (phi.is_zero()) continue;
+      const ExVec grad = gradient(phi, m.states);
+      std::size_t rank = 0;
+      for (const auto& pt : points) {
+        std::vector<std::vector<numeric>> rows;
+        bool ok = true;
+        for (std::size_t r = 0; r <= i + 1 && ok; ++r)
+          for (std::size_t c = 0; c < n && ok; ++c) {
+            if (c == 0) rows.emplace_back();
+            numeric val;
+            ok = evaluate_real(r <= i ? ob.O[r][c] : grad[c], pt, 40, val);
+            rows.back().push_back(val);
+          }
+        if (ok) rank = std::max(rank, numeric_rank(rows, false));
+      }
+      if (rank > i + 1) {
+        v.reasons.push_back(fmt::format(
+            "not uniformly observable in the form z' = A z + phi(z, u) with phi triangular, z = "
+            "(h, L_f h, ...): phi_{} = L_g L_f^{} h = {} depends on z_{}..z_n",
+            i + 1, i, to_string(phi), i + 2));
+        return v;
+      }
+    }
+  }
+  v.applies = true;
+  v.reasons.push_back(
+      "uniformly observable: in z = (h, L_f h, ..., L_f^{n-1} h) the model is z' = A z + "
+      "phi(z, u) with phi triangular");
   return v;
 }
 
@@ -298,9 +355,9 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       fmt::format("theta = {}; poles of A - K C: {}; K = [{}]; Delta_theta K = [{}]",
                   to_string(theta), numbers_text(poles), numbers_text(K), numbers_text(gain)),
       "Gain applied by an LU solve with O(xh); O singular -> Status::singular, " + where_singular,
-      fmt::format("Lipschitz constant of phi in z: L = {:.4g} ({}); convergence guaranteed for "
-                  "theta > {:.4g}",
-                  cert.L, kind, cert.theta_star)};
+      fmt::format("Lipschitz constant of phi in z: L = {} ({}); convergence guaranteed for "
+                  "theta > {}",
+                  up6(cert.L), kind, up6(cert.theta_star))};
   s.class_doc = {"  xh' = f(xh) + g(xh, u) + O(xh)^-1 Delta_theta K (y - h(xh))",
                  "with O = d(h, L_f h, ..., L_f^{n-1} h)/dx and Delta_theta = diag(theta, ..., "
                  "theta^n); in z = (h, L_f h, ...) this is the",
@@ -323,22 +380,24 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       {"phi (in x)", fmt::format("[{}]", fmt::join(to_strings(st.phi), ", "))},
       {"Lipschitz bounds", fmt::format("{}", fmt::join(cert.entries, "; "))},
       {"Lipschitz constant L",
-       fmt::format("{:.6g} ({}; spectral norm of the entry bounds)", cert.L, kind)},
-      {"lambda_max(P)", fmt::format("{:.6g} (P: (A - K C)^T P + P (A - K C) = -I)", cert.lambda_P)},
-      {"theta*", fmt::format("{:.6g} = max(1, 2 lambda_max(P) L) ({})", cert.theta_star, kind)},
+       fmt::format("{} ({}; spectral norm of the entry bounds, rounded up)", up6(cert.L), kind)},
+      {"lambda_max(P)",
+       fmt::format("{} (P: (A - K C)^T P + P (A - K C) = -I; rounded up)", up6(cert.lambda_P))},
+      {"theta*",
+       fmt::format("{} = max(1, 2 lambda_max(P) L) ({}, rounded up)", up6(cert.theta_star), kind)},
       {"convergence",
-       guaranteed
-           ? fmt::format("guaranteed: theta = {} > theta* = {:.4g} (while xh and x stay in the "
-                         "domain box, where L holds)",
-                         to_string(theta), cert.theta_star)
-           : fmt::format("not guaranteed by the theorem: theta = {} <= theta* = {:.4g} (short "
-                         "by {:.4g}); raise --theta",
-                         to_string(theta), cert.theta_star, cert.theta_star - theta.to_double())}};
+       guaranteed ? fmt::format("guaranteed: theta = {} > theta* = {} (while xh and x stay in the "
+                                "domain box, where L holds)",
+                                to_string(theta), up6(cert.theta_star))
+                  : fmt::format("not guaranteed by the theorem: theta = {} <= theta* = {} (short "
+                                "by {}); raise --theta",
+                                to_string(theta), up6(cert.theta_star),
+                                up6(cert.theta_star - theta.to_double()))}};
   s.summary = fmt::format(
       "high-gain observer, theta = {}, poles {} (scaled by theta), gain Delta_theta K = [{}]; L = "
-      "{:.4g} ({}), theta* = {:.4g}: convergence {}",
-      to_string(theta), numbers_text(poles), numbers_text(gain), cert.L, kind, cert.theta_star,
-      guaranteed ? "guaranteed" : "not guaranteed");
+      "{} ({}), theta* = {}: convergence {}",
+      to_string(theta), numbers_text(poles), numbers_text(gain), up6(cert.L), kind,
+      up6(cert.theta_star), guaranteed ? "guaranteed" : "not guaranteed");
   return s;
 }
 

@@ -137,24 +137,19 @@ check "main job time stop writes nothing" test ! -e "$tmp/job_time"
 check "--list-methods lists canonical" grep -q "^canonical " "$tmp/out"
 check "--list-methods lists perfect" grep -q "^perfect " "$tmp/out"
 check "--list-methods lists riccati" grep -q "^riccati " "$tmp/out"
-check "--list-methods marks high-gain planned" grep -q "^high-gain .*planned" "$tmp/out"
+check "--list-methods lists high-gain" grep -q "^high-gain " "$tmp/out"
+planned=$(awk '/planned/ {print $1; exit}' "$tmp/out")  # a registered-but-planned method, if any
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/auto" >"$tmp/out" 2>"$tmp/err"
 check "auto explains its choice" grep -q "auto: chose 'canonical' because the bracket conditions hold" "$tmp/out"
 check "auto writes the alias header" grep -q "using AutoObserver = Slawinski17Canonical<Scalar...>;" "$tmp/auto/slawinski17_auto.hpp"
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/all" --method all >"$tmp/out" 2>"$tmp/err"
 check "--method all writes canonical and perfect" test -e "$tmp/all/slawinski17_canonical.hpp" -a -e "$tmp/all/slawinski17_perfect.hpp"
-"$bin" "$src/models/lorenz.sym" -o "$tmp/lorenz" >"$tmp/out" 2>"$tmp/err"
-check "auto on a non-linearizable model falls back to riccati" grep -q "auto: chose 'riccati'" "$tmp/out"
-check "auto names why canonical does not apply" grep -q "canonical: not linearizable by output injection" "$tmp/out"
-check "auto fallback writes the riccati header" test -e "$tmp/lorenz/lorenz_riccati.hpp"
 "$bin" "$src/models/stuart_landau.sym" -o "$tmp/sl" >"$tmp/out" 2>"$tmp/err"
 check "auto on an unobservable model exits 1" test $? -eq 1
-check "auto names the planned designs" grep -q "not implemented yet: high-gain" "$tmp/err"
+check "auto names why canonical does not apply" grep -q "canonical: C1 fails" "$tmp/err"
 check "auto failure writes nothing" test ! -e "$tmp/sl"
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/x" --method nonsense >"$tmp/out" 2>"$tmp/err"
 check "unknown method diagnostic" grep -q "unknown method 'nonsense' (known: auto, all, canonical, perfect" "$tmp/err"
-"$bin" "$src/models/slawinski17.sym" -o "$tmp/x" --method thau >"$tmp/out" 2>"$tmp/err"
-check "planned method diagnostic" grep -q "method 'thau' is not implemented in this version of obsynth (implemented: canonical, perfect, riccati)" "$tmp/err"
 
 # Run-time parameters and --param.
 "$bin" "$src/models/pendulum_params.sym" -o "$tmp/prm" --method canonical >"$tmp/out" 2>"$tmp/err"
@@ -250,18 +245,44 @@ check "--list-methods exits 0" test $? -eq 0
 for m in canonical perfect riccati high-gain; do
   check "--list-methods names $m" grep -q "$m" "$tmp/out"
 done
-"$bin" "$src/models/stuart_landau.sym" -o "$tmp/sl_out" >"$tmp/out" 2>"$tmp/err"
+"$bin" "$src/models/stuart_landau.sym" -o "$tmp/lorenz_out" >"$tmp/out" 2>"$tmp/err"
 check "auto on stuart_landau exits 1" test $? -eq 1
 check "auto on stuart_landau names canonical" grep -q "canonical:" "$tmp/err"
+check "auto on stuart_landau names perfect" grep -q "perfect:" "$tmp/err"
+check "auto on stuart_landau names high-gain" grep -q "high-gain:" "$tmp/err"
+check "auto on stuart_landau names kalman-theta" grep -q "kalman-theta:" "$tmp/err"
 check "auto on stuart_landau names riccati" grep -q "riccati:" "$tmp/err"
-check "auto on stuart_landau lists planned designs" grep -q "not implemented yet: high-gain" "$tmp/err"
-check "auto on stuart_landau writes nothing" test ! -e "$tmp/sl_out"
+check "auto on stuart_landau writes nothing" test ! -e "$tmp/lorenz_out"
+# High-gain on Lorenz (y = x1): generated, and the report says where O is singular.
+"$bin" "$src/models/lorenz.sym" -o "$tmp/lorenz_hg" >"$tmp/out" 2>"$tmp/err"
+check "auto on lorenz picks high-gain" test -e "$tmp/lorenz_hg/lorenz_high-gain.hpp"
+check "lorenz report: O singular where x1 = 0" grep -q "O singular | where x1 = 0" "$tmp/lorenz_hg/lorenz_report.md"
+# Strong persistence (seed 002): --input/--horizon in every format; JSON key "persistence".
+"$bin" check "$src/models/dufour4.sym" --input "sin(t)" --horizon 20 --format json >"$tmp/p.json" 2>"$tmp/err"
+check "persistence json exits 0" test $? -eq 0
+check "persistence: sin t is strongly persistent" test "$(jq '.persistence.strongly_persistent' "$tmp/p.json")" = true
+"$bin" check "$src/models/dufour4.sym" --input "0" --horizon 20 --format json >"$tmp/p0.json" 2>"$tmp/err"
+check "persistence: u = 0 is not" test "$(jq '.persistence.strongly_persistent' "$tmp/p0.json")" = false
+for fmt in text markdown latex; do
+  "$bin" check "$src/models/dufour4.sym" --input "0" --horizon 20 --format $fmt >"$tmp/p.$fmt" 2>"$tmp/err"
+  check "persistence in $fmt" grep -q "not strongly persistent" "$tmp/p.$fmt"
+done
+"$bin" check "$src/models/dufour4.sym" --input "sin(t), t" --horizon 20 >"$tmp/out" 2>"$tmp/err"
+check "persistence: wrong input count exits 1" test $? -eq 1
+check "persistence: wrong input count diagnostic" grep -q "\-\-input needs 1 expression in t" "$tmp/err"
+for m in high-gain kalman-theta; do
+  "$bin" simulate "$src/models/vanderpol.sym" --method $m --u "0.5*sin(t)" --x0 1,0 --xhat0 0,0.5 --t-end 5 -o "$tmp/sim_$m" >"$tmp/out" 2>"$tmp/err"
+  check "simulate --method $m exits 0" test $? -eq 0
+  check "simulate --method $m writes the csv" test -s "$tmp/sim_$m/vanderpol_$m.csv"
+done
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/m1" --method bogus >"$tmp/out" 2>"$tmp/err"
 check "unknown method exits 1" test $? -eq 1
 check "unknown method diagnostic" grep -q "unknown method 'bogus' (known: auto, all, " "$tmp/err"
-"$bin" "$src/models/slawinski17.sym" -o "$tmp/m2" --method high-gain >"$tmp/out" 2>"$tmp/err"
-check "planned method exits 1" test $? -eq 1
-check "planned method diagnostic" grep -q "method 'high-gain' is not implemented in this version" "$tmp/err"
+if [ -n "$planned" ]; then
+  "$bin" "$src/models/slawinski17.sym" -o "$tmp/m2" --method "$planned" >"$tmp/out" 2>"$tmp/err"
+  check "planned method exits 1" test $? -eq 1
+  check "planned method diagnostic" grep -q "method '$planned' is not implemented in this version" "$tmp/err"
+fi
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/m3" --method riccati --Q0 1,2,3,1 >"$tmp/out" 2>"$tmp/err"
 check "riccati: non-symmetric --Q0 exits 1" test $? -eq 1
 check "riccati: --Q0 diagnostic" grep -q -- "--Q0: not symmetric" "$tmp/err"

@@ -1,0 +1,313 @@
+// High-gain and Kalman-like theta observers (seed 002) and the strong persistence check.
+// Oracles are derived by hand in the comments (not with the code under test).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "analysis/analysis.hpp"
+#include "analysis/persistence.hpp"
+#include "app/simulate.hpp"
+#include "designs/high_gain.hpp"
+#include "designs/registry.hpp"
+#include "front/diagnostics.hpp"
+#include "front/parse.hpp"
+
+using namespace obsynth;
+
+namespace {
+
+std::string read_model(const std::string& name) {
+  std::ifstream in(std::string(OBSYNTH_SOURCE_DIR) + "/models/" + name + ".sym");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+Model model(const std::string& name) {
+  return parse_model(read_model(name), name + ".sym");
+}
+
+SimulationResult run(const Model& m, const std::string& method, const std::string& u,
+                     std::vector<double> x0, std::vector<double> xh0, double t_end,
+                     DesignOptions d = {}) {
+  SimulationOptions o;
+  o.method = method;
+  o.design = std::move(d);
+  o.u_text = u;
+  o.x0 = std::move(x0);
+  o.xhat0 = std::move(xh0);
+  o.t_end = t_end;
+  o.dt = 1e-3;
+  return simulate(analyse(m), o);
+}
+
+double final_error(const SimulationResult& r, std::size_t i) {
+  return std::abs(r.x.back()[i] - r.xh.back()[i]);
+}
+
+bool zero(const GiNaC::ex& e) {
+  return GiNaC::normal(e).is_zero();
+}
+
+// ---- seed 002 example (4): z1' = u z2, z2' = 0, y = z1 ---------------------------------------
+
+TEST(SeedDufour4, FormDetectedInX) {
+  const Model m = model("dufour4");
+  std::string why;
+  const auto t = triangular_in_x(m, &why);
+  ASSERT_TRUE(t.has_value()) << why;
+  ASSERT_EQ(t->a.size(), 1u);
+  EXPECT_TRUE(zero(t->a[0] - m.inputs[0]));  // a_1(u) = u
+  EXPECT_TRUE(zero(t->phi[0]));
+  EXPECT_TRUE(zero(t->phi[1]));
+}
+
+// Persistent input u = sin t: i) and ii) hold. u = 0: A = 0, Psi_22 = 0 for every t, so Gamma
+// is singular and i) fails.
+TEST(SeedDufour4, PersistenceVerdicts) {
+  const Model m = model("dufour4");
+  PersistenceOptions o;
+  o.input_text = "sin(t)";
+  o.horizon = 20;
+  const auto p = check_persistence(m, o);
+  ASSERT_TRUE(p.applicable);
+  EXPECT_TRUE(p.condition_i) << p.verdict;
+  EXPECT_TRUE(p.condition_ii) << p.verdict;
+  EXPECT_TRUE(p.persistent);
+  EXPECT_GT(p.gramian_min_eig, 0.1);
+  o.input_text = "0";
+  const auto q = check_persistence(m, o);
+  ASSERT_TRUE(q.applicable);
+  EXPECT_FALSE(q.persistent);
+  EXPECT_FALSE(q.condition_i);
+  for (const auto& b : q.by_theta) EXPECT_FALSE(b.gamma_invertible);
+  EXPECT_NEAR(q.gramian_min_eig, 0, 1e-12);
+  EXPECT_NE(q.verdict.find("not strongly persistent"), std::string::npos);
+}
+
+// u = 1: A = [[0,1],[0,0]] constant. For t -> inf, Psi = int_0^inf e^{-theta r} [1, r; r, r^2] dr
+// (up to the sign of the off-diagonal) = [1/theta, 1/theta^2; 1/theta^2, 2/theta^3]. With
+// Gamma = diag(Psi), the normalised Psi is [1, rho; rho, 1] with rho^2 = (1/theta^4) / (2 /
+// theta^4) = 1/2, so alpha = 1 / (1 - 1/sqrt 2) for every theta, and alpha/theta -> 0.
+// Gamma_22 / Gamma_11 = 2 / theta^2, so gamma = max(1, 2/theta^2).
+TEST(SeedDufour4, ConstantInputAlphaByHand) {
+  const Model m = model("dufour4");
+  PersistenceOptions o;
+  o.input_text = "1";
+  o.horizon = 20;
+  o.thetas = {2, 4, 16};  // e^{-theta t} t^2 at t = 10 is below 1e-6: t -> inf is reached
+  const auto p = check_persistence(m, o);
+  ASSERT_EQ(p.by_theta.size(), 3u);
+  const double alpha = 1 / (1 - 1 / std::sqrt(2.0));
+  for (const auto& b : p.by_theta) {
+    EXPECT_NEAR(b.alpha, alpha, 1e-3 * alpha) << "theta " << b.theta;
+    EXPECT_NEAR(b.gamma, std::max(1.0, 2 / (b.theta * b.theta)), 1e-3);
+  }
+  EXPECT_TRUE(p.persistent);
+  // Gramian over [0, T]: int_0^T [1, t; t, t^2] dt = [T, T^2/2; T^2/2, T^3/3]; at T = 20 its
+  // smallest eigenvalue is (a + c - sqrt((a - c)^2 + 4 b^2)) / 2.
+  const double a = 20, b = 200, c = 8000.0 / 3;
+  EXPECT_NEAR(p.gramian_min_eig, (a + c - std::sqrt((a - c) * (a - c) + 4 * b * b)) / 2, 1e-6);
+}
+
+// Persistent input: the observer converges. u = 0: with A = 0, S' = -theta S + e1 e1^T keeps
+// S diagonal, so the gain S^-1 e1 has no z2 component: zh2 never moves and the z2 error stays
+// at its initial value 2.
+TEST(SeedDufour4, KalmanThetaConvergesOnlyForPersistentInput) {
+  const Model m = model("dufour4");
+  const auto good = run(m, "kalman-theta", "sin(t)", {1, 1}, {0, -1}, 20);
+  ASSERT_TRUE(good.diverged.empty()) << good.diverged;
+  EXPECT_LT(final_error(good, 0), 1e-6);
+  EXPECT_LT(final_error(good, 1), 1e-6);
+  const auto bad = run(m, "kalman-theta", "0", {1, 1}, {0, -1}, 20);
+  ASSERT_TRUE(bad.diverged.empty()) << bad.diverged;
+  EXPECT_LT(final_error(bad, 0), 1e-6);       // z1 = y is still tracked
+  EXPECT_NEAR(final_error(bad, 1), 2, 1e-9);  // z2 does not converge
+}
+
+TEST(SeedDufour4, HighGainRefusesNotUniformlyObservable) {
+  const Analysis a = analyse(model("dufour4"));
+  const Verdict v = find_design("high-gain")->applies(a);
+  EXPECT_FALSE(v.applies);
+  EXPECT_NE(v.text().find("det O = 0"), std::string::npos) << v.text();
+}
+
+// ---- high-gain ------------------------------------------------------------------------------
+
+// char(A - K C) for A the 2x2 upper shift and C = e1: A - K C = [[-K1, 1], [-K2, 0]],
+// det(s I - (A - K C)) = s^2 + K1 s + K2. Poles -2, -5/2: s^2 + 9/2 s + 5.
+TEST(HighGain, GainFromPoles) {
+  const auto K = high_gain_K({GiNaC::numeric(-2), GiNaC::numeric(-5, 2)});
+  ASSERT_EQ(K.size(), 2u);
+  EXPECT_EQ(K[0], GiNaC::numeric(9, 2));
+  EXPECT_EQ(K[1], GiNaC::numeric(5));
+  // n = 3, poles -1, -2, -3: (s+1)(s+2)(s+3) = s^3 + 6 s^2 + 11 s + 6; A - K C has first column
+  // -K and ones above the diagonal, its characteristic polynomial s^3 + K1 s^2 + K2 s + K3.
+  const auto K3 = high_gain_K({GiNaC::numeric(-1), GiNaC::numeric(-2), GiNaC::numeric(-3)});
+  EXPECT_EQ(K3[0], GiNaC::numeric(6));
+  EXPECT_EQ(K3[1], GiNaC::numeric(11));
+  EXPECT_EQ(K3[2], GiNaC::numeric(6));
+}
+
+// Van der Pol, y = x1: z = (x1, x2), O = I, phi = (0, -x1 + (1 - x1^2) x2 + u), so
+// d phi_2 / d z = (-1 - 2 x1 x2, 1 - x1^2) and d phi_1 / d z = 0.
+TEST(HighGain, VanDerPolStructureByHand) {
+  const Model m = model("vanderpol");
+  const auto st = high_gain_structure(m);
+  ASSERT_TRUE(st.failures.empty());
+  const GiNaC::ex x1 = m.states[0], x2 = m.states[1], u = m.inputs[0];
+  EXPECT_TRUE(zero(st.det - 1));
+  EXPECT_TRUE(zero(st.phi[0]));
+  EXPECT_TRUE(zero(st.phi[1] - (-x1 + (1 - x1 * x1) * x2 + u)));
+  EXPECT_TRUE(zero(st.J[0][0]));
+  EXPECT_TRUE(zero(st.J[0][1]));
+  EXPECT_TRUE(zero(st.J[1][0] - (-1 - 2 * x1 * x2)));
+  EXPECT_TRUE(zero(st.J[1][1] - (1 - x1 * x1)));
+}
+
+std::string row(const ObserverSpec& s, const std::string& key) {
+  for (const auto& r : s.report)
+    if (r.key == key) return r.value;
+  return "";
+}
+
+// Certificate on the box x1 in [-3, 3], x2 in [-4, 4]: sup |-1 - 2 x1 x2| = 25 (x1 x2 = 12),
+// sup |1 - x1^2| = 8, so M = [[0, 0], [25, 8]] and L = ||M||_2 = sqrt(625 + 64). P solves
+// Acl^T P + P Acl = -I for Acl = [[-9/2, 1], [-5, 0]] (poles -2, -5/2), here by GiNaC's lsolve
+// on the three entries; theta* = 2 lambda_max(P) L.
+TEST(HighGain, VanDerPolCertificateByHand) {
+  const Analysis a = analyse(model("vanderpol"));
+  const ObserverSpec s = find_design("high-gain")->build(a, {});
+  const double L = std::sqrt(689.0);
+  const std::string Lrow = row(s, "Lipschitz constant L");
+  EXPECT_NE(Lrow.find("rigorous"), std::string::npos) << Lrow;
+  const double Lrep = std::stod(Lrow);
+  EXPECT_GE(Lrep, L);  // rounded up, never below
+  EXPECT_LT(Lrep, L * (1 + 1e-5));  // 6 significant digits, rounded up
+  GiNaC::symbol p11("p11"), p12("p12"), p22("p22");
+  const GiNaC::matrix P = {{p11, p12}, {p12, p22}};
+  const GiNaC::matrix Acl = {{GiNaC::numeric(-9, 2), 1}, {-5, 0}};
+  const GiNaC::matrix E = Acl.transpose().mul(P).add(P.mul(Acl));
+  const GiNaC::ex sol = GiNaC::lsolve(GiNaC::lst{E(0, 0) == -1, E(0, 1) == 0, E(1, 1) == -1},
+                                      GiNaC::lst{p11, p12, p22});
+  const double a11 = GiNaC::ex_to<GiNaC::numeric>(GiNaC::ex(p11).subs(sol)).to_double();
+  const double a12 = GiNaC::ex_to<GiNaC::numeric>(GiNaC::ex(p12).subs(sol)).to_double();
+  const double a22 = GiNaC::ex_to<GiNaC::numeric>(GiNaC::ex(p22).subs(sol)).to_double();
+  const double lmax = (a11 + a22) / 2 + std::sqrt((a11 - a22) * (a11 - a22) / 4 + a12 * a12);
+  const double theta_star = std::stod(row(s, "theta*"));
+  EXPECT_NEAR(theta_star, 2 * lmax * L, 1e-5 * theta_star);
+  EXPECT_GE(theta_star, 2 * lmax * L);
+  EXPECT_NE(row(s, "convergence").find("not guaranteed"), std::string::npos);  // theta = 5
+  DesignOptions d;
+  d.values["theta"] = "60";
+  const ObserverSpec s60 = find_design("high-gain")->build(a, d);
+  EXPECT_NE(row(s60, "convergence").find("guaranteed: theta = 60 >"), std::string::npos)
+      << row(s60, "convergence");
+}
+
+TEST(HighGain, VanDerPolConverges) {
+  const Model m = model("vanderpol");
+  DesignOptions d;
+  d.values["theta"] = "5";
+  const auto r = run(m, "high-gain", "0.5*sin(t)", {1, 0}, {0, 0.5}, 10, d);
+  ASSERT_TRUE(r.diverged.empty()) << r.diverged;
+  EXPECT_LT(final_error(r, 0), 1e-6);
+  EXPECT_LT(final_error(r, 1), 1e-6);
+}
+
+// Models without a canonical form (design.md; issue 8): Lorenz with y = x1 (O singular only on
+// x1 = 0) and Rayleigh, from stated initial errors.
+TEST(HighGain, LorenzAndRayleighConverge) {
+  DesignOptions d;
+  d.values["theta"] = "10";
+  const auto lz = run(model("lorenz"), "high-gain", "0", {1, 1, 20}, {2, 0, 25}, 5, d);
+  ASSERT_TRUE(lz.diverged.empty()) << lz.diverged;
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_LT(final_error(lz, i), 1e-6) << i;
+  const auto ry = run(model("rayleigh"), "high-gain", "0.5*sin(t)", {1, 0}, {-1, 1}, 10);
+  ASSERT_TRUE(ry.diverged.empty()) << ry.diverged;
+  for (std::size_t i = 0; i < 2; ++i) EXPECT_LT(final_error(ry, i), 1e-6) << i;
+}
+
+// y = x1 with x1' = x2 + x1^2/4: z = (x1, x2 + x1^2/4), O = [[1, 0], [x1/2, 1]] (not the identity,
+// so the LU solve does real work); x2' = -x1 - x2 + u. Uniformly observable (phi_1 = 0).
+const char* kQuadratic = R"(model quad
+states x1 x2
+inputs u
+f = [ x2 + x1^2/4, -x1 - x2 ]
+g = [ 0, u ]
+h = [ x1 ]
+domain x1 in [-2, 2], x2 in [-2, 2], u in [-1, 1]
+)";
+
+TEST(HighGain, NonTrivialObservabilityMatrixConverges) {
+  const Model m = parse_model(kQuadratic, "quad.sym");
+  const auto st = high_gain_structure(m);
+  ASSERT_TRUE(st.failures.empty());
+  const GiNaC::ex x1 = m.states[0];
+  EXPECT_TRUE(zero(st.O[1][0] - x1 / 2));
+  DesignOptions d;
+  d.values["theta"] = "4";
+  const auto r = run(m, "high-gain", "0.3*sin(t)", {0.5, -0.5}, {0, 0}, 10, d);
+  ASSERT_TRUE(r.diverged.empty()) << r.diverged;
+  EXPECT_LT(final_error(r, 0), 1e-6);
+  EXPECT_LT(final_error(r, 1), 1e-6);
+}
+
+// L_g h = x2 u = z2 u: phi_1 depends on z2, not triangular, so the high-gain design refuses and
+// names the entry.
+const char* kNotTriangular = R"(model nt
+states x1 x2
+inputs u
+f = [ x2, -x1 ]
+g = [ x2*u, 0 ]
+h = [ x1 ]
+)";
+
+TEST(HighGain, RefusesNonTriangularInput) {
+  const Analysis a = analyse(parse_model(kNotTriangular, "nt.sym"));
+  const Verdict v = find_design("high-gain")->applies(a);
+  EXPECT_FALSE(v.applies);
+  EXPECT_NE(v.text().find("phi_1 = L_g L_f^0 h = u*x2 depends on z_2..z_n"), std::string::npos)
+      << v.text();
+}
+
+// x1' = x2^3, x2' = -x1, y = x1: O = [[1, 0], [0, 3 x2^2]], singular on x2 = 0. An estimate
+// started there cannot take a step: the simulator stops with the solve's message.
+const char* kCubic = R"(model cubic
+states x1 x2
+f = [ x2^3, -x1 ]
+h = [ x1 ]
+domain x1 in [-2, 2], x2 in [-2, 2]
+)";
+
+TEST(HighGain, SingularObservabilityMatrixStops) {
+  const Model m = parse_model(kCubic, "cubic.sym");
+  const auto st = high_gain_structure(m);
+  ASSERT_TRUE(st.failures.empty());
+  EXPECT_TRUE(zero(st.det - 3 * GiNaC::pow(m.states[1], 2)));
+  const auto r = run(m, "high-gain", "0", {1, 1}, {0.5, 0}, 1);
+  EXPECT_NE(r.diverged.find("rejected its step at t = 0"), std::string::npos) << r.diverged;
+  EXPECT_NE(r.diverged.find("O(xh) is singular where x2 = 0"), std::string::npos) << r.diverged;
+  const ObserverSpec s = find_design("high-gain")->build(analyse(m), {});
+  bool said = false;
+  for (const auto& row : s.report)
+    if (row.key == "O singular" && row.value.find("x2 = 0") != std::string::npos) said = true;
+  EXPECT_TRUE(said);
+}
+
+TEST(HighGain, BadOptions) {
+  const Analysis a = analyse(model("vanderpol"));
+  DesignOptions d;
+  d.values["theta"] = "-1";
+  EXPECT_THROW(find_design("high-gain")->build(a, d), UserError);
+  d.values["theta"] = "2";
+  d.values["poles"] = "-1";
+  EXPECT_THROW(find_design("high-gain")->build(a, d), UserError);
+  DesignOptions k;
+  k.values["S0"] = "1, 2, 3";  // packed [[1, 2], [2, 3]]: det -1, not positive definite
+  EXPECT_THROW(find_design("kalman-theta")->build(a, k), UserError);
+}
+
+}  // namespace
