@@ -26,8 +26,8 @@ const std::vector<Design>& design_registry() {
 }
 
 const std::vector<std::string>& planned_methods() {
-  static const std::vector<std::string> planned = {
-      "riccati", "high-gain", "kalman-theta", "extended-linearization", "finite-time"};
+  static const std::vector<std::string> planned = {"riccati", "high-gain", "kalman-theta",
+                                                   "extended-linearization", "finite-time"};
   return planned;
 }
 

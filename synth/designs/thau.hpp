@@ -33,6 +33,8 @@ namespace lyapunov_tools {
 GiNaC::numeric exact_of_double(double v);
 // v rounded to `digits` significant decimal digits, as an exact rational.
 GiNaC::numeric round_rational(double v, int digits = 6);
+// v rounded to a multiple of 1/per_unit (per_unit a power of ten), exact.
+GiNaC::numeric round_absolute(double v, double per_unit);
 // Exact value of a numeric expression: rationals stay exact, anything else through evalf to
 // double and exact_of_double. Throws UserError when not a real number.
 GiNaC::numeric exact_value(const GiNaC::ex& e, const std::string& what);
