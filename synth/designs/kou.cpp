@@ -353,9 +353,11 @@ std::string model_key(const Model& m) {
   std::string k = m.file + "|" + m.name + "|";
   for (const auto& e : m.field()) k += to_string(e) + ",";
   for (const auto& e : m.h) k += to_string(e) + ",";
+  // Symbols compare by identity: a model loaded again has new ones, so the key holds their
+  // hashes (serial numbers) too.
   for (const auto& s : m.all_symbols()) {
     const Interval b = m.box(s);
-    k += s.get_name() + "[" + to_string(b.lo) + "," + to_string(b.hi) + "]";
+    k += fmt::format("{}#{}[{},{}]", s.get_name(), s.gethash(), to_string(b.lo), to_string(b.hi));
   }
   return k;
 }
@@ -494,6 +496,23 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
 }
 
 }  // namespace
+
+KouCertificate kou_certificate(const Model& m, const DesignOptions& o) {
+  const Result& r = cached_design(m, o);
+  KouCertificate c;
+  c.not_applicable = r.not_applicable;
+  if (!c.not_applicable.empty()) return c;
+  for (const auto& v : flat(r.L)) c.L.push_back(v.to_double());
+  for (const auto& v : flat(r.P)) c.P.push_back(v.to_double());
+  c.holds = r.holds;
+  c.rigorous = r.rigorous;
+  c.max_eigenvalue_bound = r.verdict.max_eigenvalue_bound;
+  c.sampled_max_eigenvalue = r.sampled_max_eig;
+  c.worst_point = r.verdict.worst_point;
+  c.sigma_min_P = r.sigma_min_P;
+  c.sigma_max_P = r.sigma_max_P;
+  return c;
+}
 
 Design kou_design() {
   Design d;

@@ -663,9 +663,11 @@ std::string model_key(const Model& m) {
   std::string k = m.file + "|" + m.name + "|";
   for (const auto& e : m.field()) k += to_string(e) + ",";
   for (const auto& e : m.h) k += to_string(e) + ",";
+  // Symbols compare by identity: a model loaded again has new ones, so the key holds their
+  // hashes (serial numbers) too.
   for (const auto& s : m.all_symbols()) {
     const Interval b = m.box(s);
-    k += s.get_name() + "[" + to_string(b.lo) + "," + to_string(b.hi) + "]";
+    k += fmt::format("{}#{}[{},{}]", s.get_name(), s.gethash(), to_string(b.lo), to_string(b.hi));
   }
   return k;
 }
@@ -966,6 +968,32 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
 }
 
 }  // namespace
+
+ThauCertificate thau_certificate(const Model& m, const DesignOptions& o) {
+  const Result& r = cached_design(m, o);
+  ThauCertificate c;
+  c.not_applicable = r.split.not_applicable;
+  if (!c.not_applicable.empty()) return c;
+  for (const auto& q : r.poles) c.poles.push_back(q.to_double());
+  for (const auto& l : r.L) c.L.push_back(l.to_double());
+  c.output = r.split.output;
+  c.ratio = r.ratio;
+  c.M_domain = r.domain.M.value;
+  c.M_domain_sampled = r.domain.M_sampled;
+  c.M_region = r.region.M.value;
+  c.M_region_sampled = r.region.M_sampled;
+  c.M_rigorous = r.rigorous;
+  c.margin_domain = r.domain_margin();
+  c.margin_region = r.margin();
+  c.scale = r.region.scale;
+  for (std::size_t k = 0; k < r.region.box.vars.size(); ++k)
+    for (const auto& x : m.states)
+      if (r.region.box.vars[k].is_equal(x))
+        c.region.emplace_back(r.region.box.ranges[k].lo, r.region.box.ranges[k].hi);
+  c.holds = r.holds;
+  c.choices_tried = r.choices_tried;
+  return c;
+}
 
 Design thau_design() {
   Design d;
