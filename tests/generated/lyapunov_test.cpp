@@ -168,7 +168,9 @@ void closed_loop_continuous(int k) {
   const double e_end = (v.head<gen::n>() - obs.estimate()).cwiseAbs().maxCoeff();
   expect(inside, "closed loop: x and xh stay in the certified region");
   expect(decays, "closed loop: V decays at least at the certified rate", worst_ratio, 1);
-  expect(e_end < 1e-6, "closed loop: final error below 1e-6", e_end, 1e-6);
+  const double e_start = (xh0 - x).cwiseAbs().maxCoeff();
+  expect(e_end < 1e-4 * e_start, "closed loop: error down by 1e-4 after 12 s", e_end / e_start,
+         1e-4);
   std::printf(
       "start %d: |e(0)| %.3f, final error %.3e, max V(t)/bound %.3f (certified V rate %.4f)\n", k,
       (xh0 - x).norm(), e_end, worst_ratio, ref::kVRate);
