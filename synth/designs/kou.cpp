@@ -22,8 +22,10 @@ using namespace lyapunov_tools;
 
 namespace {
 
-constexpr double kRateCap = 10;         // the search stops improving past this decay rate
+constexpr double kRateCap = 10;  // the search stops improving past this decay rate
 constexpr std::size_t kSearchSamples = 384;
+// Penalty on ||L||_F^2 in the search objective: moderate gains over a marginally faster rate.
+constexpr double kGainPenalty = 1e-3;
 constexpr std::size_t kReportSamples = 4096;
 
 using Mat = Eigen::MatrixXd;
@@ -35,8 +37,8 @@ struct Result {
   GiNaC::matrix L, P;  // exact rationals
   bool user_L = false, user_P = false;
   std::size_t tried = 0;
-  std::string origin;            // how L and P were found
-  double sampled_max_eig = 0;    // max over samples of lambda_max(S)
+  std::string origin;          // how L and P were found
+  double sampled_max_eig = 0;  // max over samples of lambda_max(S)
   std::vector<double> sampled_worst;
   double sigma_max_P = 0, sigma_min_P = 0;
   certify::DefinitenessVerdict verdict;
@@ -68,7 +70,8 @@ Jacobians evaluate(const Model& m, const certify::Box& box,
     const auto v = fn(pt);
     Mat J(static_cast<Idx>(n), static_cast<Idx>(n)), H(static_cast<Idx>(p), static_cast<Idx>(n));
     for (std::size_t j = 0; j < n; ++j) {
-      for (std::size_t i = 0; i < n; ++i) J(static_cast<Idx>(i), static_cast<Idx>(j)) = v[j * n + i];
+      for (std::size_t i = 0; i < n; ++i)
+        J(static_cast<Idx>(i), static_cast<Idx>(j)) = v[j * n + i];
       for (std::size_t i = 0; i < p; ++i)
         H(static_cast<Idx>(i), static_cast<Idx>(j)) = v[n * n + j * p + i];
     }
@@ -84,8 +87,10 @@ double lambda_max(const Mat& S) {
 
 // max_k lambda_max(sym(P (J_k + L H_k))) / sigma_max(P), and where; +inf if P is not PD.
 double score(const Jacobians& jac, const Mat& L, const Mat& P, std::size_t* worst = nullptr) {
-  const Eigen::VectorXd ep = Eigen::SelfAdjointEigenSolver<Mat>(P, Eigen::EigenvaluesOnly).eigenvalues();
-  if (!(ep(0) > 0) || !std::isfinite(ep(ep.size() - 1))) return std::numeric_limits<double>::infinity();
+  const Eigen::VectorXd ep =
+      Eigen::SelfAdjointEigenSolver<Mat>(P, Eigen::EigenvaluesOnly).eigenvalues();
+  if (!(ep(0) > 0) || !std::isfinite(ep(ep.size() - 1)))
+    return std::numeric_limits<double>::infinity();
   double best = -std::numeric_limits<double>::infinity();
   for (std::size_t k = 0; k < jac.J.size(); ++k) {
     const Mat N = P * (jac.J[k] + L * jac.H[k]);
@@ -120,25 +125,28 @@ std::optional<Mat> matrix_option(const DesignOptions& o, const std::string& name
   if (v.empty()) return std::nullopt;
   Mat M = Mat::Zero(static_cast<Idx>(rows), static_cast<Idx>(cols));
   if (allow_diagonal && v.size() == rows) {
-    for (std::size_t i = 0; i < rows; ++i) M(static_cast<Idx>(i), static_cast<Idx>(i)) = v[i].to_double();
+    for (std::size_t i = 0; i < rows; ++i)
+      M(static_cast<Idx>(i), static_cast<Idx>(i)) = v[i].to_double();
   } else if (v.size() == rows * cols) {
     for (std::size_t i = 0; i < rows; ++i)
       for (std::size_t j = 0; j < cols; ++j)
         M(static_cast<Idx>(i), static_cast<Idx>(j)) = v[i * cols + j].to_double();
   } else {
-    throw UserError(SourceLoc{}, fmt::format("--{}: expected {} entries ({} x {} row-major{}), got {}",
-                                             name, rows * cols, rows, cols,
-                                             allow_diagonal ? fmt::format(", or {} diagonal entries", rows) : "",
-                                             v.size()));
+    throw UserError(
+        SourceLoc{},
+        fmt::format("--{}: expected {} entries ({} x {} row-major{}), got {}", name, rows * cols,
+                    rows, cols, allow_diagonal ? fmt::format(", or {} diagonal entries", rows) : "",
+                    v.size()));
   }
   return M;
 }
 
-GiNaC::matrix exact_matrix(const Mat& M, int digits) {
+// Entries rounded to a multiple of 1/per_unit, exact.
+GiNaC::matrix exact_matrix(const Mat& M, double per_unit) {
   GiNaC::matrix E(static_cast<unsigned>(M.rows()), static_cast<unsigned>(M.cols()));
   for (Idx i = 0; i < M.rows(); ++i)
     for (Idx j = 0; j < M.cols(); ++j)
-      E(static_cast<unsigned>(i), static_cast<unsigned>(j)) = round_rational(M(i, j), digits);
+      E(static_cast<unsigned>(i), static_cast<unsigned>(j)) = round_absolute(M(i, j), per_unit);
   return E;
 }
 
@@ -226,7 +234,8 @@ Result design(const Model& m, const DesignOptions& o) {
     if (s < best.score) best = {L, P, s, origin};
   };
   auto lyap_P = [&](const Mat& L) -> std::optional<Mat> {
-    const auto P = solve_lyapunov(A0 + L * C0, Mat::Identity(static_cast<Idx>(n), static_cast<Idx>(n)));
+    const auto P =
+        solve_lyapunov(A0 + L * C0, Mat::Identity(static_cast<Idx>(n), static_cast<Idx>(n)));
     if (!P || Eigen::SelfAdjointEigenSolver<Mat>(*P).eigenvalues()(0) <= 0) return std::nullopt;
     return Mat(*P / Eigen::SelfAdjointEigenSolver<Mat>(*P).eigenvalues()(static_cast<Idx>(n) - 1));
   };
@@ -251,7 +260,8 @@ Result design(const Model& m, const DesignOptions& o) {
       continue;
     }
     consider(L, I, "P = I");
-    if (const auto P = lyap_P(L)) consider(L, *P, "P from the Lyapunov equation of the linearisation");
+    if (const auto P = lyap_P(L))
+      consider(L, *P, "P from the Lyapunov equation of the linearisation");
   }
   r.origin = r.user_L && r.user_P ? "L and P given" : best.origin;
   // Refinement: Nelder-Mead on the free entries, the score capped at the decay rate kRateCap.
@@ -265,7 +275,8 @@ Result design(const Model& m, const DesignOptions& o) {
     auto unpack = [&](const std::vector<double>& w, Mat& L, Mat& P) {
       L = uL ? *uL : Mat(static_cast<Idx>(n), static_cast<Idx>(p));
       if (!uL)
-        for (std::size_t k = 0; k < nl; ++k) L(static_cast<Idx>(k / p), static_cast<Idx>(k % p)) = w[k];
+        for (std::size_t k = 0; k < nl; ++k)
+          L(static_cast<Idx>(k / p), static_cast<Idx>(k % p)) = w[k];
       P = uP ? *uP : P_of(w, n, nl);
     };
     double scale = 1;
@@ -276,14 +287,14 @@ Result design(const Model& m, const DesignOptions& o) {
           Mat L, P;
           unpack(w, L, P);
           const double s = score(jac, L, P);
-          return std::max(s, -kRateCap) + 1e-6 * L.squaredNorm();
+          return std::max(s, -kRateCap) + kGainPenalty * L.squaredNorm();
         },
         v, 0.1 * scale, 200 * static_cast<int>(v.size() + 1));
     Candidate c;
     unpack(w, c.L, c.P);
     c.score = score(jac, c.L, c.P);
-    if (std::max(c.score, -kRateCap) + 1e-6 * c.L.squaredNorm() <
-        std::max(best.score, -kRateCap) + 1e-6 * best.L.squaredNorm()) {
+    if (std::max(c.score, -kRateCap) + kGainPenalty * c.L.squaredNorm() <
+        std::max(best.score, -kRateCap) + kGainPenalty * best.L.squaredNorm()) {
       best = c;
       best.origin = r.origin + (r.origin.empty() ? "" : ", ") + "refined by Nelder-Mead on samples";
       r.origin = best.origin;
@@ -294,13 +305,14 @@ Result design(const Model& m, const DesignOptions& o) {
     return r;
   }
   if (r.origin.empty()) r.origin = r.user_L ? "L given, P searched" : "P given, L searched";
-  // Exact L and P: as given, or rounded (L 4 digits, P normalised to sigma_max 1, 6 digits).
-  r.L = uL ? exact_option(o, "kou-gain", n, p, false) : exact_matrix(best.L, 4);
+  // Exact L and P: as given, or rounded (L to 1e-3, P normalised to sigma_max 1, to 1e-6).
+  r.L = uL ? exact_option(o, "kou-gain", n, p, false) : exact_matrix(best.L, 1e3);
   if (uP) {
     r.P = exact_option(o, "kou-p", n, n, true);
   } else {
-    const Mat Pn = best.P / Eigen::SelfAdjointEigenSolver<Mat>(best.P).eigenvalues()(static_cast<Idx>(n) - 1);
-    r.P = exact_matrix((Pn + Pn.transpose()) / 2, 6);
+    const Mat Pn =
+        best.P / Eigen::SelfAdjointEigenSolver<Mat>(best.P).eigenvalues()(static_cast<Idx>(n) - 1);
+    r.P = exact_matrix((Pn + Pn.transpose()) / 2, 1e6);
     for (unsigned i = 0; i < n; ++i)
       for (unsigned j = 0; j < i; ++j) r.P(i, j) = r.P(j, i);
   }
@@ -341,9 +353,11 @@ std::string model_key(const Model& m) {
   std::string k = m.file + "|" + m.name + "|";
   for (const auto& e : m.field()) k += to_string(e) + ",";
   for (const auto& e : m.h) k += to_string(e) + ",";
+  // Symbols compare by identity: a model loaded again has new ones, so the key holds their
+  // hashes (serial numbers) too.
   for (const auto& s : m.all_symbols()) {
     const Interval b = m.box(s);
-    k += s.get_name() + "[" + to_string(b.lo) + "," + to_string(b.hi) + "]";
+    k += fmt::format("{}#{}[{},{}]", s.get_name(), s.gethash(), to_string(b.lo), to_string(b.hi));
   }
   return k;
 }
@@ -358,8 +372,9 @@ const Result& cached_design(const Model& m, const DesignOptions& o) {
 
 std::vector<std::string> verdict_reasons(const Result& r) {
   if (!r.not_applicable.empty()) return {r.not_applicable};
-  const std::string what = fmt::format("sym(P (dF/dx + L dh/dx)) with L = {}, P = {} ({}; {} candidates)",
-                                       matrix_text(r.L), matrix_text(to_eigen(r.P)), r.origin, r.tried);
+  const std::string what =
+      fmt::format("sym(P (dF/dx + L dh/dx)) with L = {}, P = {} ({}; {} candidates)",
+                  matrix_text(r.L), matrix_text(to_eigen(r.P)), r.origin, r.tried);
   const std::string worst = point_text(r.box, r.verdict.worst_point);
   std::vector<std::string> out;
   if (r.holds && r.rigorous)
@@ -367,7 +382,8 @@ std::vector<std::string> verdict_reasons(const Result& r) {
         "{} is negative definite on the whole domain (rigorous: {}): largest eigenvalue <= {:.6g}, "
         "worst box near {}; |e| decays at least at rate {:.6g} (sampled largest eigenvalue "
         "{:.6g})",
-        what, r.verdict.method, r.verdict.max_eigenvalue_bound, worst, r.rate(), r.sampled_max_eig));
+        what, r.verdict.method, r.verdict.max_eigenvalue_bound, worst, r.rate(),
+        r.sampled_max_eig));
   else if (r.holds)
     out.push_back(fmt::format(
         "{} is negative at every sample (largest sampled eigenvalue {:.6g} near {}) but the "
@@ -405,8 +421,9 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Model& m = a.model;
   const Result& r = cached_design(m, o);
   if (!r.not_applicable.empty() || !r.holds)
-    throw UserError(SourceLoc{m.file, 0, 0},
-                    "method 'kou' does not apply: " + fmt::format("{}", fmt::join(verdict_reasons(r), "; ")));
+    throw UserError(
+        SourceLoc{m.file, 0, 0},
+        "method 'kou' does not apply: " + fmt::format("{}", fmt::join(verdict_reasons(r), "; ")));
   const std::size_t n = m.n(), p = m.p();
   std::vector<GiNaC::symbol> y;
   for (std::size_t i = 0; i < p; ++i)
@@ -441,29 +458,38 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.description = {
       "Observer: Kou-Elliott-Tarn (1975; seed 001 §4, Theorem 1, eq. 5-9)",
       fmt::format("L = {}, P = {}", matrix_text(r.L), matrix_text(to_eigen(r.P))),
-      fmt::format("Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= {:.6g} on the "
-                  "domain ({})",
-                  r.verdict.max_eigenvalue_bound, kind)};
-  s.class_doc = {"  xh' = f(xh) + g(xh, u) + L (h(xh) - y)   (seed 001 eq. 5, L (yh - y))",
-                 fmt::format("V = e' P e decays while x and xh stay in the domain box: |e| rate >= {:.4g}.",
-                             r.rate())};
+      fmt::format(
+          "Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= {:.6g} on the "
+          "domain ({})",
+          r.verdict.max_eigenvalue_bound, kind)};
+  s.class_doc = {
+      "  xh' = f(xh) + g(xh, u) + L (h(xh) - y)   (seed 001 eq. 5, L (yh - y))",
+      fmt::format("V = e' P e decays while x and xh stay in the domain box: |e| rate >= {:.4g}.",
+                  r.rate())};
   s.constants.push_back({"L", flat(r.L), "output-injection gain, n x p row-major"});
   s.constants.push_back({"P", flat(r.P), "Lyapunov matrix of eq. (9), row-major"});
   s.report = {
       {"convention", "xh' = f + g + L (h(xh) - y) (seed eq. 5), e = xh - x"},
-      {"L", fmt::format("{} ({})", matrix_text(r.L), r.user_L ? "given with --kou-gain" : "searched")},
-      {"P", fmt::format("{} ({}); sigma(P) in [{:.6g}, {:.6g}]", matrix_text(to_eigen(r.P)),
-                        r.user_P ? "given with --kou-p" : "searched", r.sigma_min_P, r.sigma_max_P)},
-      {"search", fmt::format("{}; {} candidates evaluated on {} samples", r.origin, r.tried, kSearchSamples)},
-      {"largest eigenvalue bound", fmt::format("{:.6g} ({}: {}), worst box near {}", r.verdict.max_eigenvalue_bound,
-                                               certify::bound_kind_name(r.verdict.kind), r.verdict.method,
-                                               point_text(r.box, r.verdict.worst_point))},
-      {"sampled largest eigenvalue", fmt::format("{:.6g} at {} ({} samples)", r.sampled_max_eig,
-                                                 point_text(r.box, r.sampled_worst), kReportSamples)},
-      {"decay rate", fmt::format("|e(t)| <= sqrt({:.6g}) |e(0)| exp(-{:.6g} t) while x, xh stay in the domain",
-                                 r.sigma_max_P / r.sigma_min_P, r.rate())}};
+      {"L",
+       fmt::format("{} ({})", matrix_text(r.L), r.user_L ? "given with --kou-gain" : "searched")},
+      {"P",
+       fmt::format("{} ({}); sigma(P) in [{:.6g}, {:.6g}]", matrix_text(to_eigen(r.P)),
+                   r.user_P ? "given with --kou-p" : "searched", r.sigma_min_P, r.sigma_max_P)},
+      {"search",
+       fmt::format("{}; {} candidates evaluated on {} samples", r.origin, r.tried, kSearchSamples)},
+      {"largest eigenvalue bound",
+       fmt::format("{:.6g} ({}: {}), worst box near {}", r.verdict.max_eigenvalue_bound,
+                   certify::bound_kind_name(r.verdict.kind), r.verdict.method,
+                   point_text(r.box, r.verdict.worst_point))},
+      {"sampled largest eigenvalue",
+       fmt::format("{:.6g} at {} ({} samples)", r.sampled_max_eig,
+                   point_text(r.box, r.sampled_worst), kReportSamples)},
+      {"decay rate",
+       fmt::format("|e(t)| <= sqrt({:.6g}) |e(0)| exp(-{:.6g} t) while x, xh stay in the domain",
+                   r.sigma_max_P / r.sigma_min_P, r.rate())}};
   s.summary = fmt::format(
-      "Kou-Elliott-Tarn observer, L = {}, certificate: largest eigenvalue of sym(P (dF/dx + L dh/dx)) "
+      "Kou-Elliott-Tarn observer, L = {}, certificate: largest eigenvalue of sym(P (dF/dx + L "
+      "dh/dx)) "
       "<= {:.6g} on the domain ({})",
       matrix_text(r.L), r.verdict.max_eigenvalue_bound, kind);
   return s;
@@ -471,10 +497,28 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
 
 }  // namespace
 
+KouCertificate kou_certificate(const Model& m, const DesignOptions& o) {
+  const Result& r = cached_design(m, o);
+  KouCertificate c;
+  c.not_applicable = r.not_applicable;
+  if (!c.not_applicable.empty()) return c;
+  for (const auto& v : flat(r.L)) c.L.push_back(v.to_double());
+  for (const auto& v : flat(r.P)) c.P.push_back(v.to_double());
+  c.holds = r.holds;
+  c.rigorous = r.rigorous;
+  c.max_eigenvalue_bound = r.verdict.max_eigenvalue_bound;
+  c.sampled_max_eigenvalue = r.sampled_max_eig;
+  c.worst_point = r.verdict.worst_point;
+  c.sigma_min_P = r.sigma_min_P;
+  c.sigma_max_P = r.sigma_max_P;
+  return c;
+}
+
 Design kou_design() {
   Design d;
   d.name = "kou";
-  d.summary = "Kou-Elliott-Tarn observer: P (df/dx + L dh/dx) < 0 on the domain (seed 001 Theorem 1)";
+  d.summary =
+      "Kou-Elliott-Tarn observer: P (df/dx + L dh/dx) < 0 on the domain (seed 001 Theorem 1)";
   d.options = {{"kou-gain", "Kou observer: gain L, n*p entries row-major", "searched"},
                {"kou-p", "Kou observer: P, n diagonal entries or n*n row-major", "searched"}};
   d.applies = applies;

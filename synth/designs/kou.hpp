@@ -16,4 +16,17 @@ namespace obsynth {
 
 Design kou_design();
 
+// The numbers behind the Kou verdict (for reports and tests).
+struct KouCertificate {
+  std::string not_applicable;
+  std::vector<double> L, P;         // row-major, n x p and n x n (the exact values, rounded)
+  bool holds = false;               // negative definite (proven when rigorous, else on samples)
+  bool rigorous = false;            // the enclosure decided (holds: proven; !holds: proven to fail)
+  double max_eigenvalue_bound = 0;  // rigorous: upper bound over the domain; else sampled max
+  double sampled_max_eigenvalue = 0;
+  std::vector<double> worst_point;  // model_box order: states, inputs, free parameters
+  double sigma_min_P = 0, sigma_max_P = 0;
+};
+KouCertificate kou_certificate(const Model& m, const DesignOptions& o = {});
+
 }  // namespace obsynth

@@ -39,6 +39,12 @@ numeric round_rational(double v, int digits) {
   return k >= 0 ? s / ten.power(k) : s * ten.power(-k);
 }
 
+numeric round_absolute(double v, double per_unit) {
+  if (!std::isfinite(v)) return 0;
+  return numeric(static_cast<long>(std::round(v * per_unit))) /
+         numeric(static_cast<long>(per_unit));
+}
+
 numeric exact_value(const ex& e, const std::string& what) {
   const ex v = simplify(e);
   if (GiNaC::is_a<numeric>(v) && GiNaC::ex_to<numeric>(v).is_rational())
@@ -265,7 +271,8 @@ std::string matrix_text(const Eigen::MatrixXd& M, int digits) {
   std::vector<std::string> rows;
   for (Eigen::Index i = 0; i < M.rows(); ++i) {
     std::vector<std::string> r;
-    for (Eigen::Index j = 0; j < M.cols(); ++j) r.push_back(fmt::format("{:.{}g}", M(i, j), digits));
+    for (Eigen::Index j = 0; j < M.cols(); ++j)
+      r.push_back(fmt::format("{:.{}g}", M(i, j), digits));
     rows.push_back(fmt::format("[{}]", fmt::join(r, ", ")));
   }
   return fmt::format("[{}]", fmt::join(rows, ", "));
@@ -288,6 +295,13 @@ namespace {
 using namespace lyapunov_tools;
 
 constexpr int kRegionBisections = 14;  // smallest sub-box tried: 2^-14 of the domain
+// The sub-box is the largest found with M <= kRegionTarget sigma_min(Q)/sigma_max(P), so that
+// the certified margin (and the guaranteed decay rate) is not vanishingly small.
+constexpr double kRegionTarget = 0.9;
+// Searched poles stay in [-kMaxPole, -kMinPole] (the grid's largest scale is 32 x the shape);
+// fast poles buy little certificate and cost noise gain and integration step.
+constexpr double kMinPole = 0.05, kMaxPole = 20;
+constexpr double kPolePenalty = 1e-4;
 
 // The exact split F(x, u) = A x + B u + phi(x, u), h(x) = C x + c0.
 struct Split {
@@ -350,13 +364,13 @@ Split split_model(const Model& m) {
   try {
     for (std::size_t i = 0; i < n; ++i) {
       for (std::size_t j = 0; j < n; ++j)
-        s.A(i, j) = exact_value(F[i].diff(m.states[j]).subs(at),
-                                fmt::format("dF{}/d{} at the expansion point", i + 1,
-                                            m.states[j].get_name()));
+        s.A(i, j) = exact_value(
+            F[i].diff(m.states[j]).subs(at),
+            fmt::format("dF{}/d{} at the expansion point", i + 1, m.states[j].get_name()));
       for (std::size_t j = 0; j < m.m(); ++j)
-        s.B(i, j) = exact_value(F[i].diff(m.inputs[j]).subs(at),
-                                fmt::format("dF{}/d{} at the expansion point", i + 1,
-                                            m.inputs[j].get_name()));
+        s.B(i, j) = exact_value(
+            F[i].diff(m.inputs[j]).subs(at),
+            fmt::format("dF{}/d{} at the expansion point", i + 1, m.inputs[j].get_name()));
     }
   } catch (const UserError& e) {
     s.not_applicable = fmt::format("no linear part at the expansion point ({}): {}",
@@ -399,8 +413,8 @@ Split split_model(const Model& m) {
 struct Region {
   double scale = 1;  // 1: the declared domain
   certify::Box box;
-  certify::Bound M;          // rigorous (or fallback) bound of sup ||D_x phi||_2 on the region
-  double M_sampled = 0;      // sampled estimate
+  certify::Bound M;      // rigorous (or fallback) bound of sup ||D_x phi||_2 on the region
+  double M_sampled = 0;  // sampled estimate
   std::vector<double> M_sampled_point;
 };
 
@@ -421,11 +435,19 @@ struct Result {
   double domain_margin() const { return ratio - domain.M.value; }
 };
 
+// States that D_x phi depends on: only their ranges shrink with the region.
+bool jacobian_depends_on(const Model& m, const Split& s, const GiNaC::symbol& x) {
+  for (const auto& e : s.phi)
+    for (const auto& xj : m.states)
+      if (e.diff(xj).has(x)) return true;
+  return false;
+}
+
 certify::Box scaled_box(const Model& m, const Split& s, double scale) {
   certify::Box b = certify::model_box(m);
   for (std::size_t k = 0; k < b.vars.size(); ++k)
     for (std::size_t i = 0; i < m.n(); ++i)
-      if (b.vars[k].is_equal(m.states[i])) {
+      if (b.vars[k].is_equal(m.states[i]) && jacobian_depends_on(m, s, m.states[i])) {
         const double c = s.x_star[i].to_double();
         b.ranges[k].lo = c + scale * (b.ranges[k].lo - c);
         b.ranges[k].hi = c + scale * (b.ranges[k].hi - c);
@@ -482,7 +504,8 @@ double ratio_of(const Eigen::MatrixXd& AL, const Eigen::MatrixXd& Q) {
 }
 
 Eigen::MatrixXd Q_of(const std::vector<double>& r, std::size_t n) {
-  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  Eigen::MatrixXd R =
+      Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
   std::size_t k = 0;
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t j = 0; j <= i; ++j)
@@ -506,7 +529,8 @@ struct SearchOutcome {
 
 // Maximises sigma_min(Q)/sigma_max(P) over the free choices.
 SearchOutcome search(const Eigen::MatrixXd& A, const Eigen::RowVectorXd& c,
-                     const std::vector<double>& user_poles, const std::optional<Eigen::MatrixXd>& user_Q) {
+                     const std::vector<double>& user_poles,
+                     const std::optional<Eigen::MatrixXd>& user_Q) {
   const std::size_t n = static_cast<std::size_t>(A.rows());
   SearchOutcome best;
   auto AL_of = [&](const std::vector<double>& poles) -> std::optional<Eigen::MatrixXd> {
@@ -534,6 +558,7 @@ SearchOutcome search(const Eigen::MatrixXd& A, const Eigen::RowVectorXd& c,
       user_poles.empty() ? candidate_pole_sets(n) : std::vector<std::vector<double>>{user_poles};
   std::size_t tried = 0;
   for (const auto& poles : pole_sets) {
+    if (user_poles.empty() && -*std::min_element(poles.begin(), poles.end()) > kMaxPole) continue;
     const auto AL = AL_of(poles);
     if (!AL) continue;
     SearchOutcome o;
@@ -554,10 +579,13 @@ SearchOutcome search(const Eigen::MatrixXd& A, const Eigen::RowVectorXd& c,
         for (std::size_t j = 0; j <= i; ++j)
           v.push_back(R(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
     }
-    auto unpack = [&](const std::vector<double>& w, std::vector<double>& poles, Eigen::MatrixXd& Q) {
+    auto unpack = [&](const std::vector<double>& w, std::vector<double>& poles,
+                      Eigen::MatrixXd& Q) {
       poles.clear();
-      for (std::size_t k = 0; k < np; ++k) poles.push_back(-std::exp(std::min(w[k], 8.0)));
-      Q = user_Q ? *user_Q : Q_of(std::vector<double>(w.begin() + static_cast<long>(np), w.end()), n);
+      for (std::size_t k = 0; k < np; ++k)
+        poles.push_back(-std::exp(std::clamp(w[k], std::log(kMinPole), std::log(kMaxPole))));
+      Q = user_Q ? *user_Q
+                 : Q_of(std::vector<double>(w.begin() + static_cast<long>(np), w.end()), n);
     };
     const auto w = nelder_mead(
         [&](const std::vector<double>& w) {
@@ -566,7 +594,9 @@ SearchOutcome search(const Eigen::MatrixXd& A, const Eigen::RowVectorXd& c,
           Eigen::MatrixXd Q;
           unpack(w, poles, Q);
           const auto AL = AL_of(poles);
-          return AL ? -ratio_of(*AL, Q) : std::numeric_limits<double>::infinity();
+          // A small price on fast poles: among near-equal certificates, the gentler gain.
+          return AL ? -ratio_of(*AL, Q) + kPolePenalty * -poles.front()
+                    : std::numeric_limits<double>::infinity();
         },
         v, 0.2, 150 * static_cast<int>(v.size() + 1));
     SearchOutcome o;
@@ -586,13 +616,15 @@ std::vector<double> chosen_poles(const DesignOptions& o, std::size_t n) {
   const auto poles = real_list_option(o, "thau-poles");
   if (poles.empty()) return {};
   if (poles.size() != n)
-    throw UserError(SourceLoc{}, fmt::format("--thau-poles: {} poles given, the model has n = {} states",
-                                             poles.size(), n));
+    throw UserError(
+        SourceLoc{},
+        fmt::format("--thau-poles: {} poles given, the model has n = {} states", poles.size(), n));
   std::vector<double> out;
   for (const auto& q : poles) {
     if (!q.is_negative())
-      throw UserError(SourceLoc{}, fmt::format("--thau-poles: pole {} is not in the open left half-plane",
-                                               to_string(q)));
+      throw UserError(
+          SourceLoc{},
+          fmt::format("--thau-poles: pole {} is not in the open left half-plane", to_string(q)));
     out.push_back(q.to_double());
   }
   return out;
@@ -613,8 +645,7 @@ std::optional<GiNaC::matrix> chosen_Q(const DesignOptions& o, std::size_t n) {
                                              n, n * n, q.size()));
   }
   const Eigen::MatrixXd E = to_eigen(Q);
-  if (!E.isApprox(E.transpose(), 0))
-    throw UserError(SourceLoc{}, "--thau-q: Q must be symmetric");
+  if (!E.isApprox(E.transpose(), 0)) throw UserError(SourceLoc{}, "--thau-q: Q must be symmetric");
   if (Eigen::LLT<Eigen::MatrixXd>(E).info() != Eigen::Success ||
       Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(E).eigenvalues()(0) <= 0)
     throw UserError(SourceLoc{}, "--thau-q: Q must be positive definite");
@@ -632,9 +663,11 @@ std::string model_key(const Model& m) {
   std::string k = m.file + "|" + m.name + "|";
   for (const auto& e : m.field()) k += to_string(e) + ",";
   for (const auto& e : m.h) k += to_string(e) + ",";
+  // Symbols compare by identity: a model loaded again has new ones, so the key holds their
+  // hashes (serial numbers) too.
   for (const auto& s : m.all_symbols()) {
     const Interval b = m.box(s);
-    k += s.get_name() + "[" + to_string(b.lo) + "," + to_string(b.hi) + "]";
+    k += fmt::format("{}#{}[{},{}]", s.get_name(), s.gethash(), to_string(b.lo), to_string(b.hi));
   }
   return k;
 }
@@ -649,13 +682,16 @@ Result design(const Model& m, const DesignOptions& o) {
   const auto uQ = chosen_Q(o, n);
   r.user_poles = !up.empty();
   r.user_Q = uQ.has_value();
-  r.whole_domain_only = choice_option(o, "thau-region", {"auto", "domain"}).value_or("auto") == "domain";
+  r.whole_domain_only =
+      choice_option(o, "thau-region", {"auto", "domain"}).value_or("auto") == "domain";
 
   const Eigen::MatrixXd A = to_eigen(s.A);
   Eigen::RowVectorXd c(static_cast<Eigen::Index>(n));
   for (std::size_t j = 0; j < n; ++j)
-    c(static_cast<Eigen::Index>(j)) = to_eigen(s.C)(static_cast<Eigen::Index>(s.output), static_cast<Eigen::Index>(j));
-  const SearchOutcome best = search(A, c, up, uQ ? std::optional<Eigen::MatrixXd>(to_eigen(*uQ)) : std::nullopt);
+    c(static_cast<Eigen::Index>(j)) =
+        to_eigen(s.C)(static_cast<Eigen::Index>(s.output), static_cast<Eigen::Index>(j));
+  const SearchOutcome best =
+      search(A, c, up, uQ ? std::optional<Eigen::MatrixXd>(to_eigen(*uQ)) : std::nullopt);
   r.choices_tried = best.tried;
 
   // Exact design: poles rounded to 3 significant digits, L by exact Ackermann, Q rounded to
@@ -675,7 +711,8 @@ Result design(const Model& m, const DesignOptions& o) {
     r.Q = GiNaC::matrix(static_cast<unsigned>(n), static_cast<unsigned>(n));
     for (std::size_t i = 0; i < n; ++i)
       for (std::size_t j = i; j < n; ++j) {
-        const numeric v = round_rational(Qd(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)), 6);
+        const numeric v =
+            round_absolute(Qd(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)), 1e6);
         r.Q(i, j) = v;
         r.Q(j, i) = v;
       }
@@ -696,7 +733,8 @@ Result design(const Model& m, const DesignOptions& o) {
   } else {
     const auto Pn = solve_lyapunov(to_eigen(AL), to_eigen(r.Q));
     r.P_exact = false;
-    Pd = Pn ? *Pn : Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+    Pd = Pn ? *Pn
+            : Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
     r.P = GiNaC::matrix(static_cast<unsigned>(n), static_cast<unsigned>(n));
     for (std::size_t i = 0; i < n; ++i)
       for (std::size_t j = 0; j < n; ++j)
@@ -705,12 +743,14 @@ Result design(const Model& m, const DesignOptions& o) {
     r.lyapunov_residual = (ALd.transpose() * Pd + Pd * ALd + 2 * to_eigen(r.Q)).norm();
   }
   const Eigen::VectorXd ep = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Pd).eigenvalues();
-  const Eigen::VectorXd eq = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(to_eigen(r.Q)).eigenvalues();
+  const Eigen::VectorXd eq =
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(to_eigen(r.Q)).eigenvalues();
   r.sigma_max_P = ep(ep.size() - 1);
   // With a numeric P, the residual E changes Q by at most ||E||_2 / 2 <= ||E||_F / 2; eigenvalues
   // in double: a relative 1e-12 safety on both.
   r.sigma_min_Q = eq(0) * (1 - 1e-12) - r.lyapunov_residual / 2;
-  r.ratio = ep(0) > 0 ? r.sigma_min_Q / (r.sigma_max_P * (1 + 1e-12)) : -std::numeric_limits<double>::infinity();
+  r.ratio = ep(0) > 0 ? r.sigma_min_Q / (r.sigma_max_P * (1 + 1e-12))
+                      : -std::numeric_limits<double>::infinity();
 
   // M on the declared domain, then the largest sub-box around x* where (26) holds.
   r.domain = region_at(m, s, 1.0, true);
@@ -721,7 +761,7 @@ Result design(const Model& m, const DesignOptions& o) {
     for (int k = 0; k < kRegionBisections; ++k) {
       const double mid = (lo + hi) / 2;
       const Region t = region_at(m, s, mid, false);
-      if (r.ratio - t.M.value > 0)
+      if (t.M.value < kRegionTarget * r.ratio)
         lo = mid;
       else
         hi = mid;
@@ -749,7 +789,8 @@ std::string box_text(const Model& m, const certify::Box& b) {
   for (std::size_t k = 0; k < b.vars.size(); ++k)
     for (const auto& x : m.states)
       if (b.vars[k].is_equal(x))
-        out.push_back(fmt::format("{} in [{:.6g}, {:.6g}]", x.get_name(), b.ranges[k].lo, b.ranges[k].hi));
+        out.push_back(
+            fmt::format("{} in [{:.6g}, {:.6g}]", x.get_name(), b.ranges[k].lo, b.ranges[k].hi));
   return fmt::format("{}", fmt::join(out, ", "));
 }
 
@@ -766,9 +807,9 @@ std::string numbers_text(const std::vector<numeric>& v) {
 std::vector<std::string> verdict_reasons(const Model& m, const Result& r) {
   if (!r.split.not_applicable.empty()) return {r.split.not_applicable};
   std::vector<std::string> out;
-  const std::string cond = fmt::format(
-      "sigma_min(Q)/sigma_max(P) = {:.6g} (best of {} choices of poles and Q tried)", r.ratio,
-      r.choices_tried);
+  const std::string cond =
+      fmt::format("sigma_min(Q)/sigma_max(P) = {:.6g} (best of {} choices of poles and Q tried)",
+                  r.ratio, r.choices_tried);
   if (r.domain_margin() > 0) {
     out.push_back(fmt::format(
         "condition (26) holds on the whole domain: {} > M = {}; margin {:.6g} ({} bound; the "
@@ -781,10 +822,11 @@ std::vector<std::string> verdict_reasons(const Model& m, const Result& r) {
         cond, bound_text(r.domain.M), r.domain_margin(), r.domain.M_sampled));
     if (r.holds)
       out.push_back(fmt::format(
-          "it holds locally on W = {} (scale {:.6g} of the domain around x*): M = {}, margin "
-          "{:.6g} (sampled M {:.6g}); the error decays while x and xh stay in W",
-          box_text(m, r.region.box), r.region.scale, bound_text(r.region.M), r.margin(),
-          r.region.M_sampled));
+          "it holds locally on W = {} (the states phi's Jacobian depends on scaled by {:.6g} "
+          "towards x*, the largest such box with M <= {} sigma_min(Q)/sigma_max(P)): M = {}, "
+          "margin {:.6g} (sampled M {:.6g}); the error decays while x and xh stay in W",
+          box_text(m, r.region.box), r.region.scale, kRegionTarget, bound_text(r.region.M),
+          r.margin(), r.region.M_sampled));
     else if (r.whole_domain_only)
       out.push_back("no sub-box searched (--thau-region domain)");
     else
@@ -837,7 +879,8 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Result& r = cached_design(m, o);
   if (!r.split.not_applicable.empty() || !r.holds)
     throw UserError(SourceLoc{m.file, 0, 0},
-                    "method 'thau' does not apply: " + fmt::format("{}", fmt::join(verdict_reasons(m, r), "; ")));
+                    "method 'thau' does not apply: " +
+                        fmt::format("{}", fmt::join(verdict_reasons(m, r), "; ")));
   const Split& s = r.split;
   const std::size_t n = m.n(), p = m.p();
   // L as n x p: the chosen output's column, zeros elsewhere.
@@ -859,9 +902,11 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   spec.state_size = n;
   spec.params = runtime_params(m);
   spec.functions = model_functions(m);
-  spec.functions.push_back(fn("phi", "Nonlinear part phi(x, u) = f + g - A x - B u of the exact split.",
+  spec.functions.push_back(fn("phi",
+                              "Nonlinear part phi(x, u) = f + g - A x - B u of the exact split.",
                               {state_arg(m), input_arg(m)}, phi));
-  spec.functions.push_back(fn("x_rhs", "xh' = A xh + B u + phi(xh, u) + L (h(xh) - y)  (seed 001 eq. 19).",
+  spec.functions.push_back(fn("x_rhs",
+                              "xh' = A xh + B u + phi(xh, u) + L (h(xh) - y)  (seed 001 eq. 19).",
                               {state_arg(m), input_arg(m), output_arg(y)}, rhs));
   spec.state_name = "xh";
   spec.state_doc = "the estimate itself";
@@ -870,7 +915,8 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   spec.roles.rhs = "x_rhs";
   spec.estimate = EstimateKind::identity;
 
-  const std::string W = r.region.scale == 1 ? "the whole domain" : "W = " + box_text(m, r.region.box);
+  const std::string W =
+      r.region.scale == 1 ? "the whole domain" : "W = " + box_text(m, r.region.box);
   spec.title = "Thau observer (Lipschitz nonlinearity, Lyapunov certificate)";
   spec.description = {
       "Observer: Thau (1973; seed 001 §4, eq. 18-26), x' = A x + B u + phi(x, u), y = C x",
@@ -886,14 +932,19 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   spec.constants.push_back({"Q", flat(r.Q), "Q of eq. (21), row-major"});
   spec.constants.push_back({"P", flat(r.P), "P of eq. (21), row-major"});
   spec.report = {
-      {"split", fmt::format("A = {}, B = {}, C = {} (Jacobians at x* = ({}), u* = ({})); phi = [{}]",
-                            matrix_text(s.A), matrix_text(s.B), matrix_text(s.C), numbers_text(s.x_star),
-                            numbers_text(s.u_star), fmt::join(to_strings(s.phi), ", "))},
+      {"split",
+       fmt::format("A = {}, B = {}, C = {} (Jacobians at x* = ({}), u* = ({})); phi = [{}]",
+                   matrix_text(s.A), matrix_text(s.B), matrix_text(s.C), numbers_text(s.x_star),
+                   numbers_text(s.u_star), fmt::join(to_strings(s.phi), ", "))},
       {"convention", "xh' = A xh + B u + phi + L (C xh - y) (seed eq. 19), A + L C Hurwitz"},
-      {"poles", fmt::format("{} ({})", numbers_text(r.poles),
-                            r.user_poles ? "given with --thau-poles" : "searched")},
+      {"poles",
+       fmt::format("{} ({})", numbers_text(r.poles),
+                   r.user_poles ? "given with --thau-poles"
+                                : fmt::format("searched in [-{}, -{}] for the largest ratio",
+                                              kMaxPole, kMinPole))},
       {"L", matrix_text(L)},
-      {"Q", fmt::format("{} ({})", matrix_text(r.Q), r.user_Q ? "given with --thau-q" : "searched")},
+      {"Q",
+       fmt::format("{} ({})", matrix_text(r.Q), r.user_Q ? "given with --thau-q" : "searched")},
       {"P", fmt::format("{} ({}; Lyapunov residual {:.3g})", matrix_text(to_eigen(r.P)),
                         r.P_exact ? "exact rational solution of (21)" : "numeric solution of (21)",
                         r.lyapunov_residual)},
@@ -901,10 +952,13 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
        fmt::format("{:.6g} = {:.6g} / {:.6g} (equal to sigma_min(Q)/(2 sigma_max(P')) with "
                    "A_L^T P' + P' A_L = -Q); {} choices tried",
                    r.ratio, r.sigma_min_Q, r.sigma_max_P, r.choices_tried)},
-      {"M on the domain", fmt::format("{}; sampled estimate {:.6g}", bound_text(r.domain.M), r.domain.M_sampled)},
+      {"M on the domain",
+       fmt::format("{}; sampled estimate {:.6g}", bound_text(r.domain.M), r.domain.M_sampled)},
       {"region", W},
-      {"M on the region", fmt::format("{}; sampled estimate {:.6g}", bound_text(r.region.M), r.region.M_sampled)},
-      {"margin", fmt::format("{:.6g} ({})", r.margin(), r.rigorous ? "M rigorous" : "M sampled: not proven")}};
+      {"M on the region",
+       fmt::format("{}; sampled estimate {:.6g}", bound_text(r.region.M), r.region.M_sampled)},
+      {"margin", fmt::format("{:.6g} ({})", r.margin(),
+                             r.rigorous ? "M rigorous" : "M sampled: not proven")}};
   spec.summary = fmt::format(
       "Thau observer, poles {}, certificate sigma_min(Q)/sigma_max(P) = {:.6g} > M = {:.6g} on {} "
       "(margin {:.6g}, M {})",
@@ -915,10 +969,37 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
 
 }  // namespace
 
+ThauCertificate thau_certificate(const Model& m, const DesignOptions& o) {
+  const Result& r = cached_design(m, o);
+  ThauCertificate c;
+  c.not_applicable = r.split.not_applicable;
+  if (!c.not_applicable.empty()) return c;
+  for (const auto& q : r.poles) c.poles.push_back(q.to_double());
+  for (const auto& l : r.L) c.L.push_back(l.to_double());
+  c.output = r.split.output;
+  c.ratio = r.ratio;
+  c.M_domain = r.domain.M.value;
+  c.M_domain_sampled = r.domain.M_sampled;
+  c.M_region = r.region.M.value;
+  c.M_region_sampled = r.region.M_sampled;
+  c.M_rigorous = r.rigorous;
+  c.margin_domain = r.domain_margin();
+  c.margin_region = r.margin();
+  c.scale = r.region.scale;
+  for (std::size_t k = 0; k < r.region.box.vars.size(); ++k)
+    for (const auto& x : m.states)
+      if (r.region.box.vars[k].is_equal(x))
+        c.region.emplace_back(r.region.box.ranges[k].lo, r.region.box.ranges[k].hi);
+  c.holds = r.holds;
+  c.choices_tried = r.choices_tried;
+  return c;
+}
+
 Design thau_design() {
   Design d;
   d.name = "thau";
-  d.summary = "Thau observer: linear part + Lipschitz phi, Lyapunov certificate (seed 001 eq. 18-26)";
+  d.summary =
+      "Thau observer: linear part + Lipschitz phi, Lyapunov certificate (seed 001 eq. 18-26)";
   d.options = {
       {"thau-poles", "Thau observer: poles of A + L C, comma-separated negative reals",
        "searched (best certificate)"},

@@ -26,6 +26,24 @@ namespace obsynth {
 
 Design thau_design();
 
+// The numbers behind the Thau verdict (for reports and tests).
+struct ThauCertificate {
+  std::string not_applicable;  // why the split or the placement does not exist; else empty
+  std::vector<double> poles;   // eigenvalues of A + L C
+  std::vector<double> L;       // n entries: the gain column of the output used
+  std::size_t output = 0;      // that output
+  double ratio = 0;            // sigma_min(Q) / sigma_max(P)
+  double M_domain = 0, M_domain_sampled = 0;  // sup ||D_x phi||_2 on the domain
+  double M_region = 0, M_region_sampled = 0;  // ... on the certified region W
+  bool M_rigorous = false;                    // the region's M is a proven bound
+  double margin_domain = 0, margin_region = 0;
+  double scale = 1;                               // W = domain scaled by this towards x*
+  std::vector<std::pair<double, double>> region;  // W's state ranges
+  bool holds = false;                             // ratio > M on W
+  std::size_t choices_tried = 0;
+};
+ThauCertificate thau_certificate(const Model& m, const DesignOptions& o = {});
+
 // Numeric helpers shared by the Lyapunov-based designs (thau, kou).
 namespace lyapunov_tools {
 
@@ -33,6 +51,8 @@ namespace lyapunov_tools {
 GiNaC::numeric exact_of_double(double v);
 // v rounded to `digits` significant decimal digits, as an exact rational.
 GiNaC::numeric round_rational(double v, int digits = 6);
+// v rounded to a multiple of 1/per_unit (per_unit a power of ten), exact.
+GiNaC::numeric round_absolute(double v, double per_unit);
 // Exact value of a numeric expression: rationals stay exact, anything else through evalf to
 // double and exact_of_double. Throws UserError when not a real number.
 GiNaC::numeric exact_value(const GiNaC::ex& e, const std::string& what);
