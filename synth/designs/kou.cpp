@@ -4,7 +4,6 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -30,7 +29,8 @@ namespace {
 constexpr double kRateCap = 0.25;
 constexpr std::size_t kSearchSamples = 384;
 constexpr int kCertifyRounds = 4;
-constexpr std::chrono::seconds kCertifyTime{2};  // no new round after this long
+// No new round once this many candidates were evaluated (a deterministic budget, unlike time).
+constexpr std::size_t kCertifyEvaluations = 6000;
 constexpr double kMaxPole = 20;  // linearisation pole sets tried: |pole| <= kMaxPole
 constexpr std::size_t kReportSamples = 4096;
 
@@ -213,7 +213,6 @@ Result design(const Model& m, const DesignOptions& o) {
   }
   std::vector<std::pair<double, double>> ranges;
   for (const auto& rg : r.box.ranges) ranges.emplace_back(rg.lo, rg.hi);
-  const auto started = std::chrono::steady_clock::now();
   auto search_points = box_samples(ranges, kSearchSamples);
   Jacobians jac = evaluate(m, r.box, search_points);
 
@@ -387,7 +386,7 @@ Result design(const Model& m, const DesignOptions& o) {
     r.holds = r.verdict.holds;
     r.rigorous = r.verdict.kind == certify::BoundKind::rigorous;
     if (r.holds || (r.user_L && r.user_P) || round + 1 >= kCertifyRounds ||
-        std::chrono::steady_clock::now() - started > kCertifyTime)
+        r.tried > kCertifyEvaluations)
       break;
     if (r.verdict.worst_point.size() == r.box.vars.size())
       search_points.push_back(r.verdict.worst_point);
