@@ -2,7 +2,9 @@
 
 #include <flint/fmpq.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -196,6 +198,40 @@ Tape::Tape(const std::vector<ex>& outputs, const std::vector<GiNaC::symbol>& var
   }
 }
 
+std::uint64_t Tape::key(const ex& e) {
+  // A structural 64-bit hash (FNV-1a) independent of GiNaC's run-dependent term order: sums and
+  // products hash their operands' keys sorted. Collisions only affect the operand order.
+  if (auto it = keys_.find(e); it != keys_.end()) return it->second;
+  std::uint64_t h = 1469598103934665603ull;
+  auto mix = [&h](const std::string& text) {
+    for (unsigned char ch : text) {
+      h ^= ch;
+      h *= 1099511628211ull;
+    }
+  };
+  auto mix_key = [&mix](std::uint64_t k) { mix(std::to_string(k) + ","); };
+  if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
+    std::vector<std::uint64_t> parts;
+    for (std::size_t i = 0; i < e.nops(); ++i) parts.push_back(key(e.op(i)));
+    std::sort(parts.begin(), parts.end());
+    mix(GiNaC::is_a<GiNaC::add>(e) ? "+(" : "*(");
+    for (auto p : parts) mix_key(p);
+  } else if (GiNaC::is_a<GiNaC::power>(e)) {
+    mix("^(");
+    mix_key(key(e.op(0)));
+    mix_key(key(e.op(1)));
+  } else if (GiNaC::is_a<GiNaC::function>(e)) {
+    mix(GiNaC::ex_to<GiNaC::function>(e).get_name() + "(");
+    for (std::size_t i = 0; i < e.nops(); ++i) mix_key(key(e.op(i)));
+  } else {
+    std::ostringstream os;  // symbols, numbers, constants: their text is deterministic
+    os << e;
+    mix(os.str());
+  }
+  keys_.emplace(e, h);
+  return h;
+}
+
 int Tape::compile(const ex& e, const std::vector<GiNaC::symbol>& vars) {
   if (auto it = memo_.find(e); it != memo_.end()) return it->second;
   Node n{Op::cst, {}, 0, 0, 1, 0};
@@ -229,7 +265,13 @@ int Tape::compile(const ex& e, const std::vector<GiNaC::symbol>& vars) {
     }
   } else if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
     n.op = GiNaC::is_a<GiNaC::add>(e) ? Op::add : Op::mul;
-    for (std::size_t i = 0; i < e.nops(); ++i) n.args.push_back(compile(e.op(i), vars));
+    // Operands in a canonical order (GiNaC's own order varies between runs), so the tape, its
+    // rounding and every reported digit are deterministic.
+    std::vector<std::pair<std::uint64_t, ex>> ops;
+    for (std::size_t i = 0; i < e.nops(); ++i) ops.emplace_back(key(e.op(i)), e.op(i));
+    std::stable_sort(ops.begin(), ops.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& [k, op] : ops) n.args.push_back(compile(op, vars));
   } else if (GiNaC::is_a<GiNaC::power>(e)) {
     const ex b = e.op(0), x = e.op(1);
     n.args.push_back(compile(b, vars));

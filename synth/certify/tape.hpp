@@ -6,6 +6,7 @@
 #include <arb.h>
 #include <ginac/ginac.h>
 
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -95,6 +96,7 @@ class Tape {
 
  private:
   int compile(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& vars);
+  std::uint64_t key(const GiNaC::ex& e);
   bool run(BallVec& out);
 
   std::vector<Node> nodes_;
@@ -104,6 +106,7 @@ class Tape {
   BallVec consts_;  // ball value of constant nodes (indexed like nodes_)
   BallVec work_;
   std::map<GiNaC::ex, int, GiNaC::ex_is_less> memo_;
+  std::map<GiNaC::ex, std::uint64_t, GiNaC::ex_is_less> keys_;
 };
 
 // Upper bound (rounded up) and lower bound (rounded down) of a ball as doubles.
