@@ -9,7 +9,7 @@
 //   h = [x1]
 // Observer: Kou-Elliott-Tarn (1975; seed 001 §4, Theorem 1, eq. 5-9)
 // L = [[-8027/1000], [-28441/500]], P = [[0.983418, -0.126519], [-0.126519, 0.034668]]
-// Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= -0.000357179 on the domain (rigorous)
+// Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= -0.00035718 on the domain (rigorous)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.

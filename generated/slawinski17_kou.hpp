@@ -9,7 +9,7 @@
 //   h = [x1]
 // Observer: Kou-Elliott-Tarn (1975; seed 001 §4, Theorem 1, eq. 5-9)
 // L = [[-4513/500], [7561/200]], P = [[0.969635, 0.170346], [0.170346, 0.044366]]
-// Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= -6.31464e-06 on the domain (rigorous)
+// Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= -6.31475e-06 on the domain (rigorous)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.

@@ -9,7 +9,7 @@
 //   h = [x1]
 // Observer: Kou-Elliott-Tarn (1975; seed 001 §4, Theorem 1, eq. 5-9)
 // L = [[-9609/1000], [-12281/500]], P = [[0.962858, -0.184717], [-0.184717, 0.081366]]
-// Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= -0.000585965 on the domain (rigorous)
+// Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= -0.000585966 on the domain (rigorous)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
