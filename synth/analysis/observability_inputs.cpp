@@ -13,9 +13,10 @@ namespace obsynth {
 using GiNaC::ex;
 using GiNaC::numeric;
 
-const char* persistent_input_designs() {
-  return "riccati (James-Baras), kalman-theta (Kalman-like, strongly persistent inputs) and "
-         "high-gain (uniformly observable systems)";
+std::string persistent_input_designs(const ObservabilityUnderInputs& u) {
+  std::string s = "riccati (James-Baras), kalman-theta (Kalman-like, strongly persistent inputs)";
+  if (u.uniformly_observable != false) s += ", high-gain (if uniformly observable)";
+  return s;
 }
 
 Model frozen_input_model(const Model& m) {
