@@ -244,6 +244,15 @@ void decide(const Model& m, const Observability& drift, ObservabilityUnderInputs
             : "");
     return;
   }
+  // With several outputs det O_u is one maximal minor: another minor may stay regular where it
+  // vanishes, so its zeros decide nothing.
+  if (!admissible.empty() && m.p() > 1) {
+    r.reason = fmt::format(
+        "undecided: no triangular form ({}); the selected rows' minor of O_u vanishes at "
+        "admissible inputs ({}), but other minors were not checked",
+        r.triangular_note, list_text(admissible));
+    return;
+  }
   if (!admissible.empty()) {
     r.uniformly_observable = false;
     r.reason = fmt::format(
