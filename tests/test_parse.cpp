@@ -172,9 +172,12 @@ TEST(ParseDiagnostics, WrongLengthOfF_CapitalF) {
       FailsAt(kHead + "inputs u\nF = [x2]\nh = [x1]\n", 4, 1, {"'F' has 1 component", "2 states"}));
 }
 
-TEST(ParseDiagnostics, OutputMustBeAFunctionOfTheStates) {
-  EXPECT_TRUE(
-      FailsAt(kHead + "inputs u\nf = [x2, x1]\nh = [x1, x1*u]\n", 5, 10, {"h[2]", "input 'u'"}));
+// Issue 8: outputs may depend on the inputs (direct feedthrough, e.g. an accelerometer reading
+// a force); they used to be rejected with "outputs must be h(x)".
+TEST(ParseDiagnostics, OutputMayDependOnTheInput) {
+  const Model m = Parse(kHead + "inputs u\nf = [x2, x1]\nh = [x1, x1*u]\n");
+  EXPECT_TRUE(m.feedthrough());
+  EXPECT_TRUE(Same(m.h[1], Sym(m, "x1") * m.inputs[0]));
 }
 
 TEST(ParseDiagnostics, EmptyListIsRejected) {

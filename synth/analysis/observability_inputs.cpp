@@ -13,9 +13,10 @@ namespace obsynth {
 using GiNaC::ex;
 using GiNaC::numeric;
 
-const char* persistent_input_designs() {
-  return "riccati (James-Baras), kalman-theta (Kalman-like, strongly persistent inputs) and "
-         "high-gain (uniformly observable systems)";
+std::string persistent_input_designs(const ObservabilityUnderInputs& u) {
+  std::string s = "riccati (James-Baras), kalman-theta (Kalman-like, strongly persistent inputs)";
+  if (u.uniformly_observable != false) s += ", high-gain (if uniformly observable)";
+  return s;
 }
 
 Model frozen_input_model(const Model& m) {
@@ -241,6 +242,15 @@ void decide(const Model& m, const Observability& drift, ObservabilityUnderInputs
         t.coordinates == TriangularForm::Coordinates::lie_derivatives
             ? " and the coordinates' Jacobian det O nonzero on the domain box"
             : "");
+    return;
+  }
+  // With several outputs det O_u is one maximal minor: another minor may stay regular where it
+  // vanishes, so its zeros decide nothing.
+  if (!admissible.empty() && m.p() > 1) {
+    r.reason = fmt::format(
+        "undecided: no triangular form ({}); the selected rows' minor of O_u vanishes at "
+        "admissible inputs ({}), but other minors were not checked",
+        r.triangular_note, list_text(admissible));
     return;
   }
   if (!admissible.empty()) {

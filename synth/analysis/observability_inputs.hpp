@@ -33,11 +33,13 @@ struct ObservabilityUnderInputs {
   bool computed = false;  // false: not computed (reason says why)
   std::size_t n = 0;
   std::size_t generic_rank = 0;
-  std::string rank_method;              // as for the drift rank
-  bool same_as_drift = false;           // no input enters f + g or h: O_u is the drift's O
-  std::optional<GiNaC::ex> det;         // det O_u (selected rows), when symbolic and rank n
-  std::vector<SingularInput> singular;  // x-free, input-dependent factors of det O_u
-  ExVec rank_drop;                      // x-dependent factors of det O_u (may involve u)
+  std::string rank_method;       // as for the drift rank
+  bool same_as_drift = false;    // no input enters f + g or h: O_u is the drift's O
+  std::optional<GiNaC::ex> det;  // det O_u (selected rows), when symbolic and rank n
+  // x-free, input-dependent factors of det O_u (p > 1: of the selected rows' minor only, so a
+  // superset of the inputs where the rank drops; they then decide nothing)
+  std::vector<SingularInput> singular;
+  ExVec rank_drop;  // x-dependent factors of det O_u (may involve u)
   // Rank of the observation space when generic_rank < n (else equal to it), and whether some
   // input makes the model observable (nullopt: undecided).
   std::optional<std::size_t> observation_space_rank;
@@ -60,7 +62,8 @@ ObservabilityUnderInputs analyse_observability_under_inputs(const Model& m,
                                                             const ObservabilityOptions& opt = {},
                                                             const BudgetLimits& limits = {});
 
-// The designs that work under persistent inputs, for messages.
-const char* persistent_input_designs();
+// The designs that work under persistent inputs, for messages (high-gain only when uniform
+// observability is not refuted).
+std::string persistent_input_designs(const ObservabilityUnderInputs& u);
 
 }  // namespace obsynth

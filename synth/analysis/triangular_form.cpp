@@ -64,13 +64,13 @@ BoxZeros factor_zeros(const ex& f, const SampleBoxes& boxes) {
     for (const numeric& end : {b.lo, b.hi})
       if (value_at(p, s, end).is_zero())
         return {BoxZeros::somewhere,
-                fmt::format("{} = 0 at {} = {}", to_string(f), name, to_string(end))};
+                fmt::format("{} vanishes at {} = {}", to_string(f), name, to_string(end))};
     if (p.degree(s) == 1) {
       const numeric r =
           -GiNaC::ex_to<numeric>(p.coeff(s, 0)) / GiNaC::ex_to<numeric>(p.coeff(s, 1));
       if (r >= b.lo && r <= b.hi)
         return {BoxZeros::somewhere,
-                fmt::format("{} = 0 at {} = {}", to_string(f), name, to_string(r))};
+                fmt::format("{} vanishes at {} = {}", to_string(f), name, to_string(r))};
       return {BoxZeros::never, ""};
     }
     const int roots = sturm_count(p, s, b.lo, b.hi);
@@ -96,7 +96,7 @@ BoxZeros factor_zeros(const ex& f, const SampleBoxes& boxes) {
     if (!evaluate_with_magnitude(f, pt, zopt.digits, v, mag)) continue;
     const ex exact = f.subs(pt);
     if (GiNaC::is_a<numeric>(exact) && exact.is_zero())
-      return {BoxZeros::somewhere, fmt::format("{} = 0 at {}", to_string(f), point_text(pt))};
+      return {BoxZeros::somewhere, fmt::format("{} vanishes at {}", to_string(f), point_text(pt))};
     if (GiNaC::abs(v) <= numeric(10).power(-(zopt.digits - 10)) * mag) continue;  // unclear
     const int sg = sign_of(v);
     if (last_sign != 0 && sg != last_sign)

@@ -320,7 +320,7 @@ std::vector<std::string> under_inputs_lines(const Analysis& a) {
       fmt::format("uniformly observable: {}; {}", tri_state(u.uniformly_observable), u.reason));
   if (u.observable_for_some_input == true && a.observability.generic_rank < a.model.n())
     out.push_back(std::string("designs that work under persistent inputs: ") +
-                  persistent_input_designs());
+                  persistent_input_designs(u));
   return out;
 }
 

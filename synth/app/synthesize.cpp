@@ -40,7 +40,7 @@ std::string not_observable_note(const Analysis& a) {
         "; the drift alone (u = {}) has rank {} < n = {}, but the model is observable under "
         "inputs (rank O_u = {}; {}): designs that work under persistent inputs: {}",
         a.model.nominal.empty() ? "0" : "u0", a.observability.generic_rank, a.model.n(),
-        ui.generic_rank, ui.reason, persistent_input_designs());
+        ui.generic_rank, ui.reason, persistent_input_designs(ui));
   return fmt::format("; the drift alone has rank {} < n = {}; observability under inputs: {}",
                      a.observability.generic_rank, a.model.n(),
                      ui.reason.empty() ? "not computed" : ui.reason);
