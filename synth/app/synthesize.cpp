@@ -63,7 +63,7 @@ std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<st
     std::string name = m;
     if (m == "all") {
       for (const auto& d : design_registry())
-        if (d.applies(a).applies &&
+        if (d.in_all && d.applies(a).applies &&
             std::find(methods.begin(), methods.end(), d.name) == methods.end())
           methods.push_back(d.name);
       continue;

@@ -5,6 +5,7 @@
 #include <algorithm>
 
 #include "designs/canonical.hpp"
+#include "designs/finite_time.hpp"
 #include "designs/perfect.hpp"
 
 namespace obsynth {
@@ -17,14 +18,14 @@ const std::vector<Design>& design_registry() {
   static const std::vector<Design> designs = {
       canonical_design(),
       perfect_design(),
+      finite_time_design(),
   };
   return designs;
 }
 
 const std::vector<std::string>& planned_methods() {
   static const std::vector<std::string> planned = {
-      "riccati",    "high-gain", "kalman-theta", "thau", "kou", "extended-linearization",
-      "finite-time"};
+      "riccati", "high-gain", "kalman-theta", "thau", "kou", "extended-linearization"};
   return planned;
 }
 

@@ -26,6 +26,9 @@ struct Design {
   Verdict (*applies)(const Analysis&) = nullptr;
   // Throws UserError (why it does not apply, or a bad option) on failure.
   ObserverSpec (*build)(const Analysis&, const DesignOptions&) = nullptr;
+  // Whether `--method all` includes it (false for designs with large tables: by name only;
+  // `--method auto` still considers it, in registry order).
+  bool in_all = true;
 };
 
 // Implemented designs, in the order `--method auto` tries them.
