@@ -447,7 +447,7 @@ class CBuilder {
  public:
   CBuilder(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt)
       : a_(a), s_(s), opt_(opt) {
-    prefix_ = cxx_identifier(a.model.name) + "_" + s.method;
+    prefix_ = cxx_identifier(a.model.name + "_" + s.method);  // "finite-time": finite_time
     const Model& m = a.model;
     for (const auto& x : m.states) local(x.get_name());
     for (const auto& x : m.inputs) local(x.get_name());
@@ -703,6 +703,7 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
                           {"sqrt", single ? "sqrtf" : "sqrt"},
                           {"tol", single ? "1e-6f" : "1e-6"},
                           {"m", std::to_string(std::max<std::size_t>(m.m(), 1))},
+                          {"u_now", d.levels > 1 ? fmt::format("u[{}]", d.input_index) : b.lit(0)},
                           {"level", level},
                           {"decay", d.decay_table},
                           {"gain", d.gain_table},
