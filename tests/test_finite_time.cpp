@@ -19,6 +19,7 @@
 
 #include <array>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -279,9 +280,9 @@ TEST(FiniteTime, GeneratedCodeMatchesSimulator) {
     double tol;
   };
   for (const Case& k : {Case{"cxx_double", Precision::double_precision, false, 1e-9},
-                        Case{"cxx_float", Precision::single, false, 2e-2},
+                        Case{"cxx_float", Precision::single, false, 5e-3},
                         Case{"c_double", Precision::double_precision, true, 1e-9},
-                        Case{"c_float", Precision::single, true, 2e-2}}) {
+                        Case{"c_float", Precision::single, true, 5e-3}}) {
     SCOPED_TRACE(k.name);
     EmitOptions eo;
     eo.precision = k.p;
@@ -316,12 +317,23 @@ TEST(FiniteTime, GeneratedCodeMatchesSimulator) {
     }
     const std::string out = run(build + " " + (dir / "sim.csv").string());
     const auto got = read_pairs(out);
-    ASSERT_EQ(got.size() + 1, r.t.size()) << out.substr(0, 400);
+    ASSERT_EQ(out.find("FAILED"), std::string::npos) << out.substr(out.size() - 400);
+    ASSERT_EQ(got.size(), r.t.size()) << out.substr(0, 400);  // one step per CSV row
     double worst = 0;
-    for (std::size_t i = 0; i < got.size(); ++i)
+    std::vector<double> diffs;
+    for (std::size_t i = 0; i + 1 < got.size(); ++i) {
+      double e = 0;
       for (int s = 0; s < 2; ++s)
-        worst = std::max(worst, std::fabs(got[i][s] - r.xh[i + 1][static_cast<std::size_t>(s)]));
+        e = std::max(e, std::fabs(got[i][s] - r.xh[i + 1][static_cast<std::size_t>(s)]));
+      worst = std::max(worst, e);
+      diffs.push_back(e);
+    }
+    std::sort(diffs.begin(), diffs.end());
+    const double p99 = diffs[diffs.size() * 99 / 100];
+    std::printf("%s: 99th percentile %.3g\n", k.name.c_str(), p99);
     EXPECT_LE(worst, k.tol);
+    RecordProperty(k.name + "_max_difference", std::to_string(worst));
+    std::printf("%s: max |xh - xh_simulator| = %.3g\n", k.name.c_str(), worst);
   }
   fs::remove_all(dir);
 }

@@ -375,7 +375,7 @@ Tables tabulate(const Model& m, Choices& c) {
   for (std::size_t k = 0; k < c.levels; ++k)
     t.q.push_back(tab.map(X, c.level_lo + c.level_step * static_cast<double>(k)));
   // The kernel's metric: with --metric whiten, q is first whitened by its covariance over the
-  // grid (W = D^-1/2 V^T, eigenvalues floored at 1e-9 of the largest), so that directions in
+  // grid (W = D^-1/2 V^T, eigenvalues floored at 1e-6 of the largest), so that directions in
   // which q varies little (the phase, seen only by the fast filters) count as much as the
   // others; then scaled by its median sensitivity.
   const std::size_t pz = c.lambda.size();
@@ -399,7 +399,7 @@ Tables tabulate(const Model& m, Choices& c) {
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(C);
     Eigen::VectorXd ev = es.eigenvalues();
     const double top = ev.maxCoeff();
-    for (Eigen::Index i = 0; i < ev.size(); ++i) ev(i) = 1 / std::sqrt(std::max(ev(i), 1e-9 * top));
+    for (Eigen::Index i = 0; i < ev.size(); ++i) ev(i) = 1 / std::sqrt(std::max(ev(i), 1e-6 * top));
     W = ev.asDiagonal() * es.eigenvectors().transpose();
     for (auto& q : t.q) q = q * W.transpose();
   }
