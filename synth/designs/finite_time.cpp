@@ -643,7 +643,6 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
        fmt::format("{} x {} entries: {} as float, {} as double", c.D + 1, pz,
                    mem((c.D + 1) * pz * 4), mem((c.D + 1) * pz * 8))},
       {"work per step", fmt::format("{} kernel terms of {} filters", N, pz)},
-      {"synthesis time", fmt::format("{:.0f} ms (tables)", t.synthesis_ms)},
       {"injectivity (sampled)",
        fmt::format("min |q(x_i) - q(x_j)| / |x_i - x_j| over grid neighbours = {:.3g} at x = "
                    "({}), u = {:g}",
