@@ -85,10 +85,10 @@ TEST(FiniteTime, AppliesToTheNonSmoothRectifierModel) {
   EXPECT_TRUE(v.applies) << v.text();
   // The Lie-algebraic designs do not apply, and say why (no crash on sqrt(x1^2)).
   EXPECT_FALSE(find_design("canonical")->applies(a).applies);
-  // Not chosen by --method all (tables), chosen by auto as the only design that applies.
+  // Chosen by name only (it builds tables): neither --method all nor auto picks it.
   std::string why;
   EXPECT_TRUE(resolve_methods(a, {"all"}, why).empty());
-  EXPECT_EQ(resolve_methods(a, {"auto"}, why), std::vector<std::string>{"finite-time"});
+  EXPECT_THROW(resolve_methods(a, {"auto"}, why), UserError);
 }
 
 TEST(FiniteTime, OptionDiagnostics) {

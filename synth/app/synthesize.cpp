@@ -37,6 +37,7 @@ std::string not_observable_note(const Analysis& a) {
 std::string choose_auto(const Analysis& a, std::string& explanation) {
   std::vector<std::string> rejected;
   for (const auto& d : design_registry()) {
+    if (!d.in_all) continue;  // by name only (large tables)
     const Verdict v = d.applies(a);
     if (v.applies) {
       explanation = fmt::format("auto: chose '{}' because {}", d.name, v.text());

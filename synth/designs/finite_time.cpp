@@ -697,7 +697,7 @@ Design finite_time_design() {
       {"backward-steps", "finite-time: RK4 steps of the backward simulation over T", "200"}};
   d.applies = applies;
   d.build = build;
-  d.in_all = false;  // tables of ~10^5 entries: generated when asked for by name
+  d.in_all = false;  // tables of 10^4..10^6 entries: by name only, not by auto or all
   return d;
 }
 

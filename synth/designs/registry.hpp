@@ -26,8 +26,8 @@ struct Design {
   Verdict (*applies)(const Analysis&) = nullptr;
   // Throws UserError (why it does not apply, or a bad option) on failure.
   ObserverSpec (*build)(const Analysis&, const DesignOptions&) = nullptr;
-  // Whether `--method all` includes it (false for designs with large tables: by name only;
-  // `--method auto` still considers it, in registry order).
+  // Whether `--method all` and `--method auto` consider it (false for designs that build large
+  // numeric tables: chosen by name only).
   bool in_all = true;
 };
 

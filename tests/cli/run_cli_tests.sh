@@ -150,7 +150,7 @@ check "auto failure writes nothing" test ! -e "$tmp/lorenz"
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/x" --method nonsense >"$tmp/out" 2>"$tmp/err"
 check "unknown method diagnostic" grep -q "unknown method 'nonsense' (known: auto, all, canonical, perfect" "$tmp/err"
 "$bin" "$src/models/slawinski17.sym" -o "$tmp/x" --method thau >"$tmp/out" 2>"$tmp/err"
-check "planned method diagnostic" grep -q "method 'thau' is not implemented in this version of obsynth (implemented: canonical, perfect)" "$tmp/err"
+check "planned method diagnostic" grep -q "method 'thau' is not implemented in this version of obsynth (implemented: canonical, perfect, finite-time)" "$tmp/err"
 
 # Run-time parameters and --param.
 "$bin" "$src/models/pendulum_params.sym" -o "$tmp/prm" --method canonical >"$tmp/out" 2>"$tmp/err"
