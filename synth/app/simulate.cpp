@@ -10,6 +10,7 @@
 
 #include "app/svg_plot.hpp"
 #include "app/synthesize.hpp"
+#include "designs/registry.hpp"
 #include "emit/dag.hpp"
 #include "front/parse.hpp"
 #include "obsynth/differentiator.hpp"
@@ -333,6 +334,86 @@ class JetsObserver {
   Vec xh_;
 };
 
+// ---- UpdateKind::sampled_delay (spec.hpp SampledDelay): filter bank, delay line, kernel
+// inverse over the tables, in double, in the order the generated step uses.
+class SampledDelayObserver {
+ public:
+  explicit SampledDelayObserver(const ObserverSpec& s)
+      : d_(*s.sampled_delay),
+        decay_(s.table(d_.decay_table)->values),
+        gain_(s.table(d_.gain_table)->values),
+        delay_(s.table(d_.delay_table)->values),
+        metric_(s.table(d_.metric_table)->values),
+        map_(s.table(d_.map_table)->values) {}
+  void reset(const Vec& xh0) {
+    xh_ = xh0;
+    ring_.assign((d_.delay_steps + 1) * d_.filters, 0.0);
+    u_ring_.assign(d_.delay_steps + 1, 0.0);
+    head_ = 0;
+    filled_ = 0;
+  }
+  // False when dt is not the design's sample period.
+  bool step(double dt, const Vec& u, const Vec& y) {
+    if (!(std::fabs(dt - d_.sample_period) <= 1e-6 * d_.sample_period)) return false;
+    const std::size_t pz = d_.filters, slots = d_.delay_steps + 1;
+    const std::size_t next = (head_ + 1) % slots;
+    for (std::size_t j = 0; j < pz; ++j)
+      ring_[next * pz + j] = decay_[j] * ring_[head_ * pz + j] + gain_[j] * y[0];
+    u_ring_[next] = d_.levels > 1 ? u[d_.input_index] : 0.0;
+    head_ = next;
+    if (filled_ < d_.delay_steps) ++filled_;
+    if (filled_ < d_.delay_steps) return true;
+    const std::size_t old = (head_ + 1) % slots;  // D steps ago
+    std::size_t level = 0;
+    if (d_.levels > 1) {
+      double v = u[d_.input_index];
+      if (d_.level_window_mean) {
+        double acc = 0;
+        for (std::size_t k = 0; k < slots; ++k)
+          if (k != old) acc += u_ring_[k];
+        v = acc / static_cast<double>(d_.delay_steps);
+      }
+      v = std::floor((v - d_.level_lo) / d_.level_step + (d_.level_nearest ? 0.5 : 0.0));
+      level = v <= 0                                    ? 0
+              : v >= static_cast<double>(d_.levels - 1) ? d_.levels - 1
+                                                        : static_cast<std::size_t>(v);
+    }
+    Vec raw(pz), eta(pz, 0.0);
+    for (std::size_t j = 0; j < pz; ++j)
+      raw[j] = ring_[head_ * pz + j] - delay_[j] * ring_[old * pz + j];
+    for (std::size_t j = 0; j < pz; ++j)
+      for (std::size_t k = 0; k < pz; ++k) eta[j] += metric_[j * pz + k] * raw[k];
+    const std::size_t n = d_.grid_count.size(), N = d_.points();
+    std::vector<std::size_t> idx(n, 0);
+    Vec sx(n, 0.0);
+    double sw = 0;
+    const double* q = map_.data() + level * N * pz;
+    for (std::size_t i = 0; i < N; ++i, q += pz) {
+      double d2 = 0;
+      for (std::size_t j = 0; j < pz; ++j) d2 += (q[j] - eta[j]) * (q[j] - eta[j]);
+      const double b = 1 / (d_.epsilon + std::sqrt(d2));
+      double w = b;
+      for (int k = 1; k < d_.weight_power; ++k) w *= b;
+      sw += w;
+      for (std::size_t s = 0; s < n; ++s)
+        sx[s] += w * (d_.grid_lo[s] + d_.grid_step[s] * static_cast<double>(idx[s]));
+      for (std::size_t s = n; s-- > 0;) {
+        if (++idx[s] < d_.grid_count[s]) break;
+        idx[s] = 0;
+      }
+    }
+    for (std::size_t s = 0; s < n; ++s) xh_[s] = sx[s] / sw;
+    return true;
+  }
+  const Vec& estimate() const { return xh_; }
+
+ private:
+  const SampledDelay& d_;
+  const Vec &decay_, &gain_, &delay_, &metric_, &map_;
+  Vec ring_, u_ring_, xh_;
+  std::size_t head_ = 0, filled_ = 0;
+};
+
 struct Plant {
   NumericFunction field, output, inputs;  // output reads (x, u): h may depend on u
   Vec f(double t, const Vec& x) const { return field(concat(x, inputs({t}))); }
@@ -422,6 +503,24 @@ void run_state_observer(const Plant& plant, SpecObserver& obs, const SimulationO
   }
 }
 
+// Discrete-time observers: the firmware step with u, y sampled at t_k (whatever --sampling).
+void run_sampled_delay_observer(const Plant& plant, SampledDelayObserver& obs,
+                                const SimulationOptions& opt, std::size_t steps, Recorder& rec) {
+  Vec x = opt.x0;
+  obs.reset(opt.xhat0);
+  if (!rec.record(0, x, obs.estimate(), "observer")) return;
+  for (std::size_t k = 0; k < steps; ++k) {
+    const double t = static_cast<double>(k) * opt.dt;
+    if (!obs.step(opt.dt, plant.inputs({t}), plant.output(x))) {
+      rec.res.diverged = fmt::format(
+          "simulate: the observer's fixed sample period differs from --dt {:g}", opt.dt);
+      return;
+    }
+    rk4([&](double tt, const Vec& xv) { return plant.f(tt, xv); }, t, opt.dt, x);
+    if (!rec.record(static_cast<double>(k + 1) * opt.dt, x, obs.estimate(), "observer")) return;
+  }
+}
+
 void run_jets_observer(const Plant& plant, JetsObserver& obs, const SimulationOptions& opt,
                        std::size_t steps, Recorder& rec) {
   Vec x = opt.x0;
@@ -478,7 +577,13 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
   const std::size_t steps = step_count(opt, m.n());
   std::string explanation;
   const auto methods = resolve_methods(a, {opt.method}, explanation);
-  const ObserverSpec spec = build_design(a, methods.front(), opt.design);
+  DesignOptions design = opt.design;
+  // A design with a fixed sample period gets --dt unless it was given.
+  if (const Design* d = find_design(methods.front()))
+    for (const auto& o : d->options)
+      if (o.name == "sample-period" && !design.find(o.name))
+        design.values[o.name] = fmt::format("{:.17g}", opt.dt);
+  const ObserverSpec spec = build_design(a, methods.front(), design);
   const GiNaC::exmap params = parameter_values(spec);
   const Plant plant = make_plant(m, opt.u_text, params);
   SimulationResult res;
@@ -487,6 +592,9 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
   if (spec.update == UpdateKind::jets) {
     JetsObserver obs(spec, params, opt, m.m());
     run_jets_observer(plant, obs, opt, steps, rec);
+  } else if (spec.update == UpdateKind::sampled_delay) {
+    SampledDelayObserver obs(spec);
+    run_sampled_delay_observer(plant, obs, opt, steps, rec);
   } else {
     SpecObserver obs(spec, params, opt);
     run_state_observer(plant, obs, opt, steps, rec);

@@ -49,6 +49,7 @@ std::string not_observable_note(const Analysis& a) {
 std::string choose_auto(const Analysis& a, std::string& explanation) {
   std::vector<std::string> rejected;
   for (const auto& d : design_registry()) {
+    if (!d.in_all) continue;  // by name only (large tables)
     const Verdict v = d.applies(a);
     if (v.applies) {
       explanation = fmt::format("auto: chose '{}' because {}", d.name, v.text());
@@ -75,7 +76,7 @@ std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<st
     std::string name = m;
     if (m == "all") {
       for (const auto& d : design_registry())
-        if (d.applies(a).applies &&
+        if (d.in_all && d.applies(a).applies &&
             std::find(methods.begin(), methods.end(), d.name) == methods.end())
           methods.push_back(d.name);
       continue;

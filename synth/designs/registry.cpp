@@ -6,6 +6,7 @@
 
 #include "designs/canonical.hpp"
 #include "designs/extended_linearization.hpp"
+#include "designs/finite_time.hpp"
 #include "designs/high_gain.hpp"
 #include "designs/kalman_theta.hpp"
 #include "designs/kou.hpp"
@@ -21,20 +22,15 @@ std::string Verdict::text() const {
 
 const std::vector<Design>& design_registry() {
   static const std::vector<Design> designs = {
-      canonical_design(),
-      perfect_design(),
-      high_gain_design(),
-      riccati_design(),
-      kalman_theta_design(),
-      thau_design(),
-      kou_design(),
-      extended_linearization_design(),
+      canonical_design(),    perfect_design(), high_gain_design(), riccati_design(),
+      kalman_theta_design(), thau_design(),    kou_design(),       extended_linearization_design(),
+      finite_time_design(),
   };
   return designs;
 }
 
 const std::vector<std::string>& planned_methods() {
-  static const std::vector<std::string> planned = {"finite-time"};
+  static const std::vector<std::string> planned = {};
   return planned;
 }
 

@@ -29,6 +29,9 @@ struct Design {
   Verdict (*applies)(const Analysis&) = nullptr;
   // Throws UserError (why it does not apply, or a bad option) on failure.
   ObserverSpec (*build)(const Analysis&, const DesignOptions&) = nullptr;
+  // Whether `--method all` and `--method auto` consider it (false for designs that build large
+  // numeric tables: chosen by name only).
+  bool in_all = true;
 };
 
 // Implemented designs, in the order `--method auto` tries them.

@@ -17,6 +17,8 @@ const char* update_kind_name(UpdateKind k) {
       return "linear_exact";
     case UpdateKind::jets:
       return "jets";
+    case UpdateKind::sampled_delay:
+      return "sampled_delay";
   }
   return "ode";
 }
@@ -25,6 +27,24 @@ std::size_t SymmetricBlock::packed_index(std::size_t r, std::size_t c) const {
   if (r > c) std::swap(r, c);
   // Rows 0..r-1 hold dim, dim-1, ..., dim-r+1 entries.
   return offset + r * dim - r * (r - 1) / 2 + (c - r);
+}
+
+std::size_t ConstTable::size() const {
+  std::size_t k = 1;
+  for (auto d : dims) k *= d;
+  return k;
+}
+
+std::size_t SampledDelay::points() const {
+  std::size_t k = 1;
+  for (auto c : grid_count) k *= c;
+  return k;
+}
+
+const ConstTable* ObserverSpec::table(const std::string& name) const {
+  for (const auto& t : tables)
+    if (t.name == name) return &t;
+  return nullptr;
 }
 
 const GeneratedFunction* ObserverSpec::function(const std::string& name) const {

@@ -58,10 +58,13 @@ struct GeneratedFunction {
 
 // How step(dt, u, y) advances the observer state.
 enum class UpdateKind {
-  ode,           // w' = rhs(w, u, y): one RK4 step with u, y held ("rhs")
-  linear_exact,  // w' = A_cl w + c(u, y): w <- Phi(dt) w + Gamma(dt) c, Phi and Gamma exact,
-                 // recomputed only when dt changes ("step_constant"; A_cl in closed_loop)
-  jets,          // w = jets of y and u from differentiators; x from "reconstruct"
+  ode,            // w' = rhs(w, u, y): one RK4 step with u, y held ("rhs")
+  linear_exact,   // w' = A_cl w + c(u, y): w <- Phi(dt) w + Gamma(dt) c, Phi and Gamma exact,
+                  // recomputed only when dt changes ("step_constant"; A_cl in closed_loop)
+  jets,           // w = jets of y and u from differentiators; x from "reconstruct"
+  sampled_delay,  // discrete time at one fixed sample period (SampledDelay): a filter bank
+                  // z <- a.*z + g y, a delay line eta = z - e^{A T} z(t - T) in a ring buffer,
+                  // and a table-driven estimate switched by the input level; no derivatives
 };
 const char* update_kind_name(UpdateKind k);
 
@@ -90,6 +93,46 @@ struct DesignConstant {
   std::string name;  // e.g. "poles"
   std::vector<GiNaC::numeric> values;
   std::string doc;
+};
+
+// Constant data of a design, emitted as const arrays (flash): `values` in row-major order of
+// `dims`, printed in the output precision.
+struct ConstTable {
+  std::string name;  // C identifier, e.g. "observation_map"
+  std::vector<std::size_t> dims;
+  std::vector<double> values;
+  std::string doc;  // one line
+  std::size_t size() const;
+};
+
+// UpdateKind::sampled_delay (the Kreisselmeier-Engel / Garcia-Hernandez finite-time
+// observer, seed 004 eq. 10, 15). With dt the fixed sample period, D = delay_steps, each step
+//   1. z <- decay .* z + gain * y            (exact zero-order hold of z' = A z + b y, A diag)
+//   2. the ring buffer keeps the last D + 1 values of z (and of u[input_index]); once D steps
+//      have passed since reset,
+//      level = clamp(floor((v - level_lo) / level_step + (level_nearest ? 1/2 : 0)), 0,
+//      levels - 1) with v = u[input_index] of this step, or with level_window_mean the mean
+//      of the last D samples of it (this one included; level 0 when levels == 1),
+//      eta = z - delay .* z(D steps ago), e = metric * eta (a filters x filters matrix), and
+//        xh = sum_i x_i w_i / sum_i w_i,  w_i = (epsilon + |e - q[level][i]|_2)^-weight_power
+//      over the regular state grid x_i; before that, xh stays the reset estimate.
+// The grid enumerates states row-major: the last state varies fastest; x_i(s) = grid_lo[s] +
+// grid_step[s] * index_s. Table shapes: decay, gain, delay [filters]; map [levels][points]
+// [filters], metric [filters][filters] row-major (names in ObserverSpec::tables).
+struct SampledDelay {
+  double sample_period = 0;  // the only dt step() accepts (relative tolerance 1e-6)
+  std::size_t delay_steps = 0;
+  std::size_t filters = 0;
+  std::string decay_table, gain_table, delay_table, metric_table, map_table;
+  std::vector<double> grid_lo, grid_step;
+  std::vector<std::size_t> grid_count;
+  std::size_t input_index = 0;
+  double level_lo = 0, level_step = 1;
+  std::size_t levels = 1;
+  bool level_nearest = false, level_window_mean = false;
+  double epsilon = 0.05;
+  int weight_power = 1;
+  std::size_t points() const;
 };
 
 struct ReportRow {
@@ -182,6 +225,11 @@ struct ObserverSpec {
   double default_epsilon = 0.01;
 
   int newton_iterations = 8;
+
+  // sampled_delay: the filter bank, delay line and inverse tables.
+  std::optional<SampledDelay> sampled_delay;
+  std::vector<ConstTable> tables;
+  const ConstTable* table(const std::string& name) const;
 
   std::vector<RuntimeParam> params;
   std::vector<DesignConstant> constants;

@@ -495,6 +495,93 @@ const char* kEstimateNewton =
       for (j = 0; j < {{n}}; ++j) dx += tau[j * {{n}} + i] * r[j];
       x[i] -= dx;
     }
+
+// ---- UpdateKind::sampled_delay (spec.hpp SampledDelay) ----------------------------------------
+
+const char* kTableC = R"(
+/* {{doc}} [{{dims}}] */
+static const Scalar {{name}}[{{size}}] = {
+{{values}}};
+)";
+
+const char* kSampledDelayC = R"(
+static const Scalar grid_lo[{{P}}_n] = { {{grid_lo}} };
+static const Scalar grid_step[{{P}}_n] = { {{grid_step}} };
+static const int grid_count[{{P}}_n] = { {{grid_count}} };
+
+{{P}}_status {{P}}_reset({{P}}_observer* o, const Scalar* xh0) {
+  int i;
+  for (i = 0; i < {{P}}_n; ++i) o->w[i] = o->xh[i] = xh0[i];
+  for (i = 0; i < ({{P}}_delay_steps + 1) * {{P}}_filters; ++i) o->ring[i] = {{zero}};
+  for (i = 0; i <= {{P}}_delay_steps; ++i) o->u_ring[i] = {{zero}};
+  o->head = 0;
+  o->filled = 0;
+  o->level = 0;
+  return o->status = all_finite(o->xh, {{P}}_n) ? {{P}}_ok : {{P}}_non_finite;
+}
+
+void {{P}}_init({{P}}_observer* o) {
+  static const Scalar zero[{{P}}_n] = { {{zeros}} };
+  (void){{P}}_reset(o, zero);
+}
+
+/* One sample: u and y measured now; dt must be the sample period {{dt}} (else
+ * {{P}}_non_finite, state kept). Until the delay line has filled the estimate stays xh0. */
+{{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
+  Scalar raw[{{P}}_filters], eta[{{P}}_filters], sx[{{P}}_n], sw = {{zero}};
+  int idx[{{P}}_n];
+  int i, j, s, k, next, old;
+  const Scalar* q;
+  if (!({{fabs}}(dt - {{dt}}) <= {{tol}} * {{dt}}) || !all_finite(u, {{m}}) || !all_finite(y, 1))
+    return o->status = {{P}}_non_finite;
+  next = o->head == {{P}}_delay_steps ? 0 : o->head + 1;
+  for (j = 0; j < {{P}}_filters; ++j)
+    o->ring[next * {{P}}_filters + j] =
+        {{decay}}[j] * o->ring[o->head * {{P}}_filters + j] + {{gain}}[j] * y[0];
+  o->u_ring[next] = {{u_now}};
+  o->head = next;
+  if (o->filled < {{P}}_delay_steps) ++o->filled;
+  if (o->filled < {{P}}_delay_steps) return o->status = {{P}}_ok;
+  old = o->head == {{P}}_delay_steps ? 0 : o->head + 1; /* D samples ago */
+{{level}}  for (j = 0; j < {{P}}_filters; ++j)
+    raw[j] = o->ring[o->head * {{P}}_filters + j] - {{delay}}[j] * o->ring[old * {{P}}_filters + j];
+  for (j = 0; j < {{P}}_filters; ++j) { /* e = M eta */
+    eta[j] = {{zero}};
+    for (k = 0; k < {{P}}_filters; ++k) eta[j] += {{metric}}[j * {{P}}_filters + k] * raw[k];
+  }
+  for (s = 0; s < {{P}}_n; ++s) {
+    idx[s] = 0;
+    sx[s] = {{zero}};
+  }
+  /* Q_k(eta) = sum_i x_i w_i / sum_i w_i, w_i = (epsilon + |eta - q_k(x_i)|)^-{{power}} */
+  q = {{map}} + (long)o->level * {{P}}_grid_points * {{P}}_filters;
+  for (i = 0; i < {{P}}_grid_points; ++i, q += {{P}}_filters) {
+    Scalar d2 = {{zero}}, b, w;
+    for (j = 0; j < {{P}}_filters; ++j) {
+      const Scalar e = q[j] - eta[j];
+      d2 += e * e;
+    }
+    b = {{one}} / ({{epsilon}} + {{sqrt}}(d2));
+    w = b;
+    for (k = 1; k < {{power}}; ++k) w *= b;
+    sw += w;
+    for (s = 0; s < {{P}}_n; ++s) sx[s] += w * (grid_lo[s] + grid_step[s] * (Scalar)idx[s]);
+    for (s = {{P}}_n - 1; s >= 0; --s) { /* last state fastest */
+      if (++idx[s] < grid_count[s]) break;
+      idx[s] = 0;
+    }
+  }
+  for (s = 0; s < {{P}}_n; ++s) sx[s] /= sw;
+  if (!all_finite(sx, {{P}}_n)) return o->status = {{P}}_non_finite;
+  for (s = 0; s < {{P}}_n; ++s) o->w[s] = o->xh[s] = sx[s];
+  return o->status = {{P}}_ok;
+}
+)";
+
+const char* kLevelSelectC = R"(  {
+    Scalar v = u[{{input}}];
+{{window_mean}}    v = {{floor}}((v - {{level_lo}}) / {{level_step}}{{nearest}});
+    o->level = v <= {{zero}} ? 0 : v >= (Scalar)({{levels}} - 1) ? {{levels}} - 1 : (int)v;
   }
 )";
 
@@ -523,9 +610,7 @@ class CBuilder {
  public:
   CBuilder(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt)
       : a_(a), s_(s), opt_(opt) {
-    prefix_ = cxx_identifier(a.model.name) + "_" + s.method;
-    for (auto& ch : prefix_)
-      if (ch == '-') ch = '_';  // method names such as "high-gain" are not C identifiers
+    prefix_ = cxx_identifier(a.model.name + "_" + s.method);  // "finite-time": finite_time
     const Model& m = a.model;
     for (const auto& x : m.states) local(x.get_name());
     for (const auto& x : m.inputs) local(x.get_name());
@@ -591,6 +676,12 @@ class CBuilder {
   Namer names_;
   std::map<std::string, std::string> local_;
 };
+
+std::string replace_once(const std::string& text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  OBSYNTH_ASSERT(at != std::string::npos, "emit_c: template anchor missing: " + from);
+  return text.substr(0, at) + to + text.substr(at + from.size());
+}
 
 std::string estimate_body(const ObserverSpec& s, const std::string& prm, CBuilder& b,
                           Precision precision) {
@@ -787,6 +878,84 @@ std::string closed_loop(const ObserverSpec& s, Precision p) {
   return fmt::format("{}", fmt::join(v, ", "));
 }
 
+std::string c_table_literal(double v, Precision p) {
+  std::string t = p == Precision::single ? fmt::format("{:.9g}", static_cast<float>(v))
+                                         : fmt::format("{:.17g}", v);
+  if (t.find_first_of(".en") == std::string::npos) t += ".0";
+  return p == Precision::single ? t + "f" : t;
+}
+
+// The tables (static const: flash) and the sampled-delay lifecycle and step.
+std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& m, Precision p) {
+  const SampledDelay& d = *s.sampled_delay;
+  const bool single = p == Precision::single;
+  std::string out;
+  for (const auto& t : s.tables) {
+    std::string values;
+    for (std::size_t i = 0; i < t.values.size(); ++i) {
+      values += i % 8 == 0 ? "    " : " ";
+      values += c_table_literal(t.values[i], p) + ",";
+      if (i % 8 == 7 || i + 1 == t.values.size()) values += "\n";
+    }
+    std::vector<std::string> dims;
+    for (auto k : t.dims) dims.push_back(std::to_string(k));
+    out += render_template(kTableC, {{"doc", t.doc},
+                                     {"dims", fmt::format("{}", fmt::join(dims, "]["))},
+                                     {"name", t.name},
+                                     {"size", std::to_string(t.size())},
+                                     {"values", values}});
+  }
+  auto lits = [&](const std::vector<double>& v) {
+    std::vector<std::string> o;
+    for (double x : v) o.push_back(c_table_literal(x, p));
+    return fmt::format("{}", fmt::join(o, ", "));
+  };
+  const std::string level =
+      d.levels > 1
+          ? render_template(
+                kLevelSelectC,
+                {{"floor", single ? "floorf" : "floor"},
+                 {"input", std::to_string(d.input_index)},
+                 {"window_mean", d.level_window_mean
+                                     ? fmt::format("    Scalar acc = {0}; /* mean of the last D "
+                                                   "samples */\n"
+                                                   "    for (k = 0; k <= {1}_delay_steps; ++k)\n"
+                                                   "      if (k != old) acc += o->u_ring[k];\n"
+                                                   "    v = acc / (Scalar){1}_delay_steps;\n",
+                                                   b.lit(0), b.prefix())
+                                     : ""},
+                 {"nearest", d.level_nearest ? " + " + b.lit(0.5) : ""},
+                 {"level_lo", c_table_literal(d.level_lo, p)},
+                 {"level_step", c_table_literal(d.level_step, p)},
+                 {"zero", b.lit(0)},
+                 {"levels", std::to_string(d.levels)}})
+          : "  (void)u;\n";
+  std::vector<std::string> zeros(m.n(), b.lit(0));
+  out += render_template(kSampledDelayC,
+                         {{"P", b.prefix()},
+                          {"grid_lo", lits(d.grid_lo)},
+                          {"grid_step", lits(d.grid_step)},
+                          {"grid_count", fmt::format("{}", fmt::join(d.grid_count, ", "))},
+                          {"zero", b.lit(0)},
+                          {"one", b.lit(1)},
+                          {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
+                          {"dt", c_table_literal(d.sample_period, p)},
+                          {"fabs", single ? "fabsf" : "fabs"},
+                          {"sqrt", single ? "sqrtf" : "sqrt"},
+                          {"tol", single ? "1e-6f" : "1e-6"},
+                          {"m", std::to_string(std::max<std::size_t>(m.m(), 1))},
+                          {"u_now", d.levels > 1 ? fmt::format("u[{}]", d.input_index) : b.lit(0)},
+                          {"level", level},
+                          {"decay", d.decay_table},
+                          {"gain", d.gain_table},
+                          {"delay", d.delay_table},
+                          {"metric", d.metric_table},
+                          {"map", d.map_table},
+                          {"power", std::to_string(d.weight_power)},
+                          {"epsilon", c_table_literal(d.epsilon, p)}});
+  return out;
+}
+
 }  // namespace
 
 EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt) {
@@ -822,6 +991,15 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
         P, s.state_size * s.state_size);
   if (params) members += fmt::format("  {}_params prm;\n", P);
   if (jets) members += jet_members(s, P, m.m());
+  const bool delay = s.update == UpdateKind::sampled_delay;
+  if (delay) {
+    const SampledDelay& d = *s.sampled_delay;
+    members += fmt::format(
+        "  {0}_scalar ring[{1} * {2}]; /* delay line: z at the last D + 1 samples */\n"
+        "  {0}_scalar u_ring[{1}];     /* the input selecting the level, same samples */\n"
+        "  int head, filled, level;    /* newest slot, samples since reset, input level */\n",
+        P, d.delay_steps + 1, d.filters);
+  }
   std::string guard = "OBSYNTH_GEN_" + P + "_H";
   for (auto& ch : guard) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
   const std::string scalar = precision_name(opt.precision);
@@ -858,25 +1036,36 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
                             {"half", b.lit(0.5)},
                             {"two", b.lit(2)},
                             {"fabs", opt.precision == Precision::single ? "fabsf" : "fabs"}});
-  std::string reset_body = s.init == InitKind::function
-                               ? fmt::format("  {}(xh0{}, o->w);\n", b.fn(s.roles.init), prm)
-                               : "  for (i = 0; i < N; ++i) o->w[i] = xh0[i];\n";
-  if (jets) reset_body += jet_reset_body(s, b, prm);
-  std::string init_body;
-  if (params) init_body += fmt::format("  {}_params_init(&o->prm);\n", P);
-  if (jets) init_body += jet_init_body(s, b, opt.precision);
-  if (exact) init_body += fmt::format("  o->dt = {};\n", b.lit(0));
-  std::vector<std::string> zeros(m.n(), b.lit(0));
-  if (jets) src += jets_support_text(s, b, opt.precision);
-  src += render_template(kLifecycle, {{"P", P},
-                                      {"estimate_body", estimate_body(s, prm, b, opt.precision)},
-                                      {"reset_body", reset_body},
-                                      {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
-                                      {"init_body", init_body}});
-  if (jets)
-    src += jets_step_text(s, prm, b, m.m());
-  else
-    src += guarded(s) ? guarded_step_text(s, prm, b, opt.precision) : step_text(s, prm, b);
+  if (delay) {
+    const SampledDelay& d = *s.sampled_delay;
+    // The header's enum gets the delay line's sizes (used by the step and for sizing).
+    h.text =
+        replace_once(h.text, fmt::format("{0}_w = {1} }};", P, s.state_size),
+                     fmt::format("{0}_w = {1}, {0}_filters = {2}, {0}_delay_steps = {3}, "
+                                 "{0}_grid_points = {4}, {0}_levels = {5} }};",
+                                 P, s.state_size, d.filters, d.delay_steps, d.points(), d.levels));
+    src += sampled_delay_text(s, b, m, opt.precision);
+  } else {
+    std::string reset_body = s.init == InitKind::function
+                                 ? fmt::format("  {}(xh0{}, o->w);\n", b.fn(s.roles.init), prm)
+                                 : "  for (i = 0; i < N; ++i) o->w[i] = xh0[i];\n";
+    if (jets) reset_body += jet_reset_body(s, b, prm);
+    std::string init_body;
+    if (params) init_body += fmt::format("  {}_params_init(&o->prm);\n", P);
+    if (jets) init_body += jet_init_body(s, b, opt.precision);
+    if (exact) init_body += fmt::format("  o->dt = {};\n", b.lit(0));
+    std::vector<std::string> zeros(m.n(), b.lit(0));
+    if (jets) src += jets_support_text(s, b, opt.precision);
+    src += render_template(kLifecycle, {{"P", P},
+                                        {"estimate_body", estimate_body(s, prm, b, opt.precision)},
+                                        {"reset_body", reset_body},
+                                        {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
+                                        {"init_body", init_body}});
+    if (jets)
+      src += jets_step_text(s, prm, b, m.m());
+    else
+      src += guarded(s) ? guarded_step_text(s, prm, b, opt.precision) : step_text(s, prm, b);
+  }
   h.source_text = src;
   h.operations = b.operations_;
   std::string set_params;

@@ -316,6 +316,126 @@ const char* kReconstructNewton = R"(    State z;
     status_ = r.status;
 )";
 
+// ---- UpdateKind::sampled_delay (spec.hpp SampledDelay) ----------------------------------------
+
+// Constant tables of a design: flash data, in the output precision.
+const char* kTables = R"(
+/// Constant tables of the {{title}} (flash: {{bytes}} bytes).
+struct {{tables_name}} {
+{{tables}}};
+)";
+
+const char* kTable = R"(  /// {{doc}} [{{dims}}]
+  static constexpr {{scalar}} {{name}}[{{size}}] = {
+{{values}}};
+)";
+
+const char* kSampledDelayClass = R"({{class_comment}}{{preamble}}  using Tables = {{tables_name}};
+  static constexpr int filters = {{filters}};          ///< dimension of the filter bank z
+  static constexpr int delay_steps = {{delay_steps}};  ///< D: the window T in samples
+  static constexpr int grid_points = {{points}};       ///< x_i of the inverse
+  static constexpr int levels = {{levels}};            ///< input levels (one table each)
+  /// The only sample period step() accepts (the delay line has fixed length).
+  static constexpr Scalar sample_period = {{dt}};
+
+  {{class_name}}() noexcept { reset(State::Zero()); }
+
+  /// Starts from the estimate xh0, kept until the delay line has filled (T after reset).
+  void reset(const State& xh0) noexcept {
+    xh_ = xh0;
+    for (auto& row : ring_)
+      for (auto& v : row) v = Scalar(0);
+    for (auto& v : u_ring_) v = Scalar(0);
+    head_ = 0;
+    filled_ = 0;
+    level_ = 0;
+    status_ = obsynth::all_finite(xh_) ? obsynth::Status::ok : obsynth::Status::non_finite;
+  }
+
+  /// One sample: u and y measured now, dt == sample_period (else Status::non_finite, state
+  /// kept).
+  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
+    using std::abs;
+    using std::floor;
+    using std::sqrt;
+    if (!(abs(dt - sample_period) <= Scalar(1e-6) * sample_period) || !obsynth::all_finite(u) ||
+        !obsynth::all_finite(y))
+      return status_ = obsynth::Status::non_finite;
+    const int next = head_ == delay_steps ? 0 : head_ + 1;
+    for (int j = 0; j < filters; ++j)
+      ring_[next][j] = Scalar(Tables::{{decay}}[j]) * ring_[head_][j] + Scalar(Tables::{{gain}}[j]) * y(0);
+    u_ring_[next] = {{u_now}};
+    head_ = next;
+    if (filled_ < delay_steps) ++filled_;
+    if (filled_ < delay_steps) return status_ = obsynth::Status::ok;
+    const int old = head_ == delay_steps ? 0 : head_ + 1;  // D samples ago
+{{level}}    Scalar raw[filters], eta[filters];
+    for (int j = 0; j < filters; ++j)
+      raw[j] = ring_[head_][j] - Scalar(Tables::{{delay}}[j]) * ring_[old][j];
+    for (int j = 0; j < filters; ++j) {  // e = M eta
+      eta[j] = Scalar(0);
+      for (int k = 0; k < filters; ++k) eta[j] += Scalar(Tables::{{metric}}[j * filters + k]) * raw[k];
+    }
+    // Q_k(eta) = sum_i x_i w_i / sum_i w_i, w_i = (epsilon + |eta - q_k(x_i)|)^-{{power}}.
+    int idx[n] = {};
+    State sx = State::Zero();
+    Scalar sw = Scalar(0);
+    const {{table_scalar}}* q = Tables::{{map}} + static_cast<long>(level_) * grid_points * filters;
+    for (int i = 0; i < grid_points; ++i, q += filters) {
+      Scalar d2 = Scalar(0);
+      for (int j = 0; j < filters; ++j) {
+        const Scalar e = Scalar(q[j]) - eta[j];
+        d2 += e * e;
+      }
+      const Scalar b = Scalar(1) / ({{epsilon}} + sqrt(d2));
+      Scalar w = b;
+      for (int k = 1; k < {{power}}; ++k) w *= b;
+      sw += w;
+      for (int s = 0; s < n; ++s) sx(s) += w * (grid_lo(s) + grid_step(s) * Scalar(idx[s]));
+      for (int s = n - 1; s >= 0; --s) {  // last state fastest
+        if (++idx[s] < grid_count(s)) break;
+        idx[s] = 0;
+      }
+    }
+    const State x = sx / sw;
+    if (!obsynth::all_finite(x)) return status_ = obsynth::Status::non_finite;
+    xh_ = x;
+    return status_ = obsynth::Status::ok;
+  }
+
+  const State& estimate() const noexcept { return xh_; }
+  obsynth::Status status() const noexcept { return status_; }
+  /// The input level (index of the inverse table) of the last step.
+  int level() const noexcept { return level_; }
+
+ private:
+  static Scalar grid_lo(int s) noexcept {
+    constexpr {{table_scalar}} v[n] = { {{grid_lo}} };
+    return Scalar(v[s]);
+  }
+  static Scalar grid_step(int s) noexcept {
+    constexpr {{table_scalar}} v[n] = { {{grid_step}} };
+    return Scalar(v[s]);
+  }
+  static int grid_count(int s) noexcept {
+    constexpr int v[n] = { {{grid_count}} };
+    return v[s];
+  }
+  Scalar ring_[delay_steps + 1][filters];  ///< the delay line: z at the last D + 1 samples
+  Scalar u_ring_[delay_steps + 1];         ///< the input selecting the level, same samples
+  int head_ = 0, filled_ = 0, level_ = 0;
+  State xh_;
+{{members}}  obsynth::Status status_ = obsynth::Status::ok;
+};
+)";
+
+const char* kLevelSelect = R"(    {
+      Scalar v = u({{input}});
+{{window_mean}}      v = floor((v - {{level_lo}}) / {{level_step}}{{nearest}});
+      level_ = v <= Scalar(0) ? 0 : v >= Scalar(levels - 1) ? levels - 1 : static_cast<int>(v);
+    }
+)";
+
 const char* kUsage = R"(// Usage of {{class_name}} (generated by obsynth from {{source}}).
 #include <cstdio>
 
@@ -777,6 +897,102 @@ void check_emittable(const Analysis& a, const ObserverSpec& s) {
                     "the " + s.method + " observer is single-output for now");
 }
 
+// A table entry in the output precision (round-trip digits).
+std::string table_literal(double v, Precision p) {
+  if (p == Precision::single) {
+    std::string t = fmt::format("{:.9g}", static_cast<float>(v));
+    if (t.find_first_of(".en") == std::string::npos) t += ".0";
+    return t + "f";
+  }
+  std::string t = fmt::format("{:.17g}", v);
+  if (t.find_first_of(".en") == std::string::npos) t += ".0";
+  return t;
+}
+
+std::string table_values(const std::vector<double>& values, Precision p) {
+  std::string out;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    out += i % 8 == 0 ? "      " : " ";
+    out += table_literal(values[i], p) + ",";
+    if (i % 8 == 7 || i + 1 == values.size()) out += "\n";
+  }
+  return out;
+}
+
+std::string tables_text(const ObserverSpec& s, const EmitOptions& opt, const std::string& name) {
+  if (s.tables.empty()) return "";
+  std::string body;
+  std::size_t bytes = 0;
+  const std::size_t width = opt.precision == Precision::single ? 4 : 8;
+  for (const auto& t : s.tables) {
+    std::vector<std::string> dims;
+    for (auto d : t.dims) dims.push_back(std::to_string(d));
+    body += render_template(kTable, {{"doc", t.doc},
+                                     {"dims", fmt::format("{}", fmt::join(dims, "]["))},
+                                     {"scalar", precision_name(opt.precision)},
+                                     {"name", t.name},
+                                     {"size", std::to_string(t.size())},
+                                     {"values", table_values(t.values, opt.precision)}});
+    bytes += t.size() * width;
+  }
+  return render_template(kTables, {{"title", s.title},
+                                   {"bytes", std::to_string(bytes)},
+                                   {"tables_name", name},
+                                   {"tables", body}});
+}
+
+std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt,
+                                const ClassContext& c, const std::string& tables_name) {
+  const SampledDelay& d = *s.sampled_delay;
+  const Precision p = opt.precision;
+  auto lits = [&](const std::vector<double>& v) {
+    std::vector<std::string> out;
+    for (double x : v) out.push_back(table_literal(x, p));
+    return fmt::format("{}", fmt::join(out, ", "));
+  };
+  const std::string level =
+      d.levels > 1
+          ? render_template(kLevelSelect,
+                            {{"input", std::to_string(d.input_index)},
+                             {"window_mean",
+                              d.level_window_mean
+                                  ? "      Scalar acc = Scalar(0);  // mean of the last D samples\n"
+                                    "      for (int k = 0; k <= delay_steps; ++k)\n"
+                                    "        if (k != old) acc += u_ring_[k];\n"
+                                    "      v = acc / Scalar(delay_steps);\n"
+                                  : ""},
+                             {"nearest", d.level_nearest ? " + Scalar(0.5)" : ""},
+                             {"level_lo", scalar_literal(GiNaC::numeric(d.level_lo), p)},
+                             {"level_step", scalar_literal(GiNaC::numeric(d.level_step), p)}})
+          : "    static_cast<void>(u);\n";
+  (void)a;
+  return render_template(
+      kSampledDelayClass,
+      {{"class_comment", class_comment(s)},
+       {"preamble", render_preamble(c)},
+       {"tables_name", tables_name},
+       {"filters", std::to_string(d.filters)},
+       {"delay_steps", std::to_string(d.delay_steps)},
+       {"points", std::to_string(d.points())},
+       {"levels", std::to_string(d.levels)},
+       {"dt", scalar_literal(GiNaC::numeric(d.sample_period), p)},
+       {"class_name", c.common.at("class_name")},
+       {"u_now", d.levels > 1 ? fmt::format("u({})", d.input_index) : std::string("Scalar(0)")},
+       {"level", level},
+       {"decay", d.decay_table},
+       {"gain", d.gain_table},
+       {"delay", d.delay_table},
+       {"metric", d.metric_table},
+       {"map", d.map_table},
+       {"power", std::to_string(d.weight_power)},
+       {"table_scalar", precision_name(p)},
+       {"epsilon", scalar_literal(GiNaC::numeric(d.epsilon), p)},
+       {"grid_lo", lits(d.grid_lo)},
+       {"grid_step", lits(d.grid_step)},
+       {"grid_count", fmt::format("{}", fmt::join(d.grid_count, ", "))},
+       {"members", c.params_member}});
+}
+
 }  // namespace
 
 EmittedHeader emit_cxx_header(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt) {
@@ -811,7 +1027,12 @@ EmittedHeader emit_cxx_header(const Analysis& a, const ObserverSpec& s, const Em
                 {"params_alias", b.has_params() ? "  using Params = ModelParams<Scalar>;\n" : ""},
                 {"functions", functions}});
   const ClassContext c = class_context(a, s, opt, h.class_name, functions_name);
-  h.text += s.update == UpdateKind::jets ? jets_class(a, s, opt, c) : state_class(a, s, opt, c);
+  const std::string tables_name = s.class_suffix + "Tables";
+  h.text += tables_text(s, opt, tables_name);
+  if (s.update == UpdateKind::sampled_delay)
+    h.text += sampled_delay_class(a, s, opt, c, tables_name);
+  else
+    h.text += s.update == UpdateKind::jets ? jets_class(a, s, opt, c) : state_class(a, s, opt, c);
   h.text += render_template(kFooter, {{"namespace", h.namespace_name}});
   h.operations = b.operations_;
   h.usage_example = usage_example(h, s, opt);

@@ -1,0 +1,704 @@
+#include "designs/finite_time.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <Eigen/Dense>
+
+#include "designs/options.hpp"
+#include "emit/dag.hpp"
+#include "symbolic/expr_print.hpp"
+
+namespace obsynth {
+
+namespace {
+
+using Array = Eigen::ArrayXd;
+
+// ---- vectorised evaluation of model expressions over many points ------------------------
+
+// The model's expressions evaluated elementwise over arrays (one entry per grid point), through
+// the same DAG the emitters print from. Used only to tabulate q; the observer reads the tables.
+class ArrayFunction {
+ public:
+  ArrayFunction(const ExVec& outputs, const std::vector<std::string>& inputs) {
+    for (const auto& e : outputs) out_.push_back(dag_.add(e));
+    for (std::size_t i = 0; i < inputs.size(); ++i) input_[inputs[i]] = i;
+  }
+  std::vector<Array> operator()(const std::vector<Array>& in) const {
+    const Eigen::Index len = in.empty() ? 1 : in[0].size();
+    std::vector<Array> v(dag_.size());
+    for (std::size_t id = 0; id < dag_.size(); ++id) {
+      const Node& n = dag_.node(static_cast<int>(id));
+      auto arg = [&](std::size_t i) -> const Array& {
+        return v[static_cast<std::size_t>(n.args[i])];
+      };
+      Array r;
+      switch (n.op) {
+        case NodeOp::constant:
+          r = Array::Constant(len, n.value.to_double());
+          break;
+        case NodeOp::variable: {
+          auto it = input_.find(n.name);
+          OBSYNTH_ASSERT(it != input_.end(), "finite-time: unbound symbol " + n.name);
+          r = in[it->second];
+          break;
+        }
+        case NodeOp::add:
+          r = arg(0);
+          for (std::size_t i = 1; i < n.args.size(); ++i) r += arg(i);
+          break;
+        case NodeOp::mul:
+          r = arg(0);
+          for (std::size_t i = 1; i < n.args.size(); ++i) r *= arg(i);
+          break;
+        case NodeOp::div:
+          r = arg(0) / arg(1);
+          break;
+        case NodeOp::neg:
+          r = -arg(0);
+          break;
+        case NodeOp::pow_int:
+          r = arg(0);
+          for (long k = 1; k < n.exponent; ++k) r *= arg(0);
+          break;
+        case NodeOp::sqrt:
+          r = arg(0).sqrt();
+          break;
+        case NodeOp::pow_real:
+          r = arg(0).pow(n.value.to_double());
+          break;
+        case NodeOp::call: {
+          const Array& a = arg(0);
+          if (n.name == "sin")
+            r = a.sin();
+          else if (n.name == "cos")
+            r = a.cos();
+          else if (n.name == "tan")
+            r = a.tan();
+          else if (n.name == "exp")
+            r = a.exp();
+          else if (n.name == "log")
+            r = a.log();
+          else if (n.name == "tanh")
+            r = a.tanh();
+          else if (n.name == "atan")
+            r = a.atan();
+          else if (n.name == "atanh")
+            r = a.unaryExpr([](double q) { return std::atanh(q); });
+          else
+            OBSYNTH_ASSERT(false, "finite-time: unsupported function " + n.name);
+          break;
+        }
+      }
+      v[id] = std::move(r);
+    }
+    std::vector<Array> out;
+    for (int id : out_) out.push_back(v[static_cast<std::size_t>(id)]);
+    return out;
+  }
+
+ private:
+  Dag dag_;
+  std::vector<int> out_;
+  std::map<std::string, std::size_t> input_;
+};
+
+// ---- design choices ---------------------------------------------------------------------
+
+struct Choices {
+  double T = 1, dt = 0.01;
+  std::size_t D = 100;
+  std::vector<double> lambda;
+  std::vector<double> lo, step;
+  std::vector<std::size_t> count;
+  double level_lo = 0, level_step = 1;
+  std::size_t levels = 1;
+  double eps = 0;
+  bool eps_given = false;
+  int power = 1;
+  std::size_t backward_steps = 200;
+  std::size_t bound_samples = 300;
+  bool whiten = true;
+  bool nearest = true, window_mean = true;
+  std::vector<std::string> notes;  // how defaults were chosen
+};
+
+double dbl(const GiNaC::numeric& q) {
+  return q.to_double();
+}
+
+UserError option_error(const std::string& text) {
+  return UserError(SourceLoc{}, text);
+}
+
+std::size_t count_for(double lo, double hi, double step, const std::string& what) {
+  const double k = (hi - lo) / step;
+  const double r = std::round(k);
+  if (std::fabs(k - r) > 1e-6 * std::max(1.0, k))
+    throw option_error(
+        fmt::format("{}: the step {} does not divide [{}, {}] (ratio {})", what, step, lo, hi, k));
+  return static_cast<std::size_t>(r) + 1;
+}
+
+Choices choose(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  Choices c;
+  if (const auto T = real_option(o, "window")) {
+    c.T = dbl(*T);
+    if (!(c.T > 0)) throw option_error("--window: T must be positive");
+  } else {
+    c.notes.push_back("window T = 1 (default; give --window)");
+  }
+  if (const auto dt = real_option(o, "sample-period")) {
+    c.dt = dbl(*dt);
+    if (!(c.dt > 0)) throw option_error("--sample-period must be positive");
+  } else {
+    c.dt = c.T / 100;
+  }
+  const double D = c.T / c.dt;
+  c.D = static_cast<std::size_t>(std::llround(D));
+  if (c.D < 1 || std::fabs(D - static_cast<double>(c.D)) > 1e-6 * D)
+    throw option_error(fmt::format(
+        "--window {} is not a whole number of sample periods {} (ratio {}): the delay line "
+        "has fixed length",
+        c.T, c.dt, D));
+  if (c.D > 1000000) throw option_error("the delay line would exceed 10^6 samples");
+  for (const auto& q : real_list_option(o, "filter-poles")) {
+    if (!q.is_negative())
+      throw option_error(fmt::format("--filter-poles: {} is not negative", to_string(q)));
+    c.lambda.push_back(dbl(q));
+  }
+  if (c.lambda.empty()) {
+    // 2n + 1 filters (Kreisselmeier-Engel: generically enough for injectivity), spread
+    // geometrically from -0.2/T to -20/T.
+    const std::size_t k = 2 * m.n() + 1;
+    for (std::size_t i = 0; i < k; ++i)
+      c.lambda.push_back(-0.2 / c.T *
+                         std::pow(100.0, static_cast<double>(i) / static_cast<double>(k - 1)));
+    c.notes.push_back(fmt::format("{} filter poles geometric from -0.2/T to -20/T (default)", k));
+  }
+  for (std::size_t i = 0; i < c.lambda.size(); ++i)
+    for (std::size_t j = 0; j < i; ++j)
+      if (c.lambda[i] == c.lambda[j])
+        throw option_error(
+            "--filter-poles: the eigenvalues must be distinct (A diagonal, "
+            "(A, b) controllable)");
+  // State grid over the domain box.
+  const auto steps = real_list_option(o, "grid-step");
+  if (steps.size() > 1 && steps.size() != m.n())
+    throw option_error(fmt::format("--grid-step: give one step or one per state ({}), got {}",
+                                   m.n(), steps.size()));
+  const std::size_t default_per_axis = std::max<std::size_t>(
+      3, static_cast<std::size_t>(std::floor(std::pow(2048.0, 1.0 / static_cast<double>(m.n())))));
+  for (std::size_t s = 0; s < m.n(); ++s) {
+    const Interval b = m.box(m.states[s]);
+    const double lo = dbl(b.lo), hi = dbl(b.hi);
+    c.lo.push_back(lo);
+    if (steps.empty()) {
+      c.count.push_back(default_per_axis);
+      c.step.push_back((hi - lo) / static_cast<double>(default_per_axis - 1));
+    } else {
+      const double h = dbl(steps.size() == 1 ? steps[0] : steps[s]);
+      if (!(h > 0)) throw option_error("--grid-step must be positive");
+      c.step.push_back(h);
+      c.count.push_back(count_for(lo, hi, h, "--grid-step for " + m.states[s].get_name()));
+    }
+  }
+  if (steps.empty())
+    c.notes.push_back(fmt::format(
+        "{} grid points per state (default; --grid-step refines or coarsens)", default_per_axis));
+  // Input levels.
+  if (m.m() == 1) {
+    const Interval b = m.box(m.inputs[0]);
+    c.level_lo = dbl(b.lo);
+    const double hi = dbl(b.hi);
+    if (const auto mu = real_option(o, "input-step")) {
+      c.level_step = dbl(*mu);
+      if (!(c.level_step > 0)) throw option_error("--input-step must be positive");
+    } else {
+      c.level_step = hi > c.level_lo ? (hi - c.level_lo) / 10 : 1;
+      c.notes.push_back("11 input levels (default; --input-step)");
+    }
+    c.levels = hi > c.level_lo ? count_for(c.level_lo, hi, c.level_step, "--input-step") : 1;
+  }
+  if (const auto e = real_option(o, "kernel-epsilon")) {
+    c.eps = dbl(*e);
+    c.eps_given = true;
+    if (!(c.eps > 0)) throw option_error("--kernel-epsilon must be positive");
+  }
+  if (const auto p = real_option(o, "weight-power")) {
+    if (!p->is_pos_integer() || *p > 16)
+      throw option_error("--weight-power: an integer 1..16 (1: eq. 15, n + 2: eq. 13)");
+    c.power = static_cast<int>(p->to_int());
+  } else {
+    c.power = 1;
+  }
+  const std::string rule =
+      choice_option(o, "level-rule",
+                    {"window-nearest", "window-floor", "sample-floor", "sample-nearest"})
+          .value_or("window-nearest");
+  c.window_mean = rule.rfind("window", 0) == 0;
+  c.nearest = rule.find("nearest") != std::string::npos;
+  c.whiten = choice_option(o, "metric", {"whiten", "scale"}).value_or("whiten") == "whiten";
+  if (const auto k = real_option(o, "backward-steps")) {
+    if (!k->is_pos_integer()) throw option_error("--backward-steps: a positive integer");
+    c.backward_steps = static_cast<std::size_t>(k->to_long());
+  }
+  return c;
+}
+
+// ---- the observation maps q_k -------------------------------------------------------------
+
+class Tabulator {
+ public:
+  Tabulator(const Model& m, const Choices& c)
+      : m_(m), c_(c), field_(m.field(), names(m)), output_(m.h, names(m)) {}
+
+  // q_nu at the given points (one array per state): N x filters, by RK4 backward over [0, T]
+  // with the quadrature of e^{lambda s} h carried along (Simpson on the RK4 stages).
+  Eigen::MatrixXd map(std::vector<Array> X, double nu) const {
+    const Eigen::Index N = X[0].size();
+    const std::size_t n = X.size(), pz = c_.lambda.size();
+    const double hs = c_.T / static_cast<double>(c_.backward_steps);
+    const Array u = Array::Constant(N, nu);
+    auto rhs = [&](const std::vector<Array>& x, Array& y) {
+      std::vector<Array> in = x;
+      if (m_.m() > 0) in.push_back(u);
+      const auto f = field_(in);
+      y = output_(x)[0];
+      std::vector<Array> dx(n);
+      for (std::size_t i = 0; i < n; ++i) dx[i] = -f[i];
+      return dx;
+    };
+    auto add = [&](const std::vector<Array>& x, double a, const std::vector<Array>& k) {
+      std::vector<Array> r(n);
+      for (std::size_t i = 0; i < n; ++i) r[i] = x[i] + a * k[i];
+      return r;
+    };
+    Eigen::MatrixXd Q = Eigen::MatrixXd::Zero(N, static_cast<Eigen::Index>(pz));
+    Array y1, y2, y3, y4;
+    for (std::size_t k = 0; k < c_.backward_steps; ++k) {
+      const double s = static_cast<double>(k) * hs;
+      const auto k1 = rhs(X, y1);
+      const auto k2 = rhs(add(X, hs / 2, k1), y2);
+      const auto k3 = rhs(add(X, hs / 2, k2), y3);
+      const auto k4 = rhs(add(X, hs, k3), y4);
+      for (std::size_t j = 0; j < pz; ++j) {
+        const double l = c_.lambda[j];
+        Q.col(static_cast<Eigen::Index>(j)).array() +=
+            hs / 6 *
+            (std::exp(l * s) * y1 + 2 * std::exp(l * (s + hs / 2)) * (y2 + y3) +
+             std::exp(l * (s + hs)) * y4);
+      }
+      for (std::size_t i = 0; i < n; ++i) X[i] += hs / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+    }
+    return Q;
+  }
+
+  std::vector<Array> grid() const {
+    const std::size_t n = c_.count.size();
+    std::size_t N = 1;
+    for (auto k : c_.count) N *= k;
+    std::vector<Array> X(n, Array(static_cast<Eigen::Index>(N)));
+    std::vector<std::size_t> idx(n, 0);
+    for (std::size_t i = 0; i < N; ++i) {
+      for (std::size_t s = 0; s < n; ++s)
+        X[s](static_cast<Eigen::Index>(i)) = c_.lo[s] + c_.step[s] * static_cast<double>(idx[s]);
+      for (std::size_t s = n; s-- > 0;) {  // last state fastest
+        if (++idx[s] < c_.count[s]) break;
+        idx[s] = 0;
+      }
+    }
+    return X;
+  }
+
+ private:
+  static std::vector<std::string> names(const Model& m) {
+    std::vector<std::string> v;
+    for (const auto& s : m.states) v.push_back(s.get_name());
+    for (const auto& s : m.inputs) v.push_back(s.get_name());
+    return v;
+  }
+  const Model& m_;
+  const Choices& c_;
+  ArrayFunction field_, output_;
+};
+
+// Q(eta) over the table (N x pz) and the grid (N x n): the spec's kernel average.
+Eigen::VectorXd kernel_inverse(const Eigen::MatrixXd& table, const Eigen::MatrixXd& grid,
+                               const Eigen::RowVectorXd& eta, double eps, int power) {
+  const Eigen::ArrayXd d = (table.rowwise() - eta).rowwise().norm().array();
+  Eigen::ArrayXd w = (eps + d).inverse();
+  const Eigen::ArrayXd w1 = w;
+  for (int k = 1; k < power; ++k) w *= w1;
+  return (grid.transpose() * w.matrix()) / w.sum();
+}
+
+double halton(std::size_t i, unsigned base) {
+  double f = 1, r = 0;
+  for (std::size_t k = i + 1; k > 0; k /= base) {
+    f /= base;
+    r += f * static_cast<double>(k % base);
+  }
+  return r;
+}
+
+struct Tables {
+  std::vector<Eigen::MatrixXd> q;  // per level: N x pz
+  Eigen::MatrixXd grid;            // N x n
+  double eps = 0;
+  double scale = 1;        // median sensitivity after whitening
+  Eigen::MatrixXd metric;  // q is stored as metric * q (whitening / scale)
+  double synthesis_ms = 0;
+  // Sampled accuracy of the inverse.
+  double grid_error = 0;          // max |Q_k(q_k(x_i)) - x_i| over a subsample of grid points
+  double level_error = 0;         // off-grid test states, u frozen at the levels
+  double between_error = 0;       // off-grid test states, u frozen between levels
+  double min_separation = 0;      // min over levels and neighbours |q(x_i) - q(x_j)| / |x_i - x_j|
+  std::vector<double> sep_where;  // where it is attained
+  std::size_t tested = 0;
+};
+
+Tables tabulate(const Model& m, Choices& c) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Tabulator tab(m, c);
+  const std::vector<Array> X = tab.grid();
+  const auto N = X[0].size();
+  const std::size_t n = m.n();
+  Tables t;
+  t.grid.resize(N, static_cast<Eigen::Index>(n));
+  for (std::size_t s = 0; s < n; ++s) t.grid.col(static_cast<Eigen::Index>(s)) = X[s].matrix();
+  for (std::size_t k = 0; k < c.levels; ++k)
+    t.q.push_back(tab.map(X, c.level_lo + c.level_step * static_cast<double>(k)));
+  // The kernel's metric: with --metric whiten, q is first whitened by its covariance over the
+  // grid (W = D^-1/2 V^T, eigenvalues floored at 1e-6 of the largest), so that directions in
+  // which q varies little (the phase, seen only by the fast filters) count as much as the
+  // others; then scaled by its median sensitivity.
+  const std::size_t pz = c.lambda.size();
+  Eigen::MatrixXd W =
+      Eigen::MatrixXd::Identity(static_cast<Eigen::Index>(pz), static_cast<Eigen::Index>(pz));
+  if (c.whiten) {
+    Eigen::VectorXd mean = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(pz));
+    Eigen::MatrixXd C =
+        Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(pz), static_cast<Eigen::Index>(pz));
+    double count = 0;
+    for (const auto& q : t.q) {
+      mean += q.colwise().sum().transpose();
+      count += static_cast<double>(q.rows());
+    }
+    mean /= count;
+    for (const auto& q : t.q) {
+      const Eigen::MatrixXd d = q.rowwise() - mean.transpose();
+      C += d.transpose() * d;
+    }
+    C /= count;
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(C);
+    Eigen::VectorXd ev = es.eigenvalues();
+    const double top = ev.maxCoeff();
+    for (Eigen::Index i = 0; i < ev.size(); ++i) ev(i) = 1 / std::sqrt(std::max(ev(i), 1e-6 * top));
+    W = ev.asDiagonal() * es.eigenvectors().transpose();
+    for (auto& q : t.q) q = q * W.transpose();
+  }
+  // Neighbour separation in q-space (sampled uniform injectivity along grid edges).
+  std::vector<double> nn;
+  t.min_separation = HUGE_VAL;
+  std::vector<std::size_t> stride(n, 1);
+  for (std::size_t s = n - 1; s-- > 0;) stride[s] = stride[s + 1] * c.count[s + 1];
+  for (std::size_t k = 0; k < c.levels; ++k)
+    for (Eigen::Index i = 0; i < N; ++i) {
+      for (std::size_t s = 0; s < n; ++s) {
+        const std::size_t idx = (static_cast<std::size_t>(i) / stride[s]) % c.count[s];
+        if (idx + 1 >= c.count[s]) continue;
+        const Eigen::Index j = i + static_cast<Eigen::Index>(stride[s]);
+        const double ratio = (t.q[k].row(i) - t.q[k].row(j)).norm() / c.step[s];
+        nn.push_back(ratio);
+        if (ratio < t.min_separation) {
+          t.min_separation = ratio;
+          t.sep_where.clear();
+          for (std::size_t r = 0; r < n; ++r)
+            t.sep_where.push_back(t.grid(i, static_cast<Eigen::Index>(r)));
+          t.sep_where.push_back(c.level_lo + c.level_step * static_cast<double>(k));
+        }
+      }
+    }
+  // Scale by the median sensitivity s = median |q(x_i) - q(x_j)| / |x_i - x_j| over grid
+  // neighbours: kernel distances, and epsilon, are then in state units, so that the grid step
+  // and epsilon compare directly (the paper's 0.0125 and 0.05).
+  std::sort(nn.begin(), nn.end());
+  t.scale = nn.empty() || !(nn[nn.size() / 2] > 0) ? 1 : nn[nn.size() / 2];
+  for (auto& q : t.q) q /= t.scale;
+  t.min_separation /= t.scale;
+  t.metric = W / t.scale;
+  if (!c.eps_given) {
+    c.eps = 4 * *std::max_element(c.step.begin(), c.step.end());
+    c.notes.push_back(fmt::format("kernel epsilon {:.4g} = 4 grid steps (default)", c.eps));
+  }
+  t.eps = c.eps;
+  const auto t1 = std::chrono::steady_clock::now();
+  t.synthesis_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+  // Accuracy, sampled: grid points (a subsample), off-grid Halton states at the levels and
+  // between levels (u frozen over the window).
+  static const unsigned primes[] = {2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37};
+  const std::size_t S = c.bound_samples;
+  std::vector<Array> Y(n, Array(static_cast<Eigen::Index>(S)));
+  for (std::size_t i = 0; i < S; ++i)
+    for (std::size_t s = 0; s < n; ++s) {
+      const double hi = c.lo[s] + c.step[s] * static_cast<double>(c.count[s] - 1);
+      Y[s](static_cast<Eigen::Index>(i)) = c.lo[s] + (hi - c.lo[s]) * halton(i, primes[s % 12]);
+    }
+  const Eigen::Index gstride = std::max<Eigen::Index>(1, N / 200);
+  for (std::size_t k = 0; k < c.levels; ++k) {
+    for (Eigen::Index i = 0; i < N; i += gstride)
+      t.grid_error =
+          std::max(t.grid_error, (kernel_inverse(t.q[k], t.grid, t.q[k].row(i), c.eps, c.power) -
+                                  t.grid.row(i).transpose())
+                                     .norm());
+    const double uk = c.level_lo + c.level_step * static_cast<double>(k);
+    std::vector<std::pair<double, double*>> inputs = {{uk, &t.level_error}};
+    // The worst inputs the level rule maps to level k: up to half a step either side (nearest),
+    // or up to the next level (floor).
+    if (c.nearest) {
+      if (k + 1 < c.levels) inputs.push_back({uk + 0.499 * c.level_step, &t.between_error});
+      if (k > 0) inputs.push_back({uk - 0.499 * c.level_step, &t.between_error});
+    } else if (k + 1 < c.levels) {
+      inputs.push_back({uk + 0.999 * c.level_step, &t.between_error});
+      inputs.push_back({uk + 0.5 * c.level_step, &t.between_error});
+    }
+    for (auto [nu, err] : inputs) {
+      const Eigen::MatrixXd q = tab.map(Y, nu) * t.metric.transpose();
+      for (std::size_t i = 0; i < S; ++i) {
+        Eigen::VectorXd xi(static_cast<Eigen::Index>(n));
+        for (std::size_t s = 0; s < n; ++s)
+          xi(static_cast<Eigen::Index>(s)) = Y[s](static_cast<Eigen::Index>(i));
+        const double e =
+            (kernel_inverse(t.q[k], t.grid, q.row(static_cast<Eigen::Index>(i)), c.eps, c.power) -
+             xi)
+                .norm();
+        *err = std::max(*err, e);
+      }
+    }
+  }
+  t.tested = S;
+  return t;
+}
+
+// ---- verdict and spec -------------------------------------------------------------------
+
+Verdict applies(const Analysis& a) {
+  const Model& m = a.model;
+  Verdict v;
+  if (m.p() != 1)
+    v.reasons.push_back(fmt::format("finite-time: single output only (p = {})", m.p()));
+  if (m.m() > 1)
+    v.reasons.push_back(
+        fmt::format("finite-time: at most one input selects the inverse table (m = {})", m.m()));
+  if (!m.free_params().empty())
+    v.reasons.push_back(
+        "finite-time: q is tabulated numerically; bind the free parameters with --param");
+  std::vector<std::string> missing;
+  for (const auto* syms : {&m.states, &m.inputs})
+    for (const auto& s : *syms)
+      if (!m.domain.count(s.get_name())) missing.push_back(s.get_name());
+  if (!missing.empty())
+    v.reasons.push_back(fmt::format(
+        "finite-time: the domain line must bound {} (the compact state region and input range "
+        "the tables cover)",
+        fmt::join(missing, ", ")));
+  v.applies = v.reasons.empty();
+  if (v.applies)
+    v.reasons.push_back(
+        "finite-time: needs no derivatives (h may be non-smooth); the domain box gives the "
+        "compact region G and input range U; injectivity of q and the accuracy are checked "
+        "numerically (sampled) when the tables are built");
+  return v;
+}
+
+std::string list(const std::vector<double>& v) {
+  std::vector<std::string> s;
+  for (double d : v) s.push_back(fmt::format("{:g}", d));
+  return fmt::format("{}", fmt::join(s, ", "));
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  const Verdict v = applies(a);
+  if (!v.applies)
+    throw UserError(SourceLoc{m.file, 0, 0}, "method 'finite-time' does not apply: " + v.text());
+  Choices c = choose(a, o);
+  const Tables t = tabulate(m, c);
+  const std::size_t pz = c.lambda.size(), N = static_cast<std::size_t>(t.grid.rows());
+
+  ObserverSpec s;
+  s.method = "finite-time";
+  s.class_suffix = "FiniteTime";
+  s.state_size = m.n();
+  s.state_name = "xh";
+  s.state_doc = "the estimate (the filter bank and its delay line are kept separately)";
+  s.update = UpdateKind::sampled_delay;
+  s.estimate = EstimateKind::identity;
+  s.functions = model_functions(m);
+
+  SampledDelay d;
+  d.sample_period = c.dt;
+  d.delay_steps = c.D;
+  d.filters = pz;
+  d.decay_table = "filter_decay";
+  d.gain_table = "filter_gain";
+  d.delay_table = "delay_decay";
+  d.map_table = "observation_map";
+  d.grid_lo = c.lo;
+  d.grid_step = c.step;
+  d.grid_count = c.count;
+  d.input_index = 0;
+  d.level_lo = c.level_lo;
+  d.level_step = c.level_step;
+  d.levels = c.levels;
+  d.level_nearest = c.nearest;
+  d.level_window_mean = c.window_mean;
+  d.epsilon = c.eps;
+  d.weight_power = c.power;
+  const double T = c.dt * static_cast<double>(c.D);
+  ConstTable decay{"filter_decay", {pz}, {}, "e^{lambda_i dt}: the filter bank over one sample"};
+  ConstTable gain{"filter_gain", {pz}, {}, "(e^{lambda_i dt} - 1) / lambda_i: y held, b = 1"};
+  ConstTable delay{"delay_decay", {pz}, {}, "e^{lambda_i T}: eta = z - e^{A T} z(t - T)"};
+  for (double l : c.lambda) {
+    decay.values.push_back(std::exp(l * c.dt));
+    gain.values.push_back(std::expm1(l * c.dt) / l);
+    delay.values.push_back(std::exp(l * T));
+  }
+  ConstTable map{"observation_map",
+                 {c.levels, N, pz},
+                 {},
+                 "q_k(x_i): [input level k][grid point i][filter j], by backward simulation"};
+  map.values.reserve(c.levels * N * pz);
+  for (std::size_t k = 0; k < c.levels; ++k)
+    for (std::size_t i = 0; i < N; ++i)
+      for (std::size_t j = 0; j < pz; ++j)
+        map.values.push_back(t.q[k](static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
+  ConstTable metric{"kernel_metric",
+                    {pz, pz},
+                    {},
+                    "M: the inverse compares M eta with the table (whitening / scale)"};
+  for (std::size_t i = 0; i < pz; ++i)
+    for (std::size_t j = 0; j < pz; ++j)
+      metric.values.push_back(t.metric(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
+  d.metric_table = "kernel_metric";
+  s.tables = {decay, gain, delay, metric, map};
+  s.sampled_delay = d;
+
+  const std::size_t entries = map.values.size() + 3 * pz + pz * pz;
+  const double bound = std::max(t.level_error, t.between_error);
+  s.title = "Finite-time epsilon-T observer (Kreisselmeier-Engel filter bank, tabulated inverse)";
+  s.description = {
+      "Observer: finite-time epsilon-T observer (Garcia & Hernandez, seed 004, eq. 10, 15)",
+      fmt::format("Window T = {:g} = {} samples of {:g}; filter poles {}", T, c.D, c.dt,
+                  list(c.lambda)),
+      fmt::format("Inverse: kernel average over a {} grid ({} points), {} input level{}, "
+                  "epsilon {:.6g}, weight power {}",
+                  fmt::join(c.count, " x "), N, c.levels, c.levels == 1 ? "" : "s", c.eps, c.power),
+      fmt::format("Sampled accuracy: |x - xh| <= {:.4g} for u frozen over the window (not a "
+                  "proof)",
+                  bound)};
+  s.class_doc = {
+      "  z <- e^{A dt} z + A^-1 (e^{A dt} - I) b y,  eta = z - e^{A T} z(t - T),",
+      "  xh = sum_i x_i w_i / sum_i w_i,  w_i = (epsilon + |eta - q_k(x_i)|)^-power,",
+      "with k the level of the input at this step. step() accepts only the design's sample",
+      "period; until T has passed since reset() the estimate stays the reset value.",
+      fmt::format("Sampled accuracy (u frozen over the window): |x - xh| <= {:.4g}.", bound)};
+  s.constants.push_back({"filter_poles",
+                         [&] {
+                           std::vector<GiNaC::numeric> q;
+                           for (double l : c.lambda) q.push_back(GiNaC::numeric(l));
+                           return q;
+                         }(),
+                         "eigenvalues of the diagonal A"});
+  auto mem = [&](std::size_t bytes) {
+    return bytes >= 1 << 20 ? fmt::format("{:.2f} MiB", static_cast<double>(bytes) / (1 << 20))
+                            : fmt::format("{:.1f} KiB", static_cast<double>(bytes) / 1024);
+  };
+  s.report = {
+      {"window T",
+       fmt::format("{:g} ({} samples of {:g}; --window, --sample-period)", T, c.D, c.dt)},
+      {"filter poles", list(c.lambda)},
+      {"kernel metric",
+       fmt::format("{}, then divided by s = {:.4g} = median |q(x_i) - q(x_j)| / |x_i - x_j| "
+                   "over grid neighbours: kernel distances and epsilon in state units",
+                   c.whiten ? "q whitened by its covariance over the grid" : "q as is", t.scale)},
+      {"state grid",
+       fmt::format("{} points ({}), step {}", N, fmt::join(c.count, " x "), list(c.step))},
+      {"input levels",
+       m.m() ? fmt::format("{} levels from {:g} step {:g}; Q_k for the level {} {}", c.levels,
+                           c.level_lo, c.level_step, c.nearest ? "nearest" : "at or below",
+                           c.window_mean ? "the input's mean over the window" : "the input now")
+             : std::string("1 (no input)")},
+      {"kernel", fmt::format("epsilon {:.6g}, weight power {} ({})", c.eps, c.power,
+                             c.power == 1 ? "eq. 15" : "eq. 13 form")},
+      {"table memory (flash)", fmt::format("{} entries: {} as float, {} as double", entries,
+                                           mem(entries * 4), mem(entries * 8))},
+      {"delay line memory (RAM)",
+       fmt::format("{} x {} entries: {} as float, {} as double", c.D + 1, pz,
+                   mem((c.D + 1) * pz * 4), mem((c.D + 1) * pz * 8))},
+      {"work per step", fmt::format("{} kernel terms of {} filters", N, pz)},
+      {"injectivity (sampled)",
+       fmt::format("min |q(x_i) - q(x_j)| / |x_i - x_j| over grid neighbours = {:.3g} at x = "
+                   "({}), u = {:g}",
+                   t.min_separation,
+                   list(std::vector<double>(t.sep_where.begin(), t.sep_where.end() - 1)),
+                   t.sep_where.back())},
+      {"inverse error at grid points (sampled)", fmt::format("{:.3g}", t.grid_error)},
+      {"error bound (sampled)",
+       fmt::format("{:.4g} = max |Q_k(q_u(x)) - x| over {} Halton states in the box and u "
+                   "frozen at the levels ({:.3g}) and between them ({:.3g}); a time-varying u "
+                   "adds peaks where the level switches",
+                   bound, t.tested, t.level_error, t.between_error)},
+  };
+  for (const auto& note : c.notes) s.report.push_back({"default", note});
+  s.summary = fmt::format(
+      "finite-time epsilon-T observer: T = {:g}, {} filters, {} grid points x {} input levels, "
+      "sampled error bound {:.4g}",
+      T, pz, N, c.levels, bound);
+  return s;
+}
+
+}  // namespace
+
+Design finite_time_design() {
+  Design d;
+  d.name = "finite-time";
+  d.summary =
+      "finite-time epsilon-T observer: filter bank, delay line and tabulated inverse per input "
+      "level (seed 004; no derivatives, non-smooth h)";
+  d.options = {
+      {"window", "finite-time: the window T", "1"},
+      {"sample-period", "finite-time: the fixed sample period dt (T must be a multiple)",
+       "T/100 (simulate: --dt)"},
+      {"filter-poles", "finite-time: eigenvalues of the diagonal filter bank A, negative",
+       "2n+1 geometric from -0.2/T to -20/T"},
+      {"grid-step", "finite-time: state grid step (one, or one per state) over the domain box",
+       "2048^(1/n) points per state"},
+      {"input-step", "finite-time: spacing of the input levels over the input's domain",
+       "1/10 of the range"},
+      {"kernel-epsilon", "finite-time: epsilon of the inverse's weights (eq. 13/15)",
+       "4 x median neighbour distance in q"},
+      {"weight-power", "finite-time: power of the weights, 1 (eq. 15) or n+2 (eq. 13)", "1"},
+      {"metric",
+       "finite-time: kernel distance: whiten (q whitened by its covariance over the grid) or "
+       "scale",
+       "whiten"},
+      {"level-rule",
+       "finite-time: input level of the inverse: window-nearest (the level nearest the input's "
+       "mean over the window), window-floor, sample-floor (the paper's u_k <= u(t) < u_k+1), "
+       "sample-nearest",
+       "window-nearest"},
+      {"backward-steps", "finite-time: RK4 steps of the backward simulation over T", "200"}};
+  d.applies = applies;
+  d.build = build;
+  d.in_all = false;  // tables of 10^4..10^6 entries: by name only, not by auto or all
+  return d;
+}
+
+}  // namespace obsynth

@@ -1,0 +1,341 @@
+// The finite-time epsilon-T observer (seed 004, Garcia & Hernandez): example (14) with the
+// paper's parameters through `obsynth simulate`'s machinery, and the generated C++ (float,
+// double) and C99 code against the simulator's evaluation of the same tables.
+//
+// Seed 004 transcription problems met here (see also models/garcia14.sym):
+//  - (15) prints the weights as 1/(eps + |q_k(x_i) - xi|), power 1, where (13) has power n + 2.
+//    With power 1 on a 161 x 161 grid the far field dominates (sum of 1/d over a 2-D grid
+//    diverges with the grid size): measured here, the estimate collapses towards the centre of
+//    G and the error stays ~0.8, so "|Q_k(q_k(x_i)) - x_i| < 2e-3" cannot hold for (15) as
+//    printed. The test uses (13)'s power n + 2 = 4 (--weight-power 4).
+//  - eps = 0.05 and the grid norm 0.0125 only compare if q is measured in state units; with
+//    b = 1 and the listed (mostly slow) eigenvalues, q varies ~50x less along the phase of the
+//    oscillation than along its radius, so the design whitens q and scales it by its median
+//    sensitivity (report row "kernel metric").
+//  - "eps = 0." lost its digits: the accuracy asserted below is the design's own sampled bound.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <array>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "analysis/analysis.hpp"
+#include "app/simulate.hpp"
+#include "app/synthesize.hpp"
+#include "designs/registry.hpp"
+#include "emit/emit_c.hpp"
+#include "emit/emit_cxx.hpp"
+#include "front/diagnostics.hpp"
+#include "front/parse.hpp"
+
+using namespace obsynth;
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kModel = std::string(OBSYNTH_SOURCE_DIR) + "/models/garcia14.sym";
+
+Analysis garcia14() {
+  std::ifstream in(kModel);
+  std::stringstream text;
+  text << in.rdbuf();
+  return analyse(parse_model(text.str(), "models/garcia14.sym"));
+}
+
+DesignOptions paper_options(const std::string& grid, const std::string& dt) {
+  DesignOptions o;
+  o.values = {
+      {"window", "0.5"},          {"filter-poles", "-0.01,-0.05,-0.1,-0.5,-1,-1.5,-2,-4,-8,-16"},
+      {"grid-step", grid},        {"input-step", "1"},
+      {"kernel-epsilon", "0.05"}, {"weight-power", "4"},
+      {"sample-period", dt}};
+  return o;
+}
+
+// u(t) = 20 - 2|t - 5|: 10 -> 20 -> 10 over 10 s, and its exact integral (the plant is a
+// rotation by theta(t) = int_0^t u: x1 = cos theta, x2 = -sin theta from x(0) = (1, 0)).
+double ramp(double t) {
+  return 20 - 2 * std::fabs(t - 5);
+}
+double theta(double t) {
+  if (t <= 5) return 10 * t + t * t;
+  const double s = t - 5;
+  return 75 + 20 * s - s * s;
+}
+
+double report_number(const ObserverSpec& s, const std::string& key) {
+  for (const auto& r : s.report)
+    if (r.key == key) return std::stod(r.value);
+  ADD_FAILURE() << "no report row " << key;
+  return 0;
+}
+
+TEST(FiniteTime, AppliesToTheNonSmoothRectifierModel) {
+  const Analysis a = garcia14();
+  const Design* d = find_design("finite-time");
+  ASSERT_NE(d, nullptr);
+  const Verdict v = d->applies(a);
+  EXPECT_TRUE(v.applies) << v.text();
+  // The Lie-algebraic designs do not apply, and say why (no crash on sqrt(x1^2)).
+  EXPECT_FALSE(find_design("canonical")->applies(a).applies);
+  // Chosen by name only (it builds tables): neither --method all nor auto picks it.
+  std::string why;
+  EXPECT_TRUE(resolve_methods(a, {"all"}, why).empty());
+  EXPECT_THROW(resolve_methods(a, {"auto"}, why), UserError);
+}
+
+TEST(FiniteTime, OptionDiagnostics) {
+  const Analysis a = garcia14();
+  auto build = [&](std::map<std::string, std::string> v) {
+    DesignOptions o = paper_options("0.25", "0.01");
+    for (auto& [k, x] : v) o.values[k] = x;
+    return build_design(a, "finite-time", o);
+  };
+  EXPECT_THROW(build({{"sample-period", "0.3"}}), UserError);  // T not a multiple
+  EXPECT_THROW(build({{"grid-step", "0.3"}}), UserError);      // does not divide [-1, 1]
+  EXPECT_THROW(build({{"filter-poles", "-1,2"}}), UserError);
+  EXPECT_THROW(build({{"filter-poles", "-1,-1"}}), UserError);
+  EXPECT_THROW(build({{"weight-power", "0"}}), UserError);
+  // A model without a domain box for its states does not qualify.
+  const Model m = parse_model("model nobox\nstates x\nf = [ -x ]\nh = [ x ]\n", "nobox.sym");
+  const Verdict v = find_design("finite-time")->applies(analyse(m));
+  EXPECT_FALSE(v.applies);
+  EXPECT_NE(v.text().find("domain"), std::string::npos) << v.text();
+}
+
+// Seed 004, example (14), with the paper's parameters: T = 0.5, the ten listed eigenvalues,
+// grid 0.0125 over [-1, 1]^2 (161 x 161 points), input levels 10, 11, ..., 20 (mu = 1),
+// eps = 0.05, x(0) = (1, 0), u ramping 10 -> 20 -> 10 over 10 s.
+TEST(FiniteTime, Seed004Example14) {
+  const Analysis a = garcia14();
+  const ObserverSpec spec = build_design(a, "finite-time", paper_options("0.0125", "0.001"));
+  ASSERT_EQ(spec.update, UpdateKind::sampled_delay);
+  ASSERT_TRUE(spec.sampled_delay.has_value());
+  EXPECT_EQ(spec.sampled_delay->points(), 161u * 161u);
+  EXPECT_EQ(spec.sampled_delay->levels, 11u);
+  EXPECT_EQ(spec.sampled_delay->delay_steps, 500u);
+  EXPECT_EQ(spec.table("observation_map")->size(), 11u * 161u * 161u * 10u);
+  const double bound = report_number(spec, "error bound (sampled)");
+  EXPECT_GT(bound, 0.05);
+  EXPECT_LT(bound, 0.4);
+
+  SimulationOptions o;
+  o.method = "finite-time";
+  o.design = paper_options("0.0125", "0.001");
+  o.u_text = "20 - 2*sqrt((t-5)^2)";
+  o.x0 = {1, 0};
+  o.xhat0 = {0, 0};
+  o.t_end = 10;
+  o.dt = 1e-3;
+  const SimulationResult r = simulate(a, o);
+  ASSERT_TRUE(r.diverged.empty()) << r.diverged;
+  ASSERT_EQ(r.t.size(), 10001u);
+
+  // The level switches when the input's window mean (the design's level rule) crosses
+  // u_k + 1/2: on this ramp every 0.5 s. Computed here from u alone.
+  std::vector<double> switches;
+  for (int k = 1; k <= 20; ++k) switches.push_back(0.5 * k);
+  auto near_switch = [&](double t, double w) {
+    for (double s : switches)
+      if (std::fabs(t - s) <= w) return true;
+    return false;
+  };
+  double max_after = 0, max_away = 0, max_plant = 0;
+  for (std::size_t k = 0; k < r.t.size(); ++k) {
+    const double t = r.t[k];
+    // The simulator's plant against the exact rotation (an independent oracle).
+    max_plant = std::max(
+        max_plant, std::hypot(r.x[k][0] - std::cos(theta(t)), r.x[k][1] + std::sin(theta(t))));
+    const double e = std::hypot(r.x[k][0] - r.xh[k][0], r.x[k][1] - r.xh[k][1]);
+    if (t < 0.5 - 1e-9) {
+      // The window is not full yet: the estimate stays the reset value.
+      EXPECT_EQ(r.xh[k][0], 0.0);
+      EXPECT_EQ(r.xh[k][1], 0.0);
+      continue;
+    }
+    if (t >= 0.55) max_after = std::max(max_after, e);
+    if (t >= 0.55 && !near_switch(t, 0.1)) max_away = std::max(max_away, e);
+  }
+  EXPECT_LT(max_plant, 1e-6);
+  // Enters the reported bound by about T = 0.5 s and stays in it, switching peaks included.
+  EXPECT_LE(max_after, bound);
+  // Away from the switching instants (more than 0.1 s) the error is below 0.2, and the peaks
+  // at the switches stay below 0.3 (the paper reports 0.2; measured here 0.30 at most, from the
+  // input quantisation mu = 1 over a window in which the ramp moves u by 1).
+  EXPECT_LT(max_away, 0.2);
+  EXPECT_LT(max_after, 0.3);
+  RecordProperty("max_error_after_0_55", std::to_string(max_after));
+  RecordProperty("max_error_away_from_switches", std::to_string(max_away));
+  RecordProperty("sampled_bound", std::to_string(bound));
+}
+
+// ---- generated code against the simulator --------------------------------------------------
+
+std::string run(const std::string& cmd) {
+  std::string out;
+  FILE* p = popen((cmd + " 2>&1").c_str(), "r");
+  if (!p) return "popen failed";
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, p)) out += buf;
+  const int rc = pclose(p);
+  if (rc != 0) out = "FAILED(" + std::to_string(rc) + "): " + cmd + "\n" + out;
+  return out;
+}
+
+const char* kCxxDriver = R"(#include <cstdio>
+#include <cmath>
+#include HEADER
+using Obs = obsynth_gen::garcia14::Garcia14FiniteTime<SCALAR>;
+int main(int argc, char** argv) {
+  (void)argc;
+  static Obs obs;  // the delay line is fixed storage inside the object
+  std::FILE* f = std::fopen(argv[1], "r");
+  char line[512];
+  if (!std::fgets(line, sizeof line, f)) return 2;
+  double t, x1, x2, a, b;
+  while (std::fscanf(f, "%lf,%lf,%lf,%lf,%lf", &t, &x1, &x2, &a, &b) == 5) {
+    Obs::State x;
+    x << SCALAR(x1), SCALAR(x2);
+    Obs::Output y;
+    obsynth_gen::garcia14::FiniteTimeFunctions<SCALAR>::h(x, y);
+    Obs::Input u;
+    u(0) = SCALAR(20 - 2 * std::sqrt((t - 5) * (t - 5)));
+    if (obs.step(SCALAR(0.01), u, y) != obsynth::Status::ok) return 3;
+    std::printf("%.17g,%.17g\n", double(obs.estimate()(0)), double(obs.estimate()(1)));
+  }
+  return obs.step(SCALAR(0.02), Obs::Input::Zero(), Obs::Output::Zero()) == obsynth::Status::ok;
+}
+)";
+
+const char* kCDriver = R"(#include <stdio.h>
+#include <math.h>
+#include HEADER
+static garcia14_finite_time_observer obs;
+int main(int argc, char** argv) {
+  char line[512];
+  double t, x1, x2, a, b;
+  FILE* f = fopen(argv[1], "r");
+  (void)argc;
+  garcia14_finite_time_init(&obs);
+  if (!fgets(line, sizeof line, f)) return 2;
+  while (fscanf(f, "%lf,%lf,%lf,%lf,%lf", &t, &x1, &x2, &a, &b) == 5) {
+    garcia14_finite_time_scalar x[2], y[1], u[1];
+    x[0] = (garcia14_finite_time_scalar)x1;
+    x[1] = (garcia14_finite_time_scalar)x2;
+    garcia14_finite_time_h(x, y);
+    u[0] = (garcia14_finite_time_scalar)(20 - 2 * sqrt((t - 5) * (t - 5)));
+    if (garcia14_finite_time_step(&obs, (garcia14_finite_time_scalar)0.01, u, y) != garcia14_finite_time_ok) return 3;
+    printf("%.17g,%.17g\n", (double)obs.xh[0], (double)obs.xh[1]);
+  }
+  return 0;
+}
+)";
+
+std::vector<std::array<double, 2>> read_pairs(const std::string& text) {
+  std::vector<std::array<double, 2>> v;
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::array<double, 2> p{};
+    if (std::sscanf(line.c_str(), "%lf,%lf", &p[0], &p[1]) == 2) v.push_back(p);
+  }
+  return v;
+}
+
+// A coarse variant (grid 0.125, 17 x 17 points; dt = 0.01, D = 50) small enough for a
+// microcontroller: the generated C++ (double, float) and C99 (double, float) steps against the
+// simulator's evaluation of the same tables, fed the simulator's own plant samples.
+TEST(FiniteTime, GeneratedCodeMatchesSimulator) {
+  const Analysis a = garcia14();
+  DesignOptions d = paper_options("0.125", "0.01");
+  d.values["kernel-epsilon"] = "0.3";
+  SimulationOptions o;
+  o.method = "finite-time";
+  o.design = d;
+  o.u_text = "20 - 2*sqrt((t-5)^2)";
+  o.x0 = {1, 0};
+  o.xhat0 = {0, 0};
+  o.t_end = 10;
+  o.dt = 0.01;
+  const SimulationResult r = simulate(a, o);
+  ASSERT_TRUE(r.diverged.empty()) << r.diverged;
+  const fs::path dir = fs::temp_directory_path() / ("obsynth_ft_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  { std::ofstream(dir / "sim.csv") << r.csv; }
+  const ObserverSpec spec = build_design(a, "finite-time", d);
+  const std::string flags =
+      "-Wall -Wextra -Werror -Wconversion -Wdouble-promotion -pedantic -O2 -fno-math-errno";
+  const std::string inc = fmt::format("-I{0}/runtime -I/usr/include/eigen3", OBSYNTH_SOURCE_DIR);
+  struct Case {
+    std::string name;
+    Precision p;
+    bool c;
+    double tol;
+  };
+  for (const Case& k : {Case{"cxx_double", Precision::double_precision, false, 1e-9},
+                        Case{"cxx_float", Precision::single, false, 5e-3},
+                        Case{"c_double", Precision::double_precision, true, 1e-9},
+                        Case{"c_float", Precision::single, true, 5e-3}}) {
+    SCOPED_TRACE(k.name);
+    EmitOptions eo;
+    eo.precision = k.p;
+    eo.source_name = "models/garcia14.sym";
+    const fs::path sub = dir / k.name;
+    fs::create_directories(sub);
+    std::string build;
+    if (!k.c) {
+      const EmittedHeader h = emit_cxx_header(a, spec, eo);
+      std::ofstream(sub / h.filename) << h.text;
+      std::ofstream(sub / "driver.cpp") << kCxxDriver;
+      // Every observer class compiles in float and double whatever the literal precision.
+      for (const char* scalar : {"float", "double"}) {
+        const std::string out = run(fmt::format(
+            "c++ -std=c++17 {} -fno-exceptions -fno-rtti -DEIGEN_NO_MALLOC {} "
+            "-DHEADER='\"{}\"' -DSCALAR={} {} -o {}",
+            flags, inc, (sub / h.filename).string(), scalar, (sub / "driver.cpp").string(),
+            (sub / (std::string("drv_") + scalar)).string()));
+        ASSERT_EQ(out.find("FAILED"), std::string::npos) << out;
+      }
+      build = (sub / (k.p == Precision::single ? "drv_float" : "drv_double")).string();
+    } else {
+      const EmittedHeader h = emit_c_pair(a, spec, eo);
+      std::ofstream(sub / h.filename) << h.text;
+      std::ofstream(sub / h.source_filename) << h.source_text;
+      std::ofstream(sub / "driver.c") << kCDriver;
+      const std::string out = run(fmt::format(
+          "cc -std=c99 {} -I{} -DHEADER='\"{}\"' {} {} -lm -o {}", flags, sub.string(), h.filename,
+          (sub / h.source_filename).string(), (sub / "driver.c").string(), (sub / "drv").string()));
+      ASSERT_EQ(out.find("FAILED"), std::string::npos) << out;
+      build = (sub / "drv").string();
+    }
+    const std::string out = run(build + " " + (dir / "sim.csv").string());
+    const auto got = read_pairs(out);
+    ASSERT_EQ(out.find("FAILED"), std::string::npos) << out.substr(out.size() - 400);
+    ASSERT_EQ(got.size(), r.t.size()) << out.substr(0, 400);  // one step per CSV row
+    double worst = 0;
+    std::vector<double> diffs;
+    for (std::size_t i = 0; i + 1 < got.size(); ++i) {
+      double e = 0;
+      for (int s = 0; s < 2; ++s)
+        e = std::max(e, std::fabs(got[i][s] - r.xh[i + 1][static_cast<std::size_t>(s)]));
+      worst = std::max(worst, e);
+      diffs.push_back(e);
+    }
+    std::sort(diffs.begin(), diffs.end());
+    const double p99 = diffs[diffs.size() * 99 / 100];
+    std::printf("%s: 99th percentile %.3g\n", k.name.c_str(), p99);
+    EXPECT_LE(worst, k.tol);
+    RecordProperty(k.name + "_max_difference", std::to_string(worst));
+    std::printf("%s: max |xh - xh_simulator| = %.3g\n", k.name.c_str(), worst);
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
