@@ -495,6 +495,8 @@ const char* kEstimateNewton =
       for (j = 0; j < {{n}}; ++j) dx += tau[j * {{n}} + i] * r[j];
       x[i] -= dx;
     }
+  }
+)";
 
 // ---- UpdateKind::sampled_delay (spec.hpp SampledDelay) ----------------------------------------
 
