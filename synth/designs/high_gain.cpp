@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <limits>
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -154,10 +156,11 @@ std::string up6(double v) {
 }
 
 struct Certificate {
-  double L = 0;           // Lipschitz constant of phi in z (spectral norm of entry bounds)
-  bool rigorous = true;   // every entry bound rigorous
-  double lambda_P = 0;    // lambda_max(P)
-  double theta_star = 0;  // max(1, 2 lambda_P L)
+  double L = 0;            // Lipschitz constant of phi in z (spectral norm of entry bounds)
+  bool rigorous = true;    // every entry bound rigorous
+  bool unbounded = false;  // some entry has no finite bound: no theta guarantees convergence
+  double lambda_P = 0;     // lambda_max(P)
+  double theta_star = 0;   // max(1, 2 lambda_P L)
   std::vector<std::string> entries;  // "|d phi_i/d z_j| <= b (kind)"
 };
 
@@ -170,6 +173,13 @@ Certificate certify(const Model& m, const HighGainStructure& st, const std::vect
     for (std::size_t j = 0; j <= i; ++j) {
       if (GiNaC::is_zero(st.J[i][j])) continue;
       const EntryBound b = sup_abs_over_domain(st.J[i][j], m);
+      if (!std::isfinite(b.value)) {  // a pole in the box, or undefined at every sample
+        c.unbounded = true;
+        c.rigorous = false;
+        c.entries.push_back(fmt::format("d phi_{}/d z_{} has no finite bound on the domain ({})",
+                                        i + 1, j + 1, b.method));
+        continue;
+      }
       M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = b.value;
       c.rigorous = c.rigorous && b.rigorous;
       c.entries.push_back(
@@ -177,6 +187,11 @@ Certificate certify(const Model& m, const HighGainStructure& st, const std::vect
     }
   // L and lambda_max(P) are computed in double from the (rigorous) entry bounds and the exact K;
   // both are rounded up by a relative 1e-9, far above the rounding of these small problems.
+  if (c.unbounded) {
+    c.L = c.theta_star = std::numeric_limits<double>::infinity();
+    c.lambda_P = (1 + 1e-9) * lyapunov_lambda_max(K);
+    return c;
+  }
   const double up = 1 + 1e-9;
   c.L = up * (M.norm() > 0 ? Eigen::JacobiSVD<Eigen::MatrixXd>(M).singularValues()(0) : 0.0);
   c.lambda_P = up * lyapunov_lambda_max(K);
@@ -347,17 +362,21 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   corr.singular_doc = "O(xh) is singular " + where_singular;
   s.correction = corr;
 
-  const bool guaranteed = theta.to_double() > cert.theta_star;
-  const std::string kind = cert.rigorous ? "rigorous" : "sampled";
+  // Only a rigorous L gives a guarantee; a sampled L is an estimate from below of the true one.
+  const bool above = theta.to_double() > cert.theta_star;
+  const bool guaranteed = above && cert.rigorous;
+  const std::string kind = cert.unbounded ? "unbounded" : cert.rigorous ? "rigorous" : "sampled";
   s.title = "High-gain observer (Gauthier-Hammouri-Kupka), realised in the original coordinates";
   s.description = {
       "Observer: high-gain observer (Gauthier-Hammouri-Kupka; seed 002 eq. 3)",
       fmt::format("theta = {}; poles of A - K C: {}; K = [{}]; Delta_theta K = [{}]",
                   to_string(theta), numbers_text(poles), numbers_text(K), numbers_text(gain)),
       "Gain applied by an LU solve with O(xh); O singular -> Status::singular, " + where_singular,
-      fmt::format("Lipschitz constant of phi in z: L = {} ({}); convergence guaranteed for "
-                  "theta > {}",
-                  up6(cert.L), kind, up6(cert.theta_star))};
+      fmt::format("Lipschitz constant of phi in z: L = {} ({}); theta* = {}: convergence {}",
+                  up6(cert.L), kind, up6(cert.theta_star),
+                  guaranteed ? "guaranteed"
+                  : above    ? "not proven (sampled L)"
+                             : "not guaranteed")};
   s.class_doc = {"  xh' = f(xh) + g(xh, u) + O(xh)^-1 Delta_theta K (y - h(xh))",
                  "with O = d(h, L_f h, ..., L_f^{n-1} h)/dx and Delta_theta = diag(theta, ..., "
                  "theta^n); in z = (h, L_f h, ...) this is the",
@@ -386,18 +405,28 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       {"theta*",
        fmt::format("{} = max(1, 2 lambda_max(P) L) ({}, rounded up)", up6(cert.theta_star), kind)},
       {"convergence",
-       guaranteed ? fmt::format("guaranteed: theta = {} > theta* = {} (while xh and x stay in the "
-                                "domain box, where L holds)",
-                                to_string(theta), up6(cert.theta_star))
-                  : fmt::format("not guaranteed by the theorem: theta = {} <= theta* = {} (short "
-                                "by {}); raise --theta",
-                                to_string(theta), up6(cert.theta_star),
-                                up6(cert.theta_star - theta.to_double()))}};
+       cert.unbounded ? std::string("not guaranteed: the triangular nonlinearity has no finite "
+                                    "Lipschitz bound on the domain box (see the bounds above)")
+       : above && !cert.rigorous
+           ? fmt::format("not proven: theta = {} > theta* = {}, but L is sampled (an estimate, "
+                         "not an upper bound)",
+                         to_string(theta), up6(cert.theta_star))
+       : guaranteed
+           ? fmt::format("guaranteed: theta = {} > theta* = {} (while xh and x stay in the "
+                         "domain box, where L holds)",
+                         to_string(theta), up6(cert.theta_star))
+           : fmt::format("not guaranteed by the theorem: theta = {} <= theta* = {} (short "
+                         "by {}); raise --theta",
+                         to_string(theta), up6(cert.theta_star),
+                         up6(cert.theta_star - theta.to_double()))}};
   s.summary = fmt::format(
       "high-gain observer, theta = {}, poles {} (scaled by theta), gain Delta_theta K = [{}]; L = "
       "{} ({}), theta* = {}: convergence {}",
       to_string(theta), numbers_text(poles), numbers_text(gain), up6(cert.L), kind,
-      up6(cert.theta_star), guaranteed ? "guaranteed" : "not guaranteed");
+      up6(cert.theta_star),
+      guaranteed ? "guaranteed"
+      : above    ? "not proven"
+                 : "not guaranteed");
   return s;
 }
 
