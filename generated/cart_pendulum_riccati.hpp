@@ -106,7 +106,7 @@ struct RiccatiFunctions {
     out(1) = t0 - t2 * u_ + t1 * t4;
     out(2) = -(t3 * t3) + Scalar(1) + Q_1_2 * Scalar(2);
     out(3) = Q_1_1 * t5 + Q_2_2 - t3 * t4;
-    out(4) = -(t4 * t4) + Q_1_2 * t5 * Scalar(2) + Scalar(1);
+    out(4) = -(t4 * t4) + (Q_1_2 * t5) * Scalar(2) + Scalar(1);
   }
 
   /// The estimate m: the first n entries of w.

@@ -104,15 +104,15 @@ struct RiccatiFunctions {
     const Scalar t2 = Scalar(20) + x2;
     const Scalar t3 = std::exp(Scalar(20) * x2 / t2);
     const Scalar t4 = -x2 + y_;
-    const Scalar t5 = Scalar(125) + Scalar(9) * t3;
-    const Scalar t6 = x2 / (t2 * t2) - Scalar(1) / t2;
-    const Scalar t7 = t6 * t1 * Scalar(576) * t3 + Scalar(65);
-    const Scalar t8 = -(Q_1_1 * Scalar(0.57599999999999996) * t3) - Q_1_2 * t7 * Scalar(0.02) - Q_1_2 * Q_2_2 - t5 * Q_1_2 * Scalar(0.0080000000000000002) - t6 * t1 * Scalar(1.4399999999999999) * Q_2_2 * t3;
+    const Scalar t5 = x2 / (t2 * t2) - Scalar(1) / t2;
+    const Scalar t6 = Scalar(125) + Scalar(9) * t3;
+    const Scalar t7 = t5 * t1 * Scalar(576) * t3 + Scalar(65);
+    const Scalar t8 = -(Q_1_1 * Scalar(0.57599999999999996) * t3) - Q_1_2 * t7 * Scalar(0.02) - Q_1_2 * Q_2_2 - t6 * Q_1_2 * Scalar(0.0080000000000000002) - t5 * t1 * Scalar(1.4399999999999999) * Q_2_2 * t3;
     out(0) = t0 + t1 * Scalar(0.071999999999999995) * t3 + t4 * Q_1_2;
     out(1) = Scalar(0.29999999999999999) * u_ - x2 * Scalar(1.3) + t4 * Q_2_2 + t1 * Scalar(0.57599999999999996) * t3;
-    out(2) = -(Q_1_1 * t5 * Scalar(0.016)) + Scalar(1) - Q_1_2 * Q_1_2 - t6 * t1 * Q_1_2 * t3 * Scalar(2.8799999999999999);
+    out(2) = (-(t5 * t1 * Q_1_2 * Scalar(1.4399999999999999) * t3) - Q_1_1 * t6 * Scalar(0.0080000000000000002)) * Scalar(2) + Scalar(1) - Q_1_2 * Q_1_2;
     out(3) = t8;
-    out(4) = -(Q_2_2 * Q_2_2) + Scalar(1) - Q_1_2 * t3 * Scalar(1.1519999999999999) - t7 * Q_2_2 * Scalar(0.040000000000000001);
+    out(4) = -(Q_2_2 * Q_2_2) + (-(t7 * Q_2_2 * Scalar(0.02)) - Scalar(0.57599999999999996) * Q_1_2 * t3) * Scalar(2) + Scalar(1);
   }
 
   /// The estimate m: the first n entries of w.

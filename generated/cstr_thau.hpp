@@ -8,8 +8,8 @@
 //   g = [0, 3*u/10]
 //   h = [x2]
 // Observer: Thau (1973; seed 001 §4, eq. 18-26), x' = A x + B u + phi(x, u), y = C x
-// Poles of A + L C: -2980, -61/50; L = [[765347/1000], [-372428/125]]
-// Certificate (26): sigma_min(Q)/sigma_max(P) = 1.14442 > M = 1.14355 (rigorous) on W = x1 in [0, 0.116028], x2 in [0, 0.928223]
+// Poles of A + L C: -123/100, -20; L = [[92161/18000], [-9717/500]]
+// Certificate (26): sigma_min(Q)/sigma_max(P) = 1.14033 > M = 1.02585 (rigorous) on W = x1 in [0, 0.108398], x2 in [0, 0.867188]
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -94,8 +94,8 @@ struct ThauFunctions {
     const Scalar x2 = x(1);
     const Scalar y_ = y(0);
     const Scalar t0 = std::exp(Scalar(20) * x2 / (Scalar(20) + x2));
-    const Scalar t1 = y_ * Scalar(2979.424) + Scalar(0.29999999999999999) * u_ - Scalar(2980.7240000000002) * x2 + Scalar(0.57599999999999996) * t0 - x1 * Scalar(0.57599999999999996) * t0;
-    out(0) = -x1 + x2 * Scalar(765.34699999999998) - y_ * Scalar(765.34699999999998) - x1 * Scalar(0.071999999999999995) * t0 + Scalar(0.071999999999999995) * t0;
+    const Scalar t1 = y_ * Scalar(19.434000000000001) + Scalar(0.29999999999999999) * u_ + Scalar(0.57599999999999996) * t0 - x1 * Scalar(0.57599999999999996) * t0 - Scalar(20.734000000000002) * x2;
+    out(0) = -x1 - x1 * Scalar(0.071999999999999995) * t0 - Scalar(5.1200555555555551) * y_ + Scalar(0.071999999999999995) * t0 + Scalar(5.1200555555555551) * x2;
     out(1) = t1;
   }
 };
@@ -103,7 +103,7 @@ struct ThauFunctions {
 /// Thau observer (Lipschitz nonlinearity, Lyapunov certificate):
 ///   xh' = A xh + B u + phi(xh, u) + L (h(xh) - y),  A + L C Hurwitz
 /// (seed 001 eq. 19, L (yh - y)); V = e' P e decreases while x and xh stay in
-/// W = x1 in [0, 0.116028], x2 in [0, 0.928223].
+/// W = x1 in [0, 0.108398], x2 in [0, 0.867188].
 template <class Scalar_ = double>
 class CstrThau {
  public:

@@ -186,6 +186,9 @@ class Dufour4KalmanTheta {
   /// Sets the observer's own state and recomputes the estimate.
   obsynth::Status set_observer_state(const ObserverState& w) noexcept {
     w_ = w;
+    if (!obsynth::packed_positive_definite<2, 2>(w_)) {  // S
+      return status_ = obsynth::Status::singular;
+    }
     return status_ = update_estimate();
   }
 

@@ -8,8 +8,8 @@
 //   g = [0, 0, 0, u]
 //   h = [x1]
 // Observer: Thau (1973; seed 001 §4, eq. 18-26), x' = A x + B u + phi(x, u), y = C x
-// Poles of A + L C: -3/2, -163/100, -173/100, -77/50; L = [[-32/5], [-113443/10000], [-620881/62500], [6830331/1000000]]
-// Certificate (26): sigma_min(Q)/sigma_max(P) = 0.114087 > M = 0.114021 (rigorous) on W = x1 in [-0.339294, 0.339294], x2 in [-0.339294, 0.339294], x3 in [-0.339294, 0.339294], x4 in [-0.339294, 0.339294]
+// Poles of A + L C: -38/25, -33/20, -79/50, -41/25; L = [[-639/100], [-56533/5000], [-1237483/125000], [4254919/625000]]
+// Certificate (26): sigma_min(Q)/sigma_max(P) = 0.114171 > M = 0.102728 (rigorous) on W = x1 in [-0.321899, 0.321899], x2 in [-3, 3], x3 in [-3, 3], x4 in [-3, 3]
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -100,17 +100,17 @@ struct ThauFunctions {
     const Scalar x3 = x(2);
     const Scalar x4 = x(3);
     const Scalar y_ = y(0);
-    out(0) = Scalar(6.4000000000000004) * y_ - x1 * Scalar(6.4000000000000004) + x2;
-    out(1) = -(x1 * Scalar(12.3443)) + x3 - std::sin(x1) * Scalar(2) + y_ * Scalar(11.3443);
-    out(2) = -(x1 * Scalar(9.9340960000000003)) + y_ * Scalar(9.9340960000000003) + x4;
-    out(3) = x1 * Scalar(7.8303310000000002) - y_ * Scalar(6.8303310000000002) - x3 + u_;
+    out(0) = -(x1 * Scalar(6.3899999999999997)) + Scalar(6.3899999999999997) * y_ + x2;
+    out(1) = -(x1 * Scalar(12.3066)) + y_ * Scalar(11.3066) + x3 - std::sin(x1) * Scalar(2);
+    out(2) = -(x1 * Scalar(9.8998640000000009)) + Scalar(9.8998640000000009) * y_ + x4;
+    out(3) = -(Scalar(6.8078703999999997) * y_) - x3 + x1 * Scalar(7.8078703999999997) + u_;
   }
 };
 
 /// Thau observer (Lipschitz nonlinearity, Lyapunov certificate):
 ///   xh' = A xh + B u + phi(xh, u) + L (h(xh) - y),  A + L C Hurwitz
 /// (seed 001 eq. 19, L (yh - y)); V = e' P e decreases while x and xh stay in
-/// W = x1 in [-0.339294, 0.339294], x2 in [-0.339294, 0.339294], x3 in [-0.339294, 0.339294], x4 in [-0.339294, 0.339294].
+/// W = x1 in [-0.321899, 0.321899], x2 in [-3, 3], x3 in [-3, 3], x4 in [-3, 3].
 template <class Scalar_ = double>
 class FlexibleJointThau {
  public:

@@ -10,7 +10,7 @@
 // Observer: high-gain observer (Gauthier-Hammouri-Kupka; seed 002 eq. 3)
 // theta = 5; poles of A - K C: -2, -5/2, -3; K = [15/2, 37/2, 15]; Delta_theta K = [75/2, 925/2, 1875]
 // Gain applied by an LU solve with O(xh); O singular -> Status::singular, where x1 = 0 (crosses the domain box (sampled))
-// Lipschitz constant of phi in z: L = 3.96e+06 (sampled); convergence guaranteed for theta > 2.483e+07
+// Lipschitz constant of phi in z: L = inf (unbounded); theta* = inf: convergence not guaranteed
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.

@@ -8,8 +8,8 @@
 //   g = [0, u]
 //   h = [x1]
 // Observer: Thau (1973; seed 001 §4, eq. 18-26), x' = A x + B u + phi(x, u), y = C x
-// Poles of A + L C: -103/100, -2980; L = [[-149039/50], [-464641/200]]
-// Certificate (26): sigma_min(Q)/sigma_max(P) = 0.640304 > M = 0.640192 (rigorous) on W = x1 in [-1.20273, 1.20273], x2 in [-1.50342, 1.50342]
+// Poles of A + L C: -27/25, -20; L = [[-2083/100], [-6157/400]]
+// Certificate (26): sigma_min(Q)/sigma_max(P) = 0.628384 > M = 0.565478 (rigorous) on W = x1 in [-1.12129, 1.12129], x2 in [-4, 4]
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -88,15 +88,15 @@ struct ThauFunctions {
     const Scalar x1 = x(0);
     const Scalar x2 = x(1);
     const Scalar y_ = y(0);
-    out(0) = x2 - x1 * Scalar(2980.7800000000002) + y_ * Scalar(2980.7800000000002);
-    out(1) = -(x1 * Scalar(2323.2049999999999)) + Scalar(2323.2049999999999) * y_ - x2 * Scalar(0.25) + u_ - std::sin(x1);
+    out(0) = y_ * Scalar(20.829999999999998) + x2 - x1 * Scalar(20.829999999999998);
+    out(1) = y_ * Scalar(15.3925) - x2 * Scalar(0.25) + u_ - std::sin(x1) - x1 * Scalar(15.3925);
   }
 };
 
 /// Thau observer (Lipschitz nonlinearity, Lyapunov certificate):
 ///   xh' = A xh + B u + phi(xh, u) + L (h(xh) - y),  A + L C Hurwitz
 /// (seed 001 eq. 19, L (yh - y)); V = e' P e decreases while x and xh stay in
-/// W = x1 in [-1.20273, 1.20273], x2 in [-1.50342, 1.50342].
+/// W = x1 in [-1.12129, 1.12129], x2 in [-4, 4].
 template <class Scalar_ = double>
 class PendulumThau {
  public:

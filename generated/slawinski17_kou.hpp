@@ -9,7 +9,7 @@
 //   h = [x1]
 // Observer: Kou-Elliott-Tarn (1975; seed 001 §4, Theorem 1, eq. 5-9)
 // L = [[-4513/500], [7561/200]], P = [[0.969635, 0.170346], [0.170346, 0.044366]]
-// Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= -6.31475e-06 on the domain (rigorous)
+// Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= -0.00593636 on the domain (rigorous)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -87,7 +87,7 @@ struct KouFunctions {
 
 /// Kou-Elliott-Tarn observer (uniformly negative definite P (df/dx + L dh/dx)):
 ///   xh' = f(xh) + g(xh, u) + L (h(xh) - y)   (seed 001 eq. 5, L (yh - y))
-/// V = e' P e decays while x and xh stay in the domain box: |e| rate >= 6.315e-06.
+/// V = e' P e decays while x and xh stay in the domain box: |e| rate >= 0.005936.
 template <class Scalar_ = double>
 class Slawinski17Kou {
  public:

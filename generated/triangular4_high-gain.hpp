@@ -10,7 +10,7 @@
 // Observer: high-gain observer (Gauthier-Hammouri-Kupka; seed 002 eq. 3)
 // theta = 5; poles of A - K C: -2, -5/2, -3, -7/2; K = [11, 179/4, 319/4, 105/2]; Delta_theta K = [55, 4475/4, 39875/4, 65625/2]
 // Gain applied by an LU solve with O(xh); O singular -> Status::singular, never (det O = 1)
-// Lipschitz constant of phi in z: L = 14.23 (sampled); convergence guaranteed for theta > 525.9
+// Lipschitz constant of phi in z: L = 16.0624 (rigorous); theta* = 593.727: convergence not guaranteed
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.

@@ -8,8 +8,8 @@
 //   g = [0, 0, 0, (x1^2+1)*u]
 //   h = [x1]
 // Observer: Thau (1973; seed 001 §4, eq. 18-26), x' = A x + B u + phi(x, u), y = C x
-// Poles of A + L C: -59/50, -817/1000, -143/100, -23/4; L = [[-9177/1000], [-1176251/50000], [-223422833/10000000], [-138539667/20000000]]
-// Certificate (26): sigma_min(Q)/sigma_max(P) = 0.0946644 > M = 0.0943626 (rigorous) on W = x1 in [-0.0318604, 0.0318604], x2 in [-0.0318604, 0.0318604], x3 in [-0.0318604, 0.0318604], x4 in [-0.0318604, 0.0318604]
+// Poles of A + L C: -117/100, -71/100, -91/50, -239/50; L = [[-212/25], [-219383/10000], [-5209467/250000], [-155668943/25000000]]
+// Certificate (26): sigma_min(Q)/sigma_max(P) = 0.0943832 > M = 0.084601 (rigorous) on W = x1 in [-0.0285645, 0.0285645], x2 in [-0.0285645, 0.0285645], x3 in [-0.0285645, 0.0285645], x4 in [-2, 2]
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -103,17 +103,17 @@ struct ThauFunctions {
     const Scalar x3 = x(2);
     const Scalar x4 = x(3);
     const Scalar y_ = y(0);
-    out(0) = -(x1 * Scalar(9.1769999999999996)) + x2 + y_ * Scalar(9.1769999999999996);
-    out(1) = -(x1 * Scalar(23.525020000000001)) + Scalar(23.525020000000001) * y_ + x3;
-    out(2) = Scalar(22.342283299999998) * y_ - x1 * Scalar(23.342283299999998) + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
-    out(3) = (x1 * x1) * u_ - x1 * Scalar(7.9269833500000004) + x2 * x3 + Scalar(6.9269833500000004) * y_ + u_;
+    out(0) = -(x1 * Scalar(8.4800000000000004)) + y_ * Scalar(8.4800000000000004) + x2;
+    out(1) = -(x1 * Scalar(21.938300000000002)) + Scalar(21.938300000000002) * y_ + x3;
+    out(2) = Scalar(0.5) * (x2 * x2) - x1 * Scalar(21.837868) + x1 * x3 + y_ * Scalar(20.837868) + x4;
+    out(3) = Scalar(6.2267577200000002) * y_ + (x1 * x1) * u_ + x2 * x3 + u_ - x1 * Scalar(7.2267577200000002);
   }
 };
 
 /// Thau observer (Lipschitz nonlinearity, Lyapunov certificate):
 ///   xh' = A xh + B u + phi(xh, u) + L (h(xh) - y),  A + L C Hurwitz
 /// (seed 001 eq. 19, L (yh - y)); V = e' P e decreases while x and xh stay in
-/// W = x1 in [-0.0318604, 0.0318604], x2 in [-0.0318604, 0.0318604], x3 in [-0.0318604, 0.0318604], x4 in [-0.0318604, 0.0318604].
+/// W = x1 in [-0.0285645, 0.0285645], x2 in [-0.0285645, 0.0285645], x3 in [-0.0285645, 0.0285645], x4 in [-2, 2].
 template <class Scalar_ = double>
 class Triangular4Thau {
  public:

@@ -10,7 +10,7 @@
 // Observer: high-gain observer (Gauthier-Hammouri-Kupka; seed 002 eq. 3)
 // theta = 5; poles of A - K C: -2, -5/2; K = [9/2, 5]; Delta_theta K = [45/2, 125]
 // Gain applied by an LU solve with O(xh); O singular -> Status::singular, never (det O = 1)
-// Lipschitz constant of phi in z: L = 25.01 (sampled); convergence guaranteed for theta > 56.35
+// Lipschitz constant of phi in z: L = 26.2489 (rigorous); theta* = 59.1509: convergence not guaranteed
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.

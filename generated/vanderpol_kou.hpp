@@ -9,7 +9,7 @@
 //   h = [x1]
 // Observer: Kou-Elliott-Tarn (1975; seed 001 §4, Theorem 1, eq. 5-9)
 // L = [[-9609/1000], [-12281/500]], P = [[0.962858, -0.184717], [-0.184717, 0.081366]]
-// Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= -0.000585966 on the domain (rigorous)
+// Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= -0.0459855 on the domain (rigorous)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -87,7 +87,7 @@ struct KouFunctions {
 
 /// Kou-Elliott-Tarn observer (uniformly negative definite P (df/dx + L dh/dx)):
 ///   xh' = f(xh) + g(xh, u) + L (h(xh) - y)   (seed 001 eq. 5, L (yh - y))
-/// V = e' P e decays while x and xh stay in the domain box: |e| rate >= 0.000586.
+/// V = e' P e decays while x and xh stay in the domain box: |e| rate >= 0.04599.
 template <class Scalar_ = double>
 class VanderpolKou {
  public:

@@ -8,8 +8,8 @@
 //   g = [0, u]
 //   h = [x1]
 // Observer: Thau (1973; seed 001 §4, eq. 18-26), x' = A x + B u + phi(x, u), y = C x
-// Poles of A + L C: -2980, -71/50; L = [[-149121/50], [-360651/50]]
-// Certificate (26): sigma_min(Q)/sigma_max(P) = 0.207022 > M = 0.206899 (rigorous) on W = x1 in [-0.269531, 0.269531], x2 in [-0.359375, 0.359375]
+// Poles of A + L C: -161/100, -20; L = [[-2261/100], [-5381/100]]
+// Certificate (26): sigma_min(Q)/sigma_max(P) = 0.196053 > M = 0.176353 (rigorous) on W = x1 in [-0.24884, 0.24884], x2 in [-0.331787, 0.331787]
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -89,15 +89,15 @@ struct ThauFunctions {
     const Scalar x1 = x(0);
     const Scalar x2 = x(1);
     const Scalar y_ = y(0);
-    out(0) = Scalar(2982.4200000000001) * y_ + x2 - x1 * Scalar(2982.4200000000001);
-    out(1) = y_ * Scalar(7213.0200000000004) + x2 - x1 * Scalar(7214.0200000000004) - x2 * (x1 * x1) + u_;
+    out(0) = x2 + Scalar(22.609999999999999) * y_ - x1 * Scalar(22.609999999999999);
+    out(1) = -(x1 * Scalar(54.810000000000002)) + x2 - x2 * (x1 * x1) + u_ + y_ * Scalar(53.810000000000002);
   }
 };
 
 /// Thau observer (Lipschitz nonlinearity, Lyapunov certificate):
 ///   xh' = A xh + B u + phi(xh, u) + L (h(xh) - y),  A + L C Hurwitz
 /// (seed 001 eq. 19, L (yh - y)); V = e' P e decreases while x and xh stay in
-/// W = x1 in [-0.269531, 0.269531], x2 in [-0.359375, 0.359375].
+/// W = x1 in [-0.24884, 0.24884], x2 in [-0.331787, 0.331787].
 template <class Scalar_ = double>
 class VanderpolThau {
  public:
