@@ -7,6 +7,7 @@
 #include <map>
 #include <set>
 
+#include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/integrate.hpp"
@@ -52,16 +53,6 @@ std::string num_text(double v) {
 }
 
 // Entry by entry: to_string orders each entry deterministically, GiNaC's matrix printing does not.
-std::string mat_text(const GiNaC::matrix& M) {
-  std::vector<std::string> rows;
-  for (unsigned i = 0; i < M.rows(); ++i) {
-    std::vector<std::string> row;
-    for (unsigned j = 0; j < M.cols(); ++j) row.push_back(to_string(M(i, j)));
-    rows.push_back(fmt::format("[{}]", fmt::join(row, ", ")));
-  }
-  return fmt::format("[{}]", fmt::join(rows, ", "));
-}
-
 std::string vec_text(const ExVec& v) {
   return fmt::format("[{}]", fmt::join(to_strings(v), ", "));
 }
@@ -321,8 +312,8 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   r.notes.push_back(
       fmt::format("base point x0 = ({}), u0 = {}, y0 = h(x0) = {}; A0 = d(f+g)/dx = {}, "
                   "B0 = d(f+g)/du = {}, H0 = dh/dx = {}{}",
-                  poles_list(r.x0), to_string(ex(r.u0[0])), to_string(r.y0), mat_text(A0),
-                  mat_text(B0), mat_text(H0), at_params));
+                  poles_list(r.x0), to_string(ex(r.u0[0])), to_string(r.y0), matrix_text(A0),
+                  matrix_text(B0), matrix_text(H0), at_params));
   if (c1) {
     r.dy_deps = value_at((H0.mul(A0.inverse()).mul(B0))(0, 0) * -1, params);
   } else {
@@ -542,18 +533,6 @@ Verdict applies(const Analysis& a) {
   return v;
 }
 
-GeneratedFunction fn(const std::string& name, const std::string& doc, std::vector<FunctionArg> args,
-                     ExVec out, const std::string& out_type) {
-  GeneratedFunction f;
-  f.name = name;
-  f.doc = doc;
-  f.args = std::move(args);
-  f.out_rows = out.size();
-  f.outputs = std::move(out);
-  f.out_type = out_type;
-  return f;
-}
-
 ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Model& m = a.model;
   const ExtendedLinearization& r = extended_linearization(m, o);
@@ -585,12 +564,12 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   spec.state_size = n;
   spec.params = runtime_params(m);
   spec.functions = model_functions(m);
-  spec.functions.push_back(
-      fn("injection", "Output injection k(y) with dk/dy(y_eps) = C(eps)^T (seed 001 eq. 34, 40).",
-         {output_arg({y})}, k_y, "State"));
+  spec.functions.push_back(make_function(
+      "injection", "Output injection k(y) with dk/dy(y_eps) = C(eps)^T (seed 001 eq. 34, 40).",
+      {output_arg({y})}, k_y, "State"));
   GeneratedFunction x_rhs =
-      fn("x_rhs", "xh' = f(xh) + g(xh, u) + k(y) - k(h(xh))  (seed 001 eq. 29).",
-         {state_arg(m), input_arg(m), output_arg({y})}, rhs, "State");
+      make_function("x_rhs", "xh' = f(xh) + g(xh, u) + k(y) - k(h(xh))  (seed 001 eq. 29).",
+                    {state_arg(m), input_arg(m), output_arg({y})}, rhs, "State");
   x_rhs.lets.push_back({yh, m.h[0]});
   spec.functions.push_back(x_rhs);
   spec.state_name = "xh";

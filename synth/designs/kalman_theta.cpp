@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "analysis/persistence.hpp"
+#include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
@@ -82,18 +83,6 @@ std::vector<std::vector<numeric>> chosen_S0(const DesignOptions& o, std::size_t 
   return S;
 }
 
-GeneratedFunction fn(const std::string& name, const std::string& doc, std::vector<FunctionArg> args,
-                     ExVec out, const std::string& out_type) {
-  GeneratedFunction f;
-  f.name = name;
-  f.doc = doc;
-  f.args = std::move(args);
-  f.out_rows = out.size();
-  f.outputs = std::move(out);
-  f.out_type = out_type;
-  return f;
-}
-
 ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Model& m = a.model;
   std::string why;
@@ -145,22 +134,23 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const GiNaC::symbol y("y");
   const FunctionArg w = vector_arg("w", "ObserverState", wsyms, FunctionArg::Kind::observer_state);
   const FunctionArg u = input_arg(m), yarg = output_arg({y});
-  s.functions.push_back(fn("kt_rhs",
-                           "zh' = A(u) zh + phi(u, zh); S' = -theta S - A(u)^T S - S A(u) + C^T C "
-                           "(packed); the gain is added by a Cholesky solve with S.",
-                           {w, u, yarg}, rhs, "ObserverState"));
+  s.functions.push_back(
+      make_function("kt_rhs",
+                    "zh' = A(u) zh + phi(u, zh); S' = -theta S - A(u)^T S - S A(u) + C^T C "
+                    "(packed); the gain is added by a Cholesky solve with S.",
+                    {w, u, yarg}, rhs, "ObserverState"));
   ExVec v(n, 0);
   v[0] = y - m.states[0];  // -C^T (C zh - y)
-  s.functions.push_back(
-      fn("kt_gain_vector", "-C^T (C zh - y), solved with S.", {w, u, yarg}, v, "GainVector"));
+  s.functions.push_back(make_function("kt_gain_vector", "-C^T (C zh - y), solved with S.",
+                                      {w, u, yarg}, v, "GainVector"));
   ExVec init(m.states.begin(), m.states.end());
   for (std::size_t r = 0; r < n; ++r)
     for (std::size_t c = r; c < n; ++c) init.push_back(S0[r][c]);
   s.functions.push_back(
-      fn("kt_init", "w = (xh0, S0 packed).", {state_arg(m)}, init, "ObserverState"));
+      make_function("kt_init", "w = (xh0, S0 packed).", {state_arg(m)}, init, "ObserverState"));
   ExVec est(m.states.begin(), m.states.end());
   s.functions.push_back(
-      fn("kt_estimate", "xh = zh (the first n entries of w).", {w}, est, "State"));
+      make_function("kt_estimate", "xh = zh (the first n entries of w).", {w}, est, "State"));
   s.init = InitKind::function;
   s.roles.init = "kt_init";
   s.update = UpdateKind::ode;

@@ -5,6 +5,7 @@
 #include <set>
 
 #include "certify/riccati_certificate.hpp"
+#include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
 #include "symbolic/expr_print.hpp"
 
@@ -73,16 +74,6 @@ void require_symmetric_pd(const GiNaC::matrix& M, const std::string& name) {
         fmt::format("--{}: not positive definite (a leading principal minor is <= 0)", name));
 }
 
-std::string matrix_text(const GiNaC::matrix& M) {
-  std::vector<std::string> rows;
-  for (unsigned r = 0; r < M.rows(); ++r) {
-    std::vector<std::string> row;
-    for (unsigned c = 0; c < M.cols(); ++c) row.push_back(to_string(M(r, c)));
-    rows.push_back(fmt::format("[{}]", fmt::join(row, ", ")));
-  }
-  return fmt::format("[{}]", fmt::join(rows, ", "));
-}
-
 std::vector<numeric> row_major(const GiNaC::matrix& M) {
   std::vector<numeric> v;
   for (unsigned r = 0; r < M.rows(); ++r)
@@ -108,18 +99,6 @@ class Names {
  private:
   std::set<std::string> used_;
 };
-
-GeneratedFunction fn(const std::string& name, const std::string& doc, std::vector<FunctionArg> args,
-                     ExVec out, const std::string& out_type) {
-  GeneratedFunction f;
-  f.name = name;
-  f.doc = doc;
-  f.args = std::move(args);
-  f.out_rows = out.size();
-  f.outputs = std::move(out);
-  f.out_type = out_type;
-  return f;
-}
 
 Verdict applies(const Analysis& a) {
   Verdict v;
@@ -256,12 +235,13 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   for (std::size_t r = 0; r < n; ++r)
     for (std::size_t c = r; c < n; ++c)
       init.push_back(prm.Q0(static_cast<unsigned>(r), static_cast<unsigned>(c)));
-  s.functions.push_back(fn("riccati_init", "w = (xh0, Q0 packed upper triangle).", {state_arg(m)},
-                           init, "ObserverState"));
+  s.functions.push_back(make_function("riccati_init", "w = (xh0, Q0 packed upper triangle).",
+                                      {state_arg(m)}, init, "ObserverState"));
   s.functions.push_back(rhs);
-  s.functions.push_back(fn("riccati_estimate", "The estimate m: the first n entries of w.",
-                           {vector_arg("w", "ObserverState", w, FunctionArg::Kind::observer_state)},
-                           ExVec(m.states.begin(), m.states.end()), "State"));
+  s.functions.push_back(
+      make_function("riccati_estimate", "The estimate m: the first n entries of w.",
+                    {vector_arg("w", "ObserverState", w, FunctionArg::Kind::observer_state)},
+                    ExVec(m.states.begin(), m.states.end()), "State"));
   s.init = InitKind::function;
   s.roles.init = "riccati_init";
   s.update = UpdateKind::ode;

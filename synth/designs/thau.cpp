@@ -8,6 +8,7 @@
 #include <map>
 
 #include "certify/enclosure.hpp"
+#include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
 #include "emit/dag.hpp"
 #include "symbolic/expr_print.hpp"
@@ -273,16 +274,6 @@ std::string matrix_text(const Eigen::MatrixXd& M, int digits) {
     std::vector<std::string> r;
     for (Eigen::Index j = 0; j < M.cols(); ++j)
       r.push_back(fmt::format("{:.{}g}", M(i, j), digits));
-    rows.push_back(fmt::format("[{}]", fmt::join(r, ", ")));
-  }
-  return fmt::format("[{}]", fmt::join(rows, ", "));
-}
-
-std::string matrix_text(const GiNaC::matrix& M) {
-  std::vector<std::string> rows;
-  for (unsigned i = 0; i < M.rows(); ++i) {
-    std::vector<std::string> r;
-    for (unsigned j = 0; j < M.cols(); ++j) r.push_back(to_string(M(i, j)));
     rows.push_back(fmt::format("[{}]", fmt::join(r, ", ")));
   }
   return fmt::format("[{}]", fmt::join(rows, ", "));

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "designs/design_helpers.hpp"
 #include "designs/registry.hpp"
 
 namespace obsynth {
@@ -84,7 +85,6 @@ std::vector<std::vector<double>> candidate_pole_sets(std::size_t n);
 
 Eigen::MatrixXd to_eigen(const GiNaC::matrix& M);
 std::string matrix_text(const Eigen::MatrixXd& M, int digits = 6);
-std::string matrix_text(const GiNaC::matrix& M);
 
 }  // namespace lyapunov_tools
 

@@ -1,0 +1,42 @@
+// Small builders every design file uses: a generated function from its parts, and the text
+// of an exact matrix for report rows.
+#pragma once
+
+#include <fmt/format.h>
+#include <ginac/ginac.h>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "designs/spec.hpp"
+#include "symbolic/expr_print.hpp"
+
+namespace obsynth {
+
+// A vector-valued generated function (out_rows = outputs.size(), one column).
+inline GeneratedFunction make_function(const std::string& name, const std::string& doc,
+                                       std::vector<FunctionArg> args, ExVec outputs,
+                                       const std::string& out_type) {
+  GeneratedFunction f;
+  f.name = name;
+  f.doc = doc;
+  f.args = std::move(args);
+  f.out_rows = outputs.size();
+  f.outputs = std::move(outputs);
+  f.out_type = out_type;
+  return f;
+}
+
+// "[[a, b], [c, d]]", row by row.
+inline std::string matrix_text(const GiNaC::matrix& M) {
+  std::vector<std::string> rows;
+  for (unsigned r = 0; r < M.rows(); ++r) {
+    std::vector<std::string> row;
+    for (unsigned c = 0; c < M.cols(); ++c) row.push_back(to_string(M(r, c)));
+    rows.push_back(fmt::format("[{}]", fmt::join(row, ", ")));
+  }
+  return fmt::format("[{}]", fmt::join(rows, ", "));
+}
+
+}  // namespace obsynth
