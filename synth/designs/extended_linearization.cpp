@@ -21,7 +21,7 @@ using GiNaC::numeric;
 
 namespace {
 
-constexpr std::size_t kMaxStates = 6;
+constexpr std::size_t kMaxStates = 4;  // n = 5, 6 chains: > 30 s in the family and checks
 constexpr int kDefaultOrder = 6;
 constexpr double kTiny = 1e-12;
 

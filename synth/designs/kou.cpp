@@ -195,6 +195,8 @@ GiNaC::matrix symmetric_part(const Model& m, const GiNaC::matrix& L, const GiNaC
   return S;
 }
 
+constexpr std::size_t kMaxSearchStates = 4;
+
 Result design(const Model& m, const DesignOptions& o) {
   Result r;
   const std::size_t n = m.n(), p = m.p();
@@ -210,6 +212,15 @@ Result design(const Model& m, const DesignOptions& o) {
       throw UserError(SourceLoc{}, "--kou-p: P must be symmetric");
     if (Eigen::SelfAdjointEigenSolver<Mat>(*uP).eigenvalues()(0) <= 0)
       throw UserError(SourceLoc{}, "--kou-p: P must be positive definite");
+  }
+  // The search certifies candidates by branch and bound of an n x n symmetric matrix over the
+  // whole box; past kMaxSearchStates states it takes minutes (chain models, n = 5: > 60 s).
+  if (!r.user_L && n > kMaxSearchStates) {
+    r.not_applicable = fmt::format(
+        "not searched: n = {} states > {}, where the certified search of L and P takes too "
+        "long; give --kou-gain (and --kou-p) to check a chosen observer",
+        n, kMaxSearchStates);
+    return r;
   }
   std::vector<std::pair<double, double>> ranges;
   for (const auto& rg : r.box.ranges) ranges.emplace_back(rg.lo, rg.hi);

@@ -663,12 +663,23 @@ std::string model_key(const Model& m) {
   return k;
 }
 
+constexpr std::size_t kMaxSearchStates = 4;
+
 Result design(const Model& m, const DesignOptions& o) {
   Result r;
   r.split = split_model(m);
   if (!r.split.not_applicable.empty()) return r;
   const Split& s = r.split;
   const std::size_t n = m.n();
+  // Each candidate's M is a branch and bound over the whole box, and the search tries many:
+  // past kMaxSearchStates states that takes minutes (chain models, n = 6: > 60 s).
+  if (n > kMaxSearchStates && o.find("thau-poles") == nullptr) {
+    r.split.not_applicable = fmt::format(
+        "not searched: n = {} states > {}, where the certified search of poles and Q takes too "
+        "long; give --thau-poles (and --thau-q) to check a chosen observer",
+        n, kMaxSearchStates);
+    return r;
+  }
   const auto up = chosen_poles(o, n);
   const auto uQ = chosen_Q(o, n);
   r.user_poles = !up.empty();
