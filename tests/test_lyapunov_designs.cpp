@@ -213,6 +213,24 @@ TEST(Thau, NonlinearOutputIsReported) {
   EXPECT_NE(v.text().find("h is not linear in x"), std::string::npos) << v.text();
 }
 
+// Five states (a stable chain with y = x1): the certified searches are not attempted (they
+// took 40-60 s), and both verdicts say so and how to check a chosen observer instead.
+const char* kFiveStates = R"(model five
+states x1 x2 x3 x4 x5
+f = [ x2 - x1, x3 - x2, x4 - x3, x5 - x4, -x5 + sin(x1) ]
+h = [ x1 ]
+)";
+
+TEST(Thau, SearchIsBoundedPastFourStates) {
+  const Analysis a = analysed(parse_model(kFiveStates, "five.sym"));
+  const Verdict t = find_design("thau")->applies(a);
+  EXPECT_FALSE(t.applies);
+  EXPECT_NE(t.text().find("not searched: n = 5 states > 4"), std::string::npos) << t.text();
+  const Verdict k = find_design("kou")->applies(a);
+  EXPECT_FALSE(k.applies);
+  EXPECT_NE(k.text().find("not searched: n = 5 states > 4"), std::string::npos) << k.text();
+}
+
 TEST(Thau, UserPolesAndQAreUsed) {
   const Model m = load_model(kPendulum);
   const DesignOptions o = opts({{"thau-poles", "-2,-3"}, {"thau-q", "1,2"}});
