@@ -184,7 +184,7 @@ TEST(HighGain, VanDerPolCertificateByHand) {
   const std::string Lrow = row(s, "Lipschitz constant L");
   EXPECT_NE(Lrow.find("rigorous"), std::string::npos) << Lrow;
   const double Lrep = std::stod(Lrow);
-  EXPECT_GE(Lrep, L);  // rounded up, never below
+  EXPECT_GE(Lrep, L);               // rounded up, never below
   EXPECT_LT(Lrep, L * (1 + 1e-5));  // 6 significant digits, rounded up
   GiNaC::symbol p11("p11"), p12("p12"), p22("p22");
   const GiNaC::matrix P = {{p11, p12}, {p12, p22}};

@@ -53,7 +53,7 @@ struct Binding {
 struct EmittedCode {
   std::string text;  // statements, one per line, with the given indent
   std::size_t temporaries = 0;
-  std::size_t operations = 0;  // arithmetic operations and calls (a size measure)
+  std::size_t operations = 0;            // arithmetic operations and calls (a size measure)
   std::set<std::string> arguments_read;  // Binding::argument of every variable read
 };
 
