@@ -99,7 +99,8 @@ code=$?
 elapsed=$(( $(date +%s) - start ))
 check "memory budget exit code 1" test $code -eq 1
 check "memory budget diagnostic" grep -Eq "^obsynth: error: stage '[a-z]+' exceeded its memory budget of 256 MiB" "$tmp/err"
-check "memory budget stops promptly (${elapsed}s)" test $elapsed -le 30
+# Wall time, so generous: the suite runs tests in parallel on 2 cores, where 30 s may be exceeded.
+check "memory budget stops promptly (${elapsed}s)" test $elapsed -le 90
 check "memory stop keeps the rank" grep -q "generic rank 12 of n = 12" "$tmp/out"
 # In-process the budget is the address-space limit, which AddressSanitizer's shadow memory
 # rules out (synth/app/worker.cpp): skipped for a sanitized binary.
