@@ -39,4 +39,17 @@ inline std::string matrix_text(const GiNaC::matrix& M) {
   return fmt::format("[{}]", fmt::join(rows, ", "));
 }
 
+// A key for caching a design's search between applies() and build(): the model's maps, its
+// boxes, and its symbols' hashes (symbols compare by identity: a model loaded again has new ones).
+inline std::string design_cache_key(const Model& m) {
+  std::string k = m.file + "|" + m.name + "|";
+  for (const auto& e : m.field()) k += to_string(e) + ",";
+  for (const auto& e : m.h) k += to_string(e) + ",";
+  for (const auto& s : m.all_symbols()) {
+    const Interval b = m.box(s);
+    k += fmt::format("{}#{}[{},{}]", s.get_name(), s.gethash(), to_string(b.lo), to_string(b.hi));
+  }
+  return k;
+}
+
 }  // namespace obsynth

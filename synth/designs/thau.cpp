@@ -650,19 +650,6 @@ std::string options_key(const DesignOptions& o) {
   return k;
 }
 
-std::string model_key(const Model& m) {
-  std::string k = m.file + "|" + m.name + "|";
-  for (const auto& e : m.field()) k += to_string(e) + ",";
-  for (const auto& e : m.h) k += to_string(e) + ",";
-  // Symbols compare by identity: a model loaded again has new ones, so the key holds their
-  // hashes (serial numbers) too.
-  for (const auto& s : m.all_symbols()) {
-    const Interval b = m.box(s);
-    k += fmt::format("{}#{}[{},{}]", s.get_name(), s.gethash(), to_string(b.lo), to_string(b.hi));
-  }
-  return k;
-}
-
 constexpr std::size_t kMaxSearchStates = 4;
 
 Result design(const Model& m, const DesignOptions& o) {
@@ -780,7 +767,7 @@ Result design(const Model& m, const DesignOptions& o) {
 
 const Result& cached_design(const Model& m, const DesignOptions& o) {
   static std::map<std::string, Result> cache;
-  const std::string key = model_key(m) + "#" + options_key(o);
+  const std::string key = design_cache_key(m) + "#" + options_key(o);
   auto it = cache.find(key);
   if (it == cache.end()) it = cache.emplace(key, design(m, o)).first;
   return it->second;
