@@ -43,8 +43,11 @@
 //    sigma(P) in [0.132968, 1], hence |e(t)| <= sqrt(7.52058) |e(0)| exp(-0.180253 t) for the
 //    continuous-time loop. The sampled loop adds the disturbance d = L (y_k - y(t)),
 //    |d| <= |L|_2 vbar dt with vbar >= |x2| between samples (vbar = 0.5 + 3 dt: |x2| <= 0.5 is
-//    asserted at every sample, |x2'| <= 1 + 1 + 1/4 < 3), and rounding, at most
-//    8 eps (1 + |xh|) per step (eps = machine epsilon of Scalar), i.e. a rate of 8 eps / dt.
+//    asserted at every sample, |x2'| <= 1 + 1 + 1/4 < 3), and the rounding of the plant and
+//    observer steps, taken as at most 8 eps (1 + 4) per step together (eps = machine epsilon
+//    of Scalar, |x|, |xh| <= 4; a generous count for one RK4 update), i.e. a rate of
+//    8 eps 5 / dt. The mean-value form of the certificate needs the segment [x, xh] in the
+//    domain: the box is convex and check 2 keeps x and xh in it.
 //    With V = e' P e, d/dt sqrt(V) <= -r sqrt(V) + sqrt(sigma_max(P)) |d|, so
 //      |e(t)|_2 <= c |e(0)|_2 e^{-r t} + c (|L|_2 vbar dt + 8 eps (1 + 4) / dt) / r,
 //    c = sqrt(7.52058), r = 0.180253, checked at every sample (the floor is 0.057 + 0.073 in
