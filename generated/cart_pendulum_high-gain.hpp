@@ -86,7 +86,7 @@ struct HighGainFunctions {
     const Scalar x1 = w(0);
     const Scalar x2 = w(1);
     out(0) = x2;
-    out(1) = std::sin(x1) - std::cos(x1) * u_;
+    out(1) = -(std::cos(x1) * u_) + std::sin(x1);
   }
 
   /// O(xh) = d(h, L_f h, ..., L_f^{n-1} h)/dx, the matrix of the gain solve.
@@ -108,7 +108,7 @@ struct HighGainFunctions {
     const Scalar y_ = y(0);
     const Scalar t0 = std::sin(x1);
     out(0) = y_ * Scalar(22.5) - t0 * Scalar(22.5);
-    out(1) = Scalar(125) * y_ - Scalar(125) * t0;
+    out(1) = -(Scalar(125) * t0) + Scalar(125) * y_;
   }
 };
 

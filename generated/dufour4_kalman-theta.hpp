@@ -89,7 +89,7 @@ struct KalmanThetaFunctions {
     out(1) = Scalar(0);
     out(2) = -(S_1_1 * Scalar(5)) + Scalar(1);
     out(3) = -(S_1_2 * Scalar(5)) - S_1_1 * u_;
-    out(4) = -(S_1_2 * Scalar(2) * u_) - S_2_2 * Scalar(5);
+    out(4) = -(S_2_2 * Scalar(5)) - S_1_2 * Scalar(2) * u_;
   }
 
   /// -C^T (C zh - y), solved with S.

@@ -111,10 +111,10 @@ struct CanonicalFunctions {
   static void l(const Input& u, const Output& y, State& out) noexcept {
     const Scalar u_ = u(0);
     const Scalar y_ = y(0);
-    const Scalar t0 = -(std::sin(y_) * Scalar(2));
-    out(0) = t0 + u_;
+    const Scalar t0 = std::sin(y_) * Scalar(2);
+    out(0) = u_ - t0;
     out(1) = Scalar(0);
-    out(2) = -(y_ * Scalar(2)) - std::sin(y_) * Scalar(2);
+    out(2) = -t0 - y_ * Scalar(2);
     out(3) = Scalar(0);
   }
 
@@ -122,10 +122,10 @@ struct CanonicalFunctions {
   static void step_constant(const Input& u, const Output& y, State& out) noexcept {
     const Scalar u_ = u(0);
     const Scalar y_ = y(0);
-    const Scalar t0 = -(std::sin(y_) * Scalar(2));
-    out(0) = t0 + Scalar(52.5) * y_ + u_;
+    const Scalar t0 = std::sin(y_) * Scalar(2);
+    out(0) = -t0 + Scalar(52.5) * y_ + u_;
     out(1) = Scalar(79.75) * y_;
-    out(2) = t0 + Scalar(42.75) * y_;
+    out(2) = -t0 + Scalar(42.75) * y_;
     out(3) = y_ * Scalar(11);
   }
 

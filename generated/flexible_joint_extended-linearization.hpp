@@ -101,7 +101,7 @@ struct ExtendedLinearizationFunctions {
     const Scalar y_ = y(0);
     const Scalar t0 = std::sin(x1) * Scalar(2);
     out(0) = Scalar(10) * y_ - Scalar(10) * x1 + x2;
-    out(1) = -(x1 * Scalar(33)) - x1 - std::sin(y_) * Scalar(2) + x3 - t0 + t0 + y_ * Scalar(33);
+    out(1) = -x1 - std::sin(y_) * Scalar(2) + y_ * Scalar(33) - x1 * Scalar(33) + x3 + t0 - t0;
     out(2) = Scalar(40) * y_ - x1 * Scalar(40) + x4;
     out(3) = x1 - x3 + x1 * Scalar(9) - Scalar(9) * y_ + u_;
   }

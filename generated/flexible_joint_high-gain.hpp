@@ -106,7 +106,7 @@ struct HighGainFunctions {
     static_cast<void>(u);
     const Scalar x1 = w(0);
     const Scalar x2 = w(1);
-    const Scalar t0 = -Scalar(1) - Scalar(2) * std::cos(x1);
+    const Scalar t0 = -(Scalar(2) * std::cos(x1)) - Scalar(1);
     out(0, 0) = Scalar(1);
     out(1, 0) = Scalar(0);
     out(2, 0) = t0;
@@ -131,8 +131,8 @@ struct HighGainFunctions {
     const Scalar x1 = w(0);
     const Scalar y_ = y(0);
     out(0) = Scalar(55) * y_ - x1 * Scalar(55);
-    out(1) = -(x1 * Scalar(1118.75)) + Scalar(1118.75) * y_;
-    out(2) = Scalar(9968.75) * y_ - x1 * Scalar(9968.75);
+    out(1) = Scalar(1118.75) * y_ - x1 * Scalar(1118.75);
+    out(2) = -(x1 * Scalar(9968.75)) + Scalar(9968.75) * y_;
     out(3) = -(x1 * Scalar(32812.5)) + y_ * Scalar(32812.5);
   }
 };

@@ -110,14 +110,14 @@ struct KalmanThetaFunctions {
     out(3) = x1 - x3 + u_;
     out(4) = -(S_1_1 * Scalar(5)) + Scalar(1);
     out(5) = -S_1_1 - S_1_2 * Scalar(5);
-    out(6) = -(S_1_3 * Scalar(5)) - S_1_2;
-    out(7) = -(Scalar(5) * S_1_4) - S_1_3;
+    out(6) = -S_1_2 - S_1_3 * Scalar(5);
+    out(7) = -S_1_3 - Scalar(5) * S_1_4;
     out(8) = -(S_1_2 * Scalar(2)) - S_2_2 * Scalar(5);
-    out(9) = -S_2_2 - Scalar(5) * S_2_3 - S_1_3;
-    out(10) = -S_2_3 - Scalar(5) * S_2_4 - S_1_4;
+    out(9) = -S_1_3 - Scalar(5) * S_2_3 - S_2_2;
+    out(10) = -(Scalar(5) * S_2_4) - S_2_3 - S_1_4;
     out(11) = -(Scalar(2) * S_2_3) - S_3_3 * Scalar(5);
     out(12) = -S_3_3 - S_3_4 * Scalar(5) - S_2_4;
-    out(13) = -(S_3_4 * Scalar(2)) - S_4_4 * Scalar(5);
+    out(13) = -(S_4_4 * Scalar(5)) - S_3_4 * Scalar(2);
   }
 
   /// -C^T (C zh - y), solved with S.

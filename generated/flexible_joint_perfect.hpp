@@ -112,10 +112,10 @@ struct PerfectFunctions {
   static void l(const Input& u, const Output& y, State& out) noexcept {
     const Scalar u_ = u(0);
     const Scalar y_ = y(0);
-    const Scalar t0 = -(std::sin(y_) * Scalar(2));
-    out(0) = t0 + u_;
+    const Scalar t0 = std::sin(y_) * Scalar(2);
+    out(0) = u_ - t0;
     out(1) = Scalar(0);
-    out(2) = -(y_ * Scalar(2)) - std::sin(y_) * Scalar(2);
+    out(2) = -t0 - y_ * Scalar(2);
     out(3) = Scalar(0);
   }
 
@@ -128,8 +128,8 @@ struct PerfectFunctions {
     const Scalar y_d3 = yj(3);
     out(0) = y_d0;
     out(1) = y_d1;
-    out(2) = -y_d0 + (y_d2 + y_d0 * Scalar(2) + std::sin(y_d0) * Scalar(2));
-    out(3) = -y_d1 + (y_d1 * Scalar(2) + std::cos(y_d0) * y_d1 * Scalar(2) + y_d3);
+    out(2) = y_d2 + y_d0 * Scalar(2) + std::sin(y_d0) * Scalar(2) - y_d0;
+    out(3) = y_d1 * Scalar(2) + std::cos(y_d0) * y_d1 * Scalar(2) + y_d3 - y_d1;
   }
 };
 

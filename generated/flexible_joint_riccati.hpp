@@ -124,22 +124,21 @@ struct RiccatiFunctions {
     const Scalar x3 = w(2);
     const Scalar x4 = w(3);
     const Scalar y_ = y(0);
-    const Scalar t0 = -x1;
-    const Scalar t1 = t0 + y_;
-    const Scalar t2 = Scalar(2) * std::cos(x1) + Scalar(1);
-    out(0) = Q_1_1 * t1 + x2;
-    out(1) = t0 + Q_1_2 * t1 + x3 - std::sin(x1) * Scalar(2);
-    out(2) = Q_1_3 * t1 + x4;
-    out(3) = x1 + t1 * Q_1_4 - x3 + u_;
+    const Scalar t0 = x1 - y_;
+    const Scalar t1 = Scalar(2) * std::cos(x1) + Scalar(1);
+    out(0) = -(Q_1_1 * t0) + x2;
+    out(1) = -x1 - Q_1_2 * t0 + x3 - std::sin(x1) * Scalar(2);
+    out(2) = -(Q_1_3 * t0) + x4;
+    out(3) = x1 - t0 * Q_1_4 - x3 + u_;
     out(4) = Scalar(1) - Q_1_1 * Q_1_1 + Q_1_2 * Scalar(2);
-    out(5) = Q_1_3 - Q_1_1 * Q_1_2 + Q_2_2 - Q_1_1 * t2;
+    out(5) = Q_1_3 - Q_1_1 * Q_1_2 + Q_2_2 - Q_1_1 * t1;
     out(6) = -(Q_1_1 * Q_1_3) + Q_2_3 + Q_1_4;
     out(7) = Q_1_1 + Q_2_4 - Q_1_3 - Q_1_1 * Q_1_4;
-    out(8) = (-(Q_1_2 * t2) + Q_2_3) * Scalar(2) + Scalar(1) - Q_1_2 * Q_1_2;
-    out(9) = -(Q_1_3 * Q_1_2) + Q_2_4 + Q_3_3 - Q_1_3 * t2;
-    out(10) = Q_1_2 - Q_1_2 * Q_1_4 + Q_3_4 - Q_2_3 - Q_1_4 * t2;
+    out(8) = -((Q_1_2 * t1 - Q_2_3) * Scalar(2)) + Scalar(1) - Q_1_2 * Q_1_2;
+    out(9) = -(Q_1_3 * Q_1_2) - Q_1_3 * t1 + Q_2_4 + Q_3_3;
+    out(10) = Q_3_4 - Q_1_2 * Q_1_4 - Q_2_3 + Q_1_2 - Q_1_4 * t1;
     out(11) = -(Q_1_3 * Q_1_3) + Q_3_4 * Scalar(2) + Scalar(1);
-    out(12) = Q_1_3 - Q_1_3 * Q_1_4 + Q_4_4 - Q_3_3;
+    out(12) = -Q_3_3 + Q_1_3 + Q_4_4 - Q_1_3 * Q_1_4;
     out(13) = -(Q_1_4 * Q_1_4) + Scalar(1) + (-Q_3_4 + Q_1_4) * Scalar(2);
   }
 

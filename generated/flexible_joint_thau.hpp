@@ -101,7 +101,7 @@ struct ThauFunctions {
     const Scalar x4 = x(3);
     const Scalar y_ = y(0);
     out(0) = -(x1 * Scalar(6.3899999999999997)) + Scalar(6.3899999999999997) * y_ + x2;
-    out(1) = -(x1 * Scalar(12.3066)) + y_ * Scalar(11.3066) + x3 - std::sin(x1) * Scalar(2);
+    out(1) = y_ * Scalar(11.3066) + x3 - x1 * Scalar(12.3066) - std::sin(x1) * Scalar(2);
     out(2) = -(x1 * Scalar(9.8998640000000009)) + Scalar(9.8998640000000009) * y_ + x4;
     out(3) = -(Scalar(6.8078703999999997) * y_) - x3 + x1 * Scalar(7.8078703999999997) + u_;
   }

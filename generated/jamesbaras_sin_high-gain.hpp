@@ -97,7 +97,7 @@ struct HighGainFunctions {
     const Scalar t0 = std::cos(x1);
     const Scalar t1 = std::sin(x1);
     out(0, 0) = t0;
-    out(1, 0) = -(Scalar(0.5) * t1 * x2) - Scalar(1.5) * t0 + x1 * Scalar(1.5) * t1;
+    out(1, 0) = -(Scalar(1.5) * t0) + x1 * Scalar(1.5) * t1 - Scalar(0.5) * t1 * x2;
     out(0, 1) = Scalar(0);
     out(1, 1) = Scalar(0.5) * t0;
   }
@@ -109,7 +109,7 @@ struct HighGainFunctions {
     const Scalar y_ = y(0);
     const Scalar t0 = std::sin(x1);
     out(0) = y_ * Scalar(22.5) - t0 * Scalar(22.5);
-    out(1) = Scalar(125) * y_ - Scalar(125) * t0;
+    out(1) = -(Scalar(125) * t0) + Scalar(125) * y_;
   }
 };
 

@@ -100,12 +100,11 @@ struct RiccatiFunctions {
     const Scalar t1 = std::cos(x1);
     const Scalar t2 = Q_1_1 * t1;
     const Scalar t3 = Q_1_2 * t1;
-    const Scalar t4 = Q_1_2 * Scalar(0.5);
     out(0) = t0 * t2 + Scalar(0.5) * x2 - x1 * Scalar(1.5) + u_;
     out(1) = x1 * Scalar(0.5) + t0 * t3 - Scalar(1.5) * x2;
-    out(2) = -(t2 * t2) + Scalar(2) * (t4 - Q_1_1 * Scalar(1.5)) + Scalar(1);
+    out(2) = Scalar(1) - t2 * t2 - (Q_1_1 * Scalar(1.5) - Q_1_2 * Scalar(0.5)) * Scalar(2);
     out(3) = Scalar(0.5) * Q_2_2 + Q_1_1 * Scalar(0.5) - Q_1_2 * Scalar(3) - t2 * t3;
-    out(4) = (-(Scalar(1.5) * Q_2_2) + t4) * Scalar(2) - t3 * t3 + Scalar(1);
+    out(4) = Scalar(1) - (Scalar(1.5) * Q_2_2 - Q_1_2 * Scalar(0.5)) * Scalar(2) - t3 * t3;
   }
 
   /// The estimate m: the first n entries of w.

@@ -61,8 +61,8 @@ struct HighGainFunctions {
     const Scalar x2 = x(1);
     const Scalar x3 = x(2);
     out(0) = Scalar(10) * x2 - Scalar(10) * x1;
-    out(1) = -x2 - x1 * (-Scalar(28) + x3);
-    out(2) = x1 * x2 - Scalar(2.6666666666666665) * x3;
+    out(1) = -x2 + x1 * (Scalar(28) - x3);
+    out(2) = -(Scalar(2.6666666666666665) * x3) + x1 * x2;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -88,8 +88,8 @@ struct HighGainFunctions {
     const Scalar x2 = w(1);
     const Scalar x3 = w(2);
     out(0) = Scalar(10) * x2 - Scalar(10) * x1;
-    out(1) = -x2 - x1 * (-Scalar(28) + x3);
-    out(2) = x1 * x2 - Scalar(2.6666666666666665) * x3;
+    out(1) = -x2 + x1 * (Scalar(28) - x3);
+    out(2) = -(Scalar(2.6666666666666665) * x3) + x1 * x2;
   }
 
   /// O(xh) = d(h, L_f h, ..., L_f^{n-1} h)/dx, the matrix of the gain solve.

@@ -58,8 +58,8 @@ struct RiccatiFunctions {
     const Scalar x2 = x(1);
     const Scalar x3 = x(2);
     out(0) = Scalar(10) * x2 - Scalar(10) * x1;
-    out(1) = -x2 - x1 * (-Scalar(28) + x3);
-    out(2) = x1 * x2 - Scalar(2.6666666666666665) * x3;
+    out(1) = -x2 + x1 * (Scalar(28) - x3);
+    out(2) = -(Scalar(2.6666666666666665) * x3) + x1 * x2;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -106,17 +106,17 @@ struct RiccatiFunctions {
     const Scalar x2 = w(1);
     const Scalar x3 = w(2);
     const Scalar y_ = y(0);
-    const Scalar t0 = -x1 + y_;
-    const Scalar t1 = -Scalar(28) + x3;
+    const Scalar t0 = x1 - y_;
+    const Scalar t1 = Scalar(28) - x3;
     const Scalar t2 = x1 * Q_2_3;
-    out(0) = Q_1_1 * t0 + Scalar(10) * x2 - Scalar(10) * x1;
-    out(1) = -x2 - x1 * t1 + Q_1_2 * t0;
-    out(2) = x1 * x2 - Scalar(2.6666666666666665) * x3 + Q_1_3 * t0;
+    out(0) = -(Scalar(10) * x1) - Q_1_1 * t0 + Scalar(10) * x2;
+    out(1) = -(Q_1_2 * t0) + x1 * t1 - x2;
+    out(2) = -(Q_1_3 * t0) - Scalar(2.6666666666666665) * x3 + x1 * x2;
     out(3) = Scalar(1) + (Scalar(10) * Q_1_2 - Scalar(10) * Q_1_1) * Scalar(2) - Q_1_1 * Q_1_1;
-    out(4) = -(Q_1_1 * t1) + Scalar(10) * Q_2_2 - Q_1_2 * Scalar(11) - Q_1_1 * Q_1_2 - x1 * Q_1_3;
+    out(4) = -(Q_1_2 * Scalar(11)) - x1 * Q_1_3 + Scalar(10) * Q_2_2 + Q_1_1 * t1 - Q_1_1 * Q_1_2;
     out(5) = -(Q_1_1 * Q_1_3) + Q_1_1 * x2 - Q_1_3 * Scalar(12.666666666666666) + x1 * Q_1_2 + Scalar(10) * Q_2_3;
-    out(6) = Scalar(1) - Q_1_2 * Q_1_2 + (-Q_2_2 - Q_1_2 * t1 - t2) * Scalar(2);
-    out(7) = -(Scalar(3.6666666666666665) * Q_2_3) + x1 * Q_2_2 - Q_1_3 * Q_1_2 + Q_1_2 * x2 - Q_1_3 * t1 - x1 * Q_3_3;
+    out(6) = Scalar(1) - Q_1_2 * Q_1_2 - (Q_2_2 - Q_1_2 * t1 + t2) * Scalar(2);
+    out(7) = -(Q_1_3 * Q_1_2) + x1 * Q_2_2 - x1 * Q_3_3 + Q_1_3 * t1 - Scalar(3.6666666666666665) * Q_2_3 + Q_1_2 * x2;
     out(8) = -(Q_1_3 * Q_1_3) + Scalar(1) + Scalar(2) * (-(Scalar(2.6666666666666665) * Q_3_3) + Q_1_3 * x2 + t2);
   }
 

@@ -89,7 +89,7 @@ struct ExtendedLinearizationFunctions {
     const Scalar y_ = y(0);
     const Scalar t0 = std::sin(x1);
     out(0) = Scalar(2.75) * y_ + x2 - x1 * Scalar(2.75);
-    out(1) = -(x1 * Scalar(1.3125)) + t0 + y_ * Scalar(1.3125) - x2 * Scalar(0.25) + u_ - t0 - std::sin(y_);
+    out(1) = y_ * Scalar(1.3125) + u_ - x2 * Scalar(0.25) - std::sin(y_) - t0 - x1 * Scalar(1.3125) + t0;
   }
 };
 

@@ -86,7 +86,7 @@ struct HighGainFunctions {
     const Scalar x1 = w(0);
     const Scalar x2 = w(1);
     out(0) = x2;
-    out(1) = -(x2 * Scalar(0.25)) + u_ - std::sin(x1);
+    out(1) = u_ - x2 * Scalar(0.25) - std::sin(x1);
   }
 
   /// O(xh) = d(h, L_f h, ..., L_f^{n-1} h)/dx, the matrix of the gain solve.
@@ -104,7 +104,7 @@ struct HighGainFunctions {
     static_cast<void>(u);
     const Scalar x1 = w(0);
     const Scalar y_ = y(0);
-    out(0) = y_ * Scalar(22.5) - x1 * Scalar(22.5);
+    out(0) = -(x1 * Scalar(22.5)) + y_ * Scalar(22.5);
     out(1) = Scalar(125) * y_ - Scalar(125) * x1;
   }
 };

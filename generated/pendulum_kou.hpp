@@ -81,7 +81,7 @@ struct KouFunctions {
     const Scalar x2 = x(1);
     const Scalar y_ = y(0);
     out(0) = -(x1 * Scalar(7.2389999999999999)) + x2 + y_ * Scalar(7.2389999999999999);
-    out(1) = -(x1 * Scalar(1.9099999999999999)) + y_ * Scalar(1.9099999999999999) - x2 * Scalar(0.25) + u_ - std::sin(x1);
+    out(1) = u_ - x2 * Scalar(0.25) + y_ * Scalar(1.9099999999999999) - std::sin(x1) - x1 * Scalar(1.9099999999999999);
   }
 };
 

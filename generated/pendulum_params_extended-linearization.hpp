@@ -69,7 +69,7 @@ struct ExtendedLinearizationFunctions {
     const Scalar x1 = x(0);
     const Scalar x2 = x(1);
     out(0) = x2;
-    out(1) = -(mgl * std::sin(x1) / J) - b * x2 / J;
+    out(1) = -(b * x2 / J) - mgl * std::sin(x1) / J;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -96,7 +96,7 @@ struct ExtendedLinearizationFunctions {
     const Scalar y_ = y(0);
     const Scalar t0 = J * J;
     out(0) = (-b + J * Scalar(3)) * y_ / J;
-    out(1) = (-(std::sin(y_) * mgl * J) + (b * b) * y_ + t0 * y_ * Scalar(2) - b * y_ * J * Scalar(3)) / t0;
+    out(1) = -((std::sin(y_) * mgl * J - t0 * y_ * Scalar(2) + b * y_ * J * Scalar(3) - (b * b) * y_) / t0);
   }
 
   /// xh' = f(xh) + g(xh, u) + k(y) - k(h(xh))  (seed 001 eq. 29).
@@ -109,10 +109,10 @@ struct ExtendedLinearizationFunctions {
     const Scalar x2 = x(1);
     const Scalar y_ = y(0);
     const Scalar t0 = -b + J * Scalar(3);
-    const Scalar t1 = std::sin(x1);
-    const Scalar t2 = b * b;
+    const Scalar t1 = b * b;
+    const Scalar t2 = std::sin(x1);
     const Scalar t3 = J * J;
-    const Scalar t4 = -(mgl * t1 / J) - (x1 * t2 - mgl * t1 * J + x1 * t3 * Scalar(2) - x1 * b * J * Scalar(3)) / t3 - b * x2 / J + (-(std::sin(y_) * mgl * J) + t2 * y_ + t3 * y_ * Scalar(2) - b * y_ * J * Scalar(3)) / t3 + u_ / J;
+    const Scalar t4 = -((x1 * t1 - mgl * t2 * J + x1 * t3 * Scalar(2) - x1 * b * J * Scalar(3)) / t3) - b * x2 / J + u_ / J - (std::sin(y_) * mgl * J - t3 * y_ * Scalar(2) + b * y_ * J * Scalar(3) - t1 * y_) / t3 - mgl * t2 / J;
     out(0) = -(x1 * t0 / J) + t0 * y_ / J + x2;
     out(1) = t4;
   }

@@ -74,7 +74,7 @@ struct HighGainFunctions {
     const Scalar x1 = x(0);
     const Scalar x2 = x(1);
     out(0) = x2;
-    out(1) = -(mgl * std::sin(x1) / J) - b * x2 / J;
+    out(1) = -(b * x2 / J) - mgl * std::sin(x1) / J;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -103,7 +103,7 @@ struct HighGainFunctions {
     const Scalar x1 = w(0);
     const Scalar x2 = w(1);
     out(0) = x2;
-    out(1) = -(mgl * std::sin(x1) / J) - b * x2 / J + u_ / J;
+    out(1) = -(b * x2 / J) + u_ / J - mgl * std::sin(x1) / J;
   }
 
   /// O(xh) = d(h, L_f h, ..., L_f^{n-1} h)/dx, the matrix of the gain solve.
@@ -123,7 +123,7 @@ struct HighGainFunctions {
     static_cast<void>(prm);
     const Scalar x1 = w(0);
     const Scalar y_ = y(0);
-    out(0) = y_ * Scalar(22.5) - x1 * Scalar(22.5);
+    out(0) = -(x1 * Scalar(22.5)) + y_ * Scalar(22.5);
     out(1) = Scalar(125) * y_ - Scalar(125) * x1;
   }
 };

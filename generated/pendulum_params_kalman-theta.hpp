@@ -73,7 +73,7 @@ struct KalmanThetaFunctions {
     const Scalar x1 = x(0);
     const Scalar x2 = x(1);
     out(0) = x2;
-    out(1) = -(mgl * std::sin(x1) / J) - b * x2 / J;
+    out(1) = -(b * x2 / J) - mgl * std::sin(x1) / J;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -105,7 +105,7 @@ struct KalmanThetaFunctions {
     const Scalar x1 = w(0);
     const Scalar x2 = w(1);
     out(0) = x2;
-    out(1) = -(mgl * std::sin(x1) / J) - b * x2 / J + u_ / J;
+    out(1) = -(b * x2 / J) + u_ / J - mgl * std::sin(x1) / J;
     out(2) = -(S_1_1 * Scalar(5)) + Scalar(1);
     out(3) = -S_1_1 - S_1_2 * Scalar(5);
     out(4) = -(S_1_2 * Scalar(2)) - S_2_2 * Scalar(5);

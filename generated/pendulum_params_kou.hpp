@@ -69,7 +69,7 @@ struct KouFunctions {
     const Scalar x1 = x(0);
     const Scalar x2 = x(1);
     out(0) = x2;
-    out(1) = -(mgl * std::sin(x1) / J) - b * x2 / J;
+    out(1) = -(b * x2 / J) - mgl * std::sin(x1) / J;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -98,7 +98,7 @@ struct KouFunctions {
     const Scalar x2 = x(1);
     const Scalar y_ = y(0);
     out(0) = y_ * Scalar(8.0269999999999992) - x1 * Scalar(8.0269999999999992) + x2;
-    out(1) = -(mgl * std::sin(x1) / J) + y_ * Scalar(56.881999999999998) - x1 * Scalar(56.881999999999998) - b * x2 / J + u_ / J;
+    out(1) = -(x1 * Scalar(56.881999999999998)) - b * x2 / J + u_ / J + y_ * Scalar(56.881999999999998) - mgl * std::sin(x1) / J;
   }
 };
 

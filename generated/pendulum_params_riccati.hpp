@@ -71,7 +71,7 @@ struct RiccatiFunctions {
     const Scalar x1 = x(0);
     const Scalar x2 = x(1);
     out(0) = x2;
-    out(1) = -(mgl * std::sin(x1) / J) - b * x2 / J;
+    out(1) = -(b * x2 / J) - mgl * std::sin(x1) / J;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -114,13 +114,13 @@ struct RiccatiFunctions {
     const Scalar x1 = w(0);
     const Scalar x2 = w(1);
     const Scalar y_ = y(0);
-    const Scalar t0 = -x1 + y_;
+    const Scalar t0 = x1 - y_;
     const Scalar t1 = std::cos(x1);
-    out(0) = Q_1_1 * t0 + x2;
-    out(1) = -(mgl * std::sin(x1) / J) - b * x2 / J + Q_1_2 * t0 + u_ / J;
+    out(0) = -(Q_1_1 * t0) + x2;
+    out(1) = -(Q_1_2 * t0) - b * x2 / J + u_ / J - mgl * std::sin(x1) / J;
     out(2) = Scalar(1) - Q_1_1 * Q_1_1 + Q_1_2 * Scalar(2);
-    out(3) = -(Q_1_1 * Q_1_2) + Q_2_2 - Q_1_1 * mgl * t1 / J - b * Q_1_2 / J;
-    out(4) = Scalar(1) + (-(b * Q_2_2 / J) - Q_1_2 * mgl * t1 / J) * Scalar(2) - Q_1_2 * Q_1_2;
+    out(3) = -(Q_1_1 * mgl * t1 / J) + Q_2_2 - b * Q_1_2 / J - Q_1_1 * Q_1_2;
+    out(4) = Scalar(1) - Scalar(2) * (Q_1_2 * mgl * t1 / J + b * Q_2_2 / J) - Q_1_2 * Q_1_2;
   }
 
   /// The estimate m: the first n entries of w.

@@ -89,7 +89,7 @@ struct PerfectFunctions {
     const Scalar z1 = z(0);
     const Scalar z2 = z(1);
     out(0) = z2;
-    out(1) = -(z2 * Scalar(0.25)) + z1;
+    out(1) = z1 - z2 * Scalar(0.25);
   }
 
   /// Output injection l(u, y) of the canonical form z' = A z + l(u, y).

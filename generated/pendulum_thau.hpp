@@ -89,7 +89,7 @@ struct ThauFunctions {
     const Scalar x2 = x(1);
     const Scalar y_ = y(0);
     out(0) = y_ * Scalar(20.829999999999998) + x2 - x1 * Scalar(20.829999999999998);
-    out(1) = y_ * Scalar(15.3925) - x2 * Scalar(0.25) + u_ - std::sin(x1) - x1 * Scalar(15.3925);
+    out(1) = u_ - x1 * Scalar(15.3925) - x2 * Scalar(0.25) - std::sin(x1) + y_ * Scalar(15.3925);
   }
 };
 

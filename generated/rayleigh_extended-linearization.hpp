@@ -88,7 +88,7 @@ struct ExtendedLinearizationFunctions {
     const Scalar x2 = x(1);
     const Scalar y_ = y(0);
     out(0) = -(x1 * Scalar(4)) + x2 + Scalar(4) * y_;
-    out(1) = -x1 - x1 * Scalar(5) + x2 - (x2 * x2 * x2) * Scalar(0.33333333333333331) + y_ * Scalar(5) + u_;
+    out(1) = u_ - x1 + x2 + y_ * Scalar(5) - x1 * Scalar(5) - (x2 * x2 * x2) * Scalar(0.33333333333333331);
   }
 };
 

@@ -104,7 +104,7 @@ struct HighGainFunctions {
     static_cast<void>(u);
     const Scalar x1 = w(0);
     const Scalar y_ = y(0);
-    out(0) = y_ * Scalar(22.5) - x1 * Scalar(22.5);
+    out(0) = -(x1 * Scalar(22.5)) + y_ * Scalar(22.5);
     out(1) = Scalar(125) * y_ - Scalar(125) * x1;
   }
 };

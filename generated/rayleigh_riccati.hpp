@@ -96,14 +96,13 @@ struct RiccatiFunctions {
     const Scalar x1 = w(0);
     const Scalar x2 = w(1);
     const Scalar y_ = y(0);
-    const Scalar t0 = -x1;
-    const Scalar t1 = t0 + y_;
-    const Scalar t2 = -Scalar(1) + x2 * x2;
-    out(0) = Q_1_1 * t1 + x2;
-    out(1) = t0 + x2 + Q_1_2 * t1 - (x2 * x2 * x2) * Scalar(0.33333333333333331) + u_;
+    const Scalar t0 = x1 - y_;
+    const Scalar t1 = -Scalar(1) + x2 * x2;
+    out(0) = -(Q_1_1 * t0) + x2;
+    out(1) = u_ - x1 + x2 - Q_1_2 * t0 - (x2 * x2 * x2) * Scalar(0.33333333333333331);
     out(2) = Scalar(1) - Q_1_1 * Q_1_1 + Q_1_2 * Scalar(2);
-    out(3) = -(t2 * Q_1_2) - Q_1_1 * Q_1_2 + Q_2_2 - Q_1_1;
-    out(4) = (-(t2 * Q_2_2) - Q_1_2) * Scalar(2) + Scalar(1) - Q_1_2 * Q_1_2;
+    out(3) = -Q_1_1 - t1 * Q_1_2 + Q_2_2 - Q_1_1 * Q_1_2;
+    out(4) = -((Q_1_2 + t1 * Q_2_2) * Scalar(2)) + Scalar(1) - Q_1_2 * Q_1_2;
   }
 
   /// The estimate m: the first n entries of w.

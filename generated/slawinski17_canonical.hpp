@@ -88,7 +88,7 @@ struct CanonicalFunctions {
     const Scalar z1 = z(0);
     const Scalar z2 = z(1);
     out(0) = z2;
-    out(1) = -z1 + Scalar(0.5) * (z2 * z2);
+    out(1) = Scalar(0.5) * (z2 * z2) - z1;
   }
 
   /// Output injection l(u, y) of the canonical form z' = A z + l(u, y).

@@ -88,10 +88,10 @@ struct KalmanThetaFunctions {
     const Scalar x1 = w(0);
     const Scalar x2 = w(1);
     out(0) = (x1 + Scalar(1)) * u_ - x2;
-    out(1) = -(x1 * x2) + u_;
+    out(1) = u_ - x1 * x2;
     out(2) = -(S_1_1 * Scalar(5)) + Scalar(1);
     out(3) = S_1_1 - S_1_2 * Scalar(5);
-    out(4) = S_1_2 * Scalar(2) - S_2_2 * Scalar(5);
+    out(4) = -(S_2_2 * Scalar(5)) + S_1_2 * Scalar(2);
   }
 
   /// -C^T (C zh - y), solved with S.

@@ -89,7 +89,7 @@ struct PerfectFunctions {
     const Scalar z1 = z(0);
     const Scalar z2 = z(1);
     out(0) = z2;
-    out(1) = -z1 + Scalar(0.5) * (z2 * z2);
+    out(1) = Scalar(0.5) * (z2 * z2) - z1;
   }
 
   /// Output injection l(u, y) of the canonical form z' = A z + l(u, y).
@@ -109,7 +109,7 @@ struct PerfectFunctions {
     const Scalar y_d1 = yj(1);
     const Scalar t0 = Scalar(0.5) * (y_d0 * y_d0);
     out(0) = y_d0;
-    out(1) = t0 - (y_d1 - u_d0 * y_d0 + t0 - u_d0);
+    out(1) = u_d0 - y_d1 - t0 + u_d0 * y_d0 + t0;
   }
 };
 

@@ -96,12 +96,12 @@ struct RiccatiFunctions {
     const Scalar x1 = w(0);
     const Scalar x2 = w(1);
     const Scalar y_ = y(0);
-    const Scalar t0 = -x1 + y_;
-    out(0) = (x1 + Scalar(1)) * u_ - x2 + Q_1_1 * t0;
-    out(1) = Q_1_2 * t0 - x1 * x2 + u_;
+    const Scalar t0 = x1 - y_;
+    out(0) = (x1 + Scalar(1)) * u_ - Q_1_1 * t0 - x2;
+    out(1) = u_ - x1 * x2 - Q_1_2 * t0;
     out(2) = Scalar(1) + (Q_1_1 * u_ - Q_1_2) * Scalar(2) - Q_1_1 * Q_1_1;
-    out(3) = -(Q_1_1 * x2) + Q_1_2 * u_ - Q_1_1 * Q_1_2 - Q_2_2 - x1 * Q_1_2;
-    out(4) = Scalar(1) + (-(x1 * Q_2_2) - Q_1_2 * x2) * Scalar(2) - Q_1_2 * Q_1_2;
+    out(3) = -(Q_1_1 * x2) - Q_2_2 + Q_1_2 * u_ - x1 * Q_1_2 - Q_1_1 * Q_1_2;
+    out(4) = Scalar(1) - Q_1_2 * Q_1_2 - Scalar(2) * (x1 * Q_2_2 + Q_1_2 * x2);
   }
 
   /// The estimate m: the first n entries of w.

@@ -61,11 +61,10 @@ struct CanonicalFunctions {
     const Scalar x2 = x(1);
     const Scalar x3 = x(2);
     const Scalar x4 = x(3);
-    const Scalar t0 = -x1;
     out(0) = x2;
     out(1) = x3;
-    out(2) = t0 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
-    out(3) = t0 + x2 * x3;
+    out(2) = -x1 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
+    out(3) = -x1 + x2 * x3;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -113,12 +112,12 @@ struct CanonicalFunctions {
   static void l(const Input& u, const Output& y, State& out) noexcept {
     const Scalar u_ = u(0);
     const Scalar y_ = y(0);
-    const Scalar t0 = -y_;
-    const Scalar t1 = y_ * y_;
-    out(0) = t0 + t1 * u_ + u_;
-    out(1) = t0;
+    const Scalar t0 = y_ * y_;
+    const Scalar t1 = -y_;
+    out(0) = -y_ + t0 * u_ + u_;
+    out(1) = t1;
     out(2) = Scalar(0);
-    out(3) = t1 * Scalar(0.5);
+    out(3) = t0 * Scalar(0.5);
   }
 
   /// c = l(u, y) + K (y - y0), constant over a step.

@@ -60,11 +60,10 @@ struct ExtendedLinearizationFunctions {
     const Scalar x2 = x(1);
     const Scalar x3 = x(2);
     const Scalar x4 = x(3);
-    const Scalar t0 = -x1;
     out(0) = x2;
     out(1) = x3;
-    out(2) = t0 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
-    out(3) = t0 + x2 * x3;
+    out(2) = -x1 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
+    out(3) = -x1 + x2 * x3;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -106,11 +105,10 @@ struct ExtendedLinearizationFunctions {
     const Scalar t1 = x1 * x1;
     const Scalar t2 = y_ * y_ * y_;
     const Scalar t3 = x1 * x1 * x1;
-    const Scalar t4 = -x1;
-    const Scalar t5 = t4 - t1 * Scalar(17.5) + (y_ * y_ * y_ * y_) * Scalar(0.25) + Scalar(0.5) * (x2 * x2) - (x1 * x1 * x1 * x1) * Scalar(0.25) - Scalar(3.3333333333333335) * t3 + t0 * Scalar(17.5) + x1 * x3 + t2 * Scalar(3.3333333333333335) + Scalar(49) * y_ - x1 * Scalar(49) + x4;
+    const Scalar t4 = -x1 - t1 * Scalar(17.5) + (y_ * y_ * y_ * y_) * Scalar(0.25) + Scalar(0.5) * (x2 * x2) - (x1 * x1 * x1 * x1) * Scalar(0.25) - Scalar(3.3333333333333335) * t3 + t0 * Scalar(17.5) + x1 * x3 + t2 * Scalar(3.3333333333333335) + Scalar(49) * y_ - x1 * Scalar(49) + x4;
     out(0) = t0 * Scalar(0.5) + Scalar(10) * y_ - Scalar(10) * x1 + x2 - Scalar(0.5) * t1;
     out(1) = x3 + t2 * Scalar(0.33333333333333331) + Scalar(35) * y_ - Scalar(0.33333333333333331) * t3 + t0 * Scalar(5) - t1 * Scalar(5) - x1 * Scalar(35);
-    out(2) = t5;
+    out(2) = t4;
     out(3) = (t1 + Scalar(1)) * u_ + Scalar(25) * y_ - std::atan(y_) * Scalar(2) - x1 - x1 * Scalar(25) + std::atan(x1) * Scalar(2) + x2 * x3;
   }
 };

@@ -65,11 +65,10 @@ struct HighGainFunctions {
     const Scalar x2 = x(1);
     const Scalar x3 = x(2);
     const Scalar x4 = x(3);
-    const Scalar t0 = -x1;
     out(0) = x2;
     out(1) = x3;
-    out(2) = t0 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
-    out(3) = t0 + x2 * x3;
+    out(2) = -x1 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
+    out(3) = -x1 + x2 * x3;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -96,10 +95,9 @@ struct HighGainFunctions {
     const Scalar x2 = w(1);
     const Scalar x3 = w(2);
     const Scalar x4 = w(3);
-    const Scalar t0 = -x1;
     out(0) = x2;
     out(1) = x3;
-    out(2) = t0 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
+    out(2) = -x1 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
     out(3) = (x1 * x1 + Scalar(1)) * u_ - x1 + x2 * x3;
   }
 
@@ -133,8 +131,8 @@ struct HighGainFunctions {
     const Scalar x1 = w(0);
     const Scalar y_ = y(0);
     out(0) = Scalar(55) * y_ - x1 * Scalar(55);
-    out(1) = -(x1 * Scalar(1118.75)) + Scalar(1118.75) * y_;
-    out(2) = Scalar(9968.75) * y_ - x1 * Scalar(9968.75);
+    out(1) = Scalar(1118.75) * y_ - x1 * Scalar(1118.75);
+    out(2) = -(x1 * Scalar(9968.75)) + Scalar(9968.75) * y_;
     out(3) = -(x1 * Scalar(32812.5)) + y_ * Scalar(32812.5);
   }
 };

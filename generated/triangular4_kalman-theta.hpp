@@ -64,11 +64,10 @@ struct KalmanThetaFunctions {
     const Scalar x2 = x(1);
     const Scalar x3 = x(2);
     const Scalar x4 = x(3);
-    const Scalar t0 = -x1;
     out(0) = x2;
     out(1) = x3;
-    out(2) = t0 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
-    out(3) = t0 + x2 * x3;
+    out(2) = -x1 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
+    out(3) = -x1 + x2 * x3;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -105,21 +104,20 @@ struct KalmanThetaFunctions {
     const Scalar x2 = w(1);
     const Scalar x3 = w(2);
     const Scalar x4 = w(3);
-    const Scalar t0 = -x1;
     out(0) = x2;
     out(1) = x3;
-    out(2) = t0 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
+    out(2) = -x1 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
     out(3) = (x1 * x1 + Scalar(1)) * u_ - x1 + x2 * x3;
     out(4) = -(S_1_1 * Scalar(5)) + Scalar(1);
     out(5) = -S_1_1 - S_1_2 * Scalar(5);
-    out(6) = -(S_1_3 * Scalar(5)) - S_1_2;
-    out(7) = -(Scalar(5) * S_1_4) - S_1_3;
+    out(6) = -S_1_2 - S_1_3 * Scalar(5);
+    out(7) = -S_1_3 - Scalar(5) * S_1_4;
     out(8) = -(S_1_2 * Scalar(2)) - S_2_2 * Scalar(5);
-    out(9) = -S_2_2 - Scalar(5) * S_2_3 - S_1_3;
-    out(10) = -S_2_3 - Scalar(5) * S_2_4 - S_1_4;
+    out(9) = -S_1_3 - Scalar(5) * S_2_3 - S_2_2;
+    out(10) = -(Scalar(5) * S_2_4) - S_2_3 - S_1_4;
     out(11) = -(Scalar(2) * S_2_3) - S_3_3 * Scalar(5);
     out(12) = -S_3_3 - S_3_4 * Scalar(5) - S_2_4;
-    out(13) = -(S_3_4 * Scalar(2)) - S_4_4 * Scalar(5);
+    out(13) = -(S_4_4 * Scalar(5)) - S_3_4 * Scalar(2);
   }
 
   /// -C^T (C zh - y), solved with S.

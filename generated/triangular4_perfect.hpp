@@ -62,11 +62,10 @@ struct PerfectFunctions {
     const Scalar x2 = x(1);
     const Scalar x3 = x(2);
     const Scalar x4 = x(3);
-    const Scalar t0 = -x1;
     out(0) = x2;
     out(1) = x3;
-    out(2) = t0 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
-    out(3) = t0 + x2 * x3;
+    out(2) = -x1 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
+    out(3) = -x1 + x2 * x3;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -115,12 +114,12 @@ struct PerfectFunctions {
   static void l(const Input& u, const Output& y, State& out) noexcept {
     const Scalar u_ = u(0);
     const Scalar y_ = y(0);
-    const Scalar t0 = -y_;
-    const Scalar t1 = y_ * y_;
-    out(0) = t0 + t1 * u_ + u_;
-    out(1) = t0;
+    const Scalar t0 = y_ * y_;
+    const Scalar t1 = -y_;
+    out(0) = -y_ + t0 * u_ + u_;
+    out(1) = t1;
     out(2) = Scalar(0);
-    out(3) = t1 * Scalar(0.5);
+    out(3) = t0 * Scalar(0.5);
   }
 
   /// The state x = T^-1(z(jets)) from the jets (Procedure 1).
@@ -134,7 +133,7 @@ struct PerfectFunctions {
     const Scalar t1 = y_d1 - t0 + t0;
     out(0) = y_d0;
     out(1) = t1;
-    out(2) = -(y_d0 * y_d1) + y_d2 + y_d0 * t1;
+    out(2) = -(-y_d2 + y_d0 * y_d1) + y_d0 * t1;
     out(3) = Scalar(0.5) * (t1 * t1) + (y_d0 - y_d0 * y_d2 - y_d1 * y_d1 + y_d3);
   }
 };

@@ -62,11 +62,10 @@ struct RiccatiFunctions {
     const Scalar x2 = x(1);
     const Scalar x3 = x(2);
     const Scalar x4 = x(3);
-    const Scalar t0 = -x1;
     out(0) = x2;
     out(1) = x3;
-    out(2) = t0 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
-    out(3) = t0 + x2 * x3;
+    out(2) = -x1 + Scalar(0.5) * (x2 * x2) + x1 * x3 + x4;
+    out(3) = -x1 + x2 * x3;
   }
 
   /// Input part g(x, u), zero at u = 0.
@@ -125,25 +124,24 @@ struct RiccatiFunctions {
     const Scalar x3 = w(2);
     const Scalar x4 = w(3);
     const Scalar y_ = y(0);
-    const Scalar t0 = -x1;
-    const Scalar t1 = t0 + y_;
-    const Scalar t2 = Scalar(1) - x3;
-    const Scalar t3 = -Scalar(1) + x1 * Scalar(2) * u_;
-    const Scalar t4 = x2 * Q_2_3;
-    out(0) = Q_1_1 * t1 + x2;
-    out(1) = Q_1_2 * t1 + x3;
-    out(2) = t0 + Scalar(0.5) * (x2 * x2) + x1 * x3 + Q_1_3 * t1 + x4;
-    out(3) = (x1 * x1 + Scalar(1)) * u_ - x1 + t1 * Q_1_4 + x2 * x3;
+    const Scalar t0 = x1 - y_;
+    const Scalar t1 = Scalar(1) - x3;
+    const Scalar t2 = -Scalar(1) + x1 * Scalar(2) * u_;
+    const Scalar t3 = x2 * Q_2_3;
+    out(0) = -(Q_1_1 * t0) + x2;
+    out(1) = -(Q_1_2 * t0) + x3;
+    out(2) = -x1 + Scalar(0.5) * (x2 * x2) - Q_1_3 * t0 + x1 * x3 + x4;
+    out(3) = (x1 * x1 + Scalar(1)) * u_ - x1 - t0 * Q_1_4 + x2 * x3;
     out(4) = Scalar(1) - Q_1_1 * Q_1_1 + Q_1_2 * Scalar(2);
     out(5) = Q_1_3 - Q_1_1 * Q_1_2 + Q_2_2;
-    out(6) = x1 * Q_1_3 - Q_1_1 * Q_1_3 - Q_1_1 * t2 + Q_1_2 * x2 + Q_2_3 + Q_1_4;
-    out(7) = Q_2_4 + Q_1_2 * x3 + Q_1_1 * t3 + Q_1_3 * x2 - Q_1_1 * Q_1_4;
+    out(6) = x1 * Q_1_3 - Q_1_1 * Q_1_3 - Q_1_1 * t1 + Q_1_2 * x2 + Q_2_3 + Q_1_4;
+    out(7) = Q_2_4 + Q_1_2 * x3 + Q_1_1 * t2 + Q_1_3 * x2 - Q_1_1 * Q_1_4;
     out(8) = Scalar(1) + Q_2_3 * Scalar(2) - Q_1_2 * Q_1_2;
-    out(9) = -(Q_1_3 * Q_1_2) + Q_2_2 * x2 + Q_2_4 + Q_3_3 - t2 * Q_1_2 + x1 * Q_2_3;
-    out(10) = -(Q_1_2 * Q_1_4) + t4 + Q_2_2 * x3 + Q_3_4 + Q_1_2 * t3;
-    out(11) = Scalar(2) * (x1 * Q_3_3 + t4 + Q_3_4 - t2 * Q_1_3) - Q_1_3 * Q_1_3 + Scalar(1);
-    out(12) = x1 * Q_3_4 + Q_1_3 * t3 - Q_1_3 * Q_1_4 + x3 * Q_2_3 + Q_4_4 + Q_2_4 * x2 - t2 * Q_1_4 + x2 * Q_3_3;
-    out(13) = (Q_2_4 * x3 + x2 * Q_3_4 + t3 * Q_1_4) * Scalar(2) - Q_1_4 * Q_1_4 + Scalar(1);
+    out(9) = -(Q_1_3 * Q_1_2) + Q_2_2 * x2 + Q_2_4 + Q_3_3 - t1 * Q_1_2 + x1 * Q_2_3;
+    out(10) = -(Q_1_2 * Q_1_4) + t3 + Q_2_2 * x3 + Q_3_4 + Q_1_2 * t2;
+    out(11) = Scalar(2) * (x1 * Q_3_3 + t3 + Q_3_4 - t1 * Q_1_3) - Q_1_3 * Q_1_3 + Scalar(1);
+    out(12) = x1 * Q_3_4 + Q_1_3 * t2 - Q_1_3 * Q_1_4 + x3 * Q_2_3 + Q_4_4 + Q_2_4 * x2 - t1 * Q_1_4 + x2 * Q_3_3;
+    out(13) = (Q_2_4 * x3 + x2 * Q_3_4 + t2 * Q_1_4) * Scalar(2) - Q_1_4 * Q_1_4 + Scalar(1);
   }
 
   /// The estimate m: the first n entries of w.

@@ -92,11 +92,11 @@ struct ExtendedLinearizationFunctions {
     const Scalar y_ = y(0);
     const Scalar t0 = x1 * x1 * x1;
     const Scalar t1 = y_ * y_ * y_;
-    const Scalar t2 = x1 * x1;
+    const Scalar t2 = y_ * y_;
     const Scalar t3 = t2 * t2;
-    const Scalar t4 = y_ * y_;
+    const Scalar t4 = x1 * x1;
     const Scalar t5 = t4 * t4;
-    const Scalar t6 = -x1 - (-Scalar(1) + x1 * x1) * x2 - x1 * Scalar(5) - Scalar(0.20000000000000001) * (x1 * t3) + Scalar(1.6666666666666667) * t0 + y_ * Scalar(5) + Scalar(0.20000000000000001) * (y_ * t5) - Scalar(1.6666666666666667) * t1 + u_;
+    const Scalar t6 = u_ - x1 + y_ * Scalar(5) - x1 * Scalar(5) - (-Scalar(1) + x1 * x1) * x2 + Scalar(1.6666666666666667) * t0 - Scalar(1.6666666666666667) * t1 + Scalar(0.20000000000000001) * (y_ * t3) - Scalar(0.20000000000000001) * (x1 * t5);
     out(0) = Scalar(0.33333333333333331) * t0 - x1 * Scalar(4) + x2 - t1 * Scalar(0.33333333333333331) + Scalar(4) * y_;
     out(1) = t6;
   }

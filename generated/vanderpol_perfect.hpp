@@ -96,7 +96,7 @@ struct PerfectFunctions {
   static void l(const Input& u, const Output& y, State& out) noexcept {
     const Scalar u_ = u(0);
     const Scalar y_ = y(0);
-    out(0) = -y_ + u_;
+    out(0) = u_ - y_;
     out(1) = y_ - (y_ * y_ * y_) * Scalar(0.33333333333333331);
   }
 

@@ -217,6 +217,32 @@ class StatementEmitter {
     return named;
   }
 
+  // A sum's text, negative terms as subtractions; `negated` prints -(a - b) as -a + b, which
+  // is exact (IEEE negation commutes with rounding) and spares the parentheses.
+  Text sum_text(const Node& n, bool negated) {
+    std::string s;
+    for (std::size_t i = 0; i < n.args.size(); ++i) {
+      const Node& a = node(n.args[i]);
+      bool minus = negated;
+      Text t;
+      if (a.op == NodeOp::constant && a.value.is_negative()) {
+        minus = !minus;
+        t = {literal(GiNaC::abs(a.value)), p_atom};
+      } else if (a.op == NodeOp::neg) {
+        minus = !minus;
+        t = expr(a.args[0]);
+      } else {
+        t = expr(n.args[i]);
+      }
+      if (i == 0)
+        s = minus ? "-" + wrap(t, p_unary) : t.s;
+      else
+        s += (minus ? " - " : " + ") + wrap(t, p_product);
+      if (i > 0 || minus) ++operations_;
+    }
+    return {s, p_sum};
+  }
+
   Text expr(int id) {
     auto d = done_.find(id);
     if (d != done_.end()) return d->second;
@@ -233,20 +259,8 @@ class StatementEmitter {
         used_vars_.emplace(n.name, it->second);
         return done_[id] = Text{it->second.local, p_atom};
       }
-      case NodeOp::add: {
-        std::string s;
-        for (std::size_t i = 0; i < n.args.size(); ++i) {
-          const Node& a = node(n.args[i]);
-          if (a.op == NodeOp::neg && i > 0) {
-            s += " - " + wrap(expr(a.args[0]), p_product);
-          } else {
-            const Text t = expr(n.args[i]);
-            s += (i ? " + " : "") + (i ? wrap(t, p_product) : t.s);
-          }
-          if (i) ++operations_;
-        }
-        return materialise(id, {s, p_sum});
-      }
+      case NodeOp::add:
+        return materialise(id, sum_text(n, false));
       case NodeOp::mul: {
         std::string s;
         for (std::size_t i = 0; i < n.args.size(); ++i) {
@@ -261,8 +275,11 @@ class StatementEmitter {
         return materialise(id, {wrap(a, p_product) + " / " + wrap(b, p_unary), p_product});
       }
       case NodeOp::neg: {
+        const int arg = n.args[0];
+        if (node(arg).op == NodeOp::add && !done_.count(arg) && uses_[arg] == 1)
+          return materialise(id, sum_text(node(arg), true));
         ++operations_;
-        return materialise(id, {"-" + wrap(expr(n.args[0]), p_unary), p_unary});
+        return materialise(id, {"-" + wrap(expr(arg), p_unary), p_unary});
       }
       case NodeOp::pow_int: {
         const Text b = atom_operand(n.args[0]);

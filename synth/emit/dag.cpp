@@ -85,55 +85,47 @@ int Dag::make(NodeOp op, std::vector<int> args, bool commutative) {
   return intern(std::move(n));
 }
 
-namespace {
-
-bool negative_term(const ex& t) {
-  if (is_a<numeric>(t)) return GiNaC::ex_to<numeric>(t).is_negative();
-  if (is_a<GiNaC::mul>(t))
-    for (std::size_t i = 0; i < t.nops(); ++i)
-      if (is_a<numeric>(t.op(i)) && GiNaC::ex_to<numeric>(t.op(i)).is_negative()) return true;
-  return false;
+int Dag::negate(int a) {
+  const Node& n = nodes_[static_cast<std::size_t>(a)];
+  if (n.op == NodeOp::neg) return n.args[0];
+  if (n.op == NodeOp::constant) return constant(-n.value);
+  return make(NodeOp::neg, {a}, false);
 }
 
-}  // namespace
+// GiNaC gives a sum either sign from run to run (normal() returns (u - a)/J or -(a - u)/J, and
+// products distribute their coefficient differently), so of S and -S the DAG keeps the sum
+// with fewer negative terms, ties broken by the smaller content hash, and a negation node
+// takes the difference: the DAG, and the emitted text, do not depend on GiNaC's choice.
+bool Dag::is_negative(int id) const {
+  const Node& n = nodes_[static_cast<std::size_t>(id)];
+  return n.op == NodeOp::neg || (n.op == NodeOp::constant && n.value.is_negative());
+}
 
-// GiNaC's normal() returns a quotient with either sign of its sum factors, differently from
-// run to run ((u - a)/J or -(a - u)/J): each sum factor is put in the sign of the two (S or
-// -S) with fewer negative terms, ties broken by the smaller content hash, the product's sign
-// absorbing the difference, so that the emitted text is deterministic.
-int Dag::canonical_sum(const ex& s, bool& negated) {
-  std::size_t negative = 0;
-  for (std::size_t i = 0; i < s.nops(); ++i) negative += negative_term(s.op(i));
-  const std::size_t positive = s.nops() - negative;
-  const int plus = convert(s);
-  if (negative < positive) {
-    negated = false;
-    return plus;
+int Dag::sum(const std::vector<int>& terms) {
+  const auto negative = static_cast<std::size_t>(
+      std::count_if(terms.begin(), terms.end(), [&](int t) { return is_negative(t); }));
+  const int plus = make(NodeOp::add, terms, true);
+  if (2 * negative < terms.size()) return plus;
+  std::vector<int> flipped;
+  for (int t : terms) flipped.push_back(negate(t));
+  const int minus = make(NodeOp::add, flipped, true);
+  bool flip = 2 * negative > terms.size();
+  if (!flip) {  // a tie: prefer the sum printed with a leading plus (a - b, not -(-a + b))
+    const bool plus_leads = !is_negative(nodes_[static_cast<std::size_t>(plus)].args[0]),
+               minus_leads = !is_negative(nodes_[static_cast<std::size_t>(minus)].args[0]);
+    flip = plus_leads != minus_leads ? minus_leads
+                                     : nodes_[static_cast<std::size_t>(minus)].hash <
+                                           nodes_[static_cast<std::size_t>(plus)].hash;
   }
-  const int minus = convert_owned(-s);
-  negated = negative > positive || nodes_[static_cast<std::size_t>(minus)].hash <
-                                       nodes_[static_cast<std::size_t>(plus)].hash;
-  return negated ? minus : plus;
+  return flip ? make(NodeOp::neg, {minus}, false) : plus;
 }
 
-// A factor of a product: a sum or an integer power of a sum gets the canonical sign.
+// A factor of a product without its sign (the product's coefficient absorbs it).
 int Dag::factor(const ex& f, bool& negated) {
-  negated = false;
-  if (is_a<GiNaC::add>(f)) return canonical_sum(f, negated);
-  if (is_a<GiNaC::power>(f) && is_a<GiNaC::add>(f.op(0)) && is_a<numeric>(f.op(1)) &&
-      GiNaC::ex_to<numeric>(f.op(1)).is_pos_integer()) {
-    bool base_negated = false;
-    const int base = canonical_sum(f.op(0), base_negated);
-    const long k = GiNaC::ex_to<numeric>(f.op(1)).to_long();
-    negated = base_negated && k % 2 == 1;
-    if (k == 1) return base;
-    Node n;
-    n.op = NodeOp::pow_int;
-    n.args = {base};
-    n.exponent = k;
-    return intern(std::move(n));
-  }
-  return convert(f);
+  const int id = convert(f);
+  const Node& n = nodes_[static_cast<std::size_t>(id)];
+  negated = n.op == NodeOp::neg;
+  return negated ? n.args[0] : id;
 }
 
 int Dag::add(const ex& e) {
@@ -166,7 +158,7 @@ int Dag::convert(const ex& e) {
   } else if (is_a<GiNaC::add>(e)) {
     std::vector<int> args;
     for (std::size_t i = 0; i < e.nops(); ++i) args.push_back(convert(e.op(i)));
-    id = make(NodeOp::add, args, true);
+    id = sum(args);
   } else if (is_a<GiNaC::mul>(e)) {
     std::vector<int> num, den;
     numeric coeff = 1;
@@ -204,16 +196,15 @@ int Dag::convert(const ex& e) {
       bool negated = false;
       id = make(NodeOp::div, {constant(1), factor(keep_alive_.back(), negated)}, false);
       if (negated) id = make(NodeOp::neg, {id}, false);
-    } else if (q.is_integer() && is_a<GiNaC::add>(b)) {
-      bool negated = false;
-      id = factor(e, negated);
-      if (negated) id = make(NodeOp::neg, {id}, false);
     } else if (q.is_integer()) {
+      bool negated = false;  // (-b)^k = (-1)^k b^k
+      const long k = q.to_long();
       Node n;
       n.op = NodeOp::pow_int;
-      n.args = {convert(b)};
-      n.exponent = q.to_long();
+      n.args = {factor(b, negated)};
+      n.exponent = k;
       id = intern(std::move(n));
+      if (negated && k % 2 == 1) id = make(NodeOp::neg, {id}, false);
     } else if (q == numeric(1, 2)) {
       id = make(NodeOp::sqrt, {convert(b)}, false);
     } else if (q.denom() == 2) {

@@ -58,7 +58,9 @@ class Dag {
   int convert(const GiNaC::ex& e);
   int convert_owned(const GiNaC::ex& e);
   int make(NodeOp op, std::vector<int> args, bool commutative);
-  int canonical_sum(const GiNaC::ex& s, bool& negated);
+  bool is_negative(int id) const;  // a negation or a negative constant
+  int negate(int a);
+  int sum(const std::vector<int>& terms);
   int factor(const GiNaC::ex& f, bool& negated);
 
   std::vector<Node> nodes_;
