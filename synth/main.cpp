@@ -203,6 +203,7 @@ struct CheckCommand {
   double horizon = 20;
   std::string thetas;
   bool no_timings = false;
+  bool certify = false;  // also the verdicts that are certificate searches (thau, kou)
   std::vector<std::string> params;
   CommonOptions common;
 };
@@ -229,6 +230,8 @@ CLI::App* add_check(CLI::App& app, CheckCommand& c) {
   check->add_option("--format", c.format, "report format")
       ->check(CLI::IsMember({"text", "json", "markdown", "latex"}))
       ->capture_default_str();
+  check->add_flag("--certify", c.certify,
+                  "also run the design verdicts that are certificate searches (seconds each)");
   check->add_flag("--no-timings", c.no_timings,
                   "omit stage timings (byte-identical output between runs)");
   check->add_option("--input", c.input,
@@ -323,7 +326,10 @@ int run_check(const CheckCommand& c) {
     publish_stage("report");
     PrintCache::Use use(printed);
     const StageOutcome* stopped = a.stopped_stage();
-    std::string text = stopped ? render_report(a, format, ro) : render_check(a, format, ro);
+    VerdictScope scope;
+    scope.searches = c.certify;
+    std::string text = stopped ? render_report(a, format, ro)
+                               : render_check(a, format, ro, design_verdicts_json(a, scope));
     if (!c.input.empty() && !stopped) {
       PersistenceOptions po;
       po.input_text = c.input;

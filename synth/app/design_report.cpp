@@ -1,15 +1,41 @@
 #include "app/design_report.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
 
 #include "designs/registry.hpp"
 #include "symbolic/expr_print.hpp"
 
 namespace obsynth {
 
-nlohmann::ordered_json design_verdicts_json(const Analysis& a) {
+namespace {
+
+nlohmann::ordered_json not_evaluated(const std::string& method, const std::string& why) {
+  return {{"method", method}, {"applies", nullptr}, {"evaluated", false}, {"reasons", {why}}};
+}
+
+}  // namespace
+
+nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScope& scope) {
   nlohmann::ordered_json j = nlohmann::ordered_json::array();
   for (const auto& d : design_registry()) {
+    const auto& only = scope.only;
+    if (!only.empty() && std::find(only.begin(), only.end(), d.name) == only.end()) {
+      j.push_back(not_evaluated(
+          d.name, fmt::format("only {} was requested (`obsynth check --certify` evaluates every "
+                              "design)",
+                              scope.requested_by)));
+      continue;
+    }
+    if (d.verdict_searches && !scope.searches) {
+      j.push_back(not_evaluated(
+          d.name, fmt::format("its verdict is a certificate search (seconds): `obsynth check "
+                              "--certify`, or the main job with --method {}, runs it",
+                              d.name)));
+      continue;
+    }
     const Verdict v = d.applies(a);
     j.push_back({{"method", d.name}, {"applies", v.applies}, {"reasons", v.reasons}});
   }
@@ -23,14 +49,14 @@ nlohmann::ordered_json design_verdicts_json(const Analysis& a) {
 namespace {
 
 std::string verdict_word(const nlohmann::ordered_json& v) {
+  if (v.contains("evaluated")) return "not evaluated";
   if (v["applies"].is_null()) return "planned";
   return v["applies"].get<bool>() ? "applies" : "does not apply";
 }
 
 }  // namespace
 
-std::string render_design_verdicts(const Analysis& a, ReportFormat format) {
-  const auto verdicts = design_verdicts_json(a);
+std::string render_design_verdicts(const nlohmann::ordered_json& verdicts, ReportFormat format) {
   std::string out;
   switch (format) {
     case ReportFormat::json:
@@ -95,15 +121,16 @@ std::string parameter_box_text(const Model& m, ReportFormat format) {
 
 }  // namespace
 
-std::string render_check(const Analysis& a, ReportFormat format, const ReportOptions& opt) {
+std::string render_check(const Analysis& a, ReportFormat format, const ReportOptions& opt,
+                         const nlohmann::ordered_json& verdicts) {
   if (format == ReportFormat::json) {
     auto j = report_json(a, opt);
     j["parameters"] = parameter_box_json(a.model);
-    j["designs"] = design_verdicts_json(a);
+    j["designs"] = verdicts;
     return j.dump(2) + "\n";
   }
   return render_report(a, format, opt) + parameter_box_text(a.model, format) +
-         render_design_verdicts(a, format);
+         render_design_verdicts(verdicts, format);
 }
 
 nlohmann::ordered_json generated_json(const std::vector<GeneratedObserver>& g) {

@@ -22,13 +22,22 @@ struct GeneratedObserver {
   std::vector<RuntimeParam> params;
 };
 
-nlohmann::ordered_json design_verdicts_json(const Analysis& a);
+// Which designs' verdicts a report evaluates. The others get a "not evaluated" row (applies
+// null, "evaluated": false) that says why.
+struct VerdictScope {
+  std::vector<std::string> only;  // empty: every design; else these methods only
+  bool searches = true;           // run the verdicts that are certificate searches
+  std::string requested_by;       // for the row text, e.g. "--method high-gain"
+};
+
+nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScope& scope = {});
 // The free parameters' boxes: [{"name", "lo", "hi"}].
 nlohmann::ordered_json parameter_box_json(const Model& m);
-std::string render_design_verdicts(const Analysis& a, ReportFormat format);
+std::string render_design_verdicts(const nlohmann::ordered_json& verdicts, ReportFormat format);
 
 // The full `check` report: the analysis and the design verdicts.
-std::string render_check(const Analysis& a, ReportFormat format, const ReportOptions& opt);
+std::string render_check(const Analysis& a, ReportFormat format, const ReportOptions& opt,
+                         const nlohmann::ordered_json& verdicts);
 
 nlohmann::ordered_json generated_json(const std::vector<GeneratedObserver>& g);
 std::string render_generated_markdown(const std::vector<GeneratedObserver>& g);

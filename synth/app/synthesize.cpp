@@ -148,7 +148,17 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   }
   ReportOptions ro;
   ro.timings = false;  // the output directory is byte-identical between runs
-  std::string md = render_check(a, ReportFormat::markdown, ro);
+  // Named methods only: their verdicts (the others' searches cost seconds); auto and all: every
+  // one.
+  const bool every =
+      auto_asked || std::find(opt.methods.begin(), opt.methods.end(), "all") != opt.methods.end();
+  VerdictScope scope;
+  if (!every) {
+    scope.only = s.chosen;
+    scope.requested_by = fmt::format("--method {}", fmt::join(s.chosen, ","));
+  }
+  const auto verdicts = design_verdicts_json(a, scope);
+  std::string md = render_check(a, ReportFormat::markdown, ro, verdicts);
   md += "\n## Generated observers\n\n";
   if (!s.explanation.empty()) md += s.explanation + ".\n\n";
   for (const auto& g : generated) md += "- " + g.summary + "\n";
@@ -162,7 +172,7 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   md += render_generated_markdown(generated);
   auto j = report_json(a, ro);
   j["parameters"] = parameter_box_json(a.model);
-  j["designs"] = design_verdicts_json(a);
+  j["designs"] = verdicts;
   if (!s.explanation.empty()) j["auto"] = s.explanation;
   j["generated"] = generated_json(generated);
   const std::string stem = cxx_identifier(a.model.name);

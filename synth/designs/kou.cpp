@@ -578,6 +578,7 @@ Design kou_design() {
                {"kou-p", "Kou observer: P, n diagonal entries or n*n row-major", "searched"}};
   d.applies = applies;
   d.build = build;
+  d.verdict_searches = true;  // a search over gains with Arb bounds: seconds
   return d;
 }
 

@@ -32,6 +32,9 @@ struct Design {
   // Whether `--method all` and `--method auto` consider it (false for designs that build large
   // numeric tables: chosen by name only).
   bool in_all = true;
+  // Whether applies() runs a certificate search (seconds, not milliseconds): `check` runs it
+  // only with --certify; the main job always does for the methods it considers.
+  bool verdict_searches = false;
 };
 
 // Implemented designs, in the order `--method auto` tries them.

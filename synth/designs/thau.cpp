@@ -998,6 +998,7 @@ Design thau_design() {
       {"thau-region", "Thau observer: auto (largest certified sub-box) or domain", "auto"}};
   d.applies = applies;
   d.build = build;
+  d.verdict_searches = true;  // a search over gains with Arb bounds: seconds
   return d;
 }
 

@@ -129,9 +129,23 @@ check "main job size stop writes nothing" test ! -e "$tmp/job_size"
 check "main job memory stop exits 1" test $? -eq 1
 check "main job memory stop diagnostic" grep -q "exceeded its memory budget of 256 MiB" "$tmp/err"
 check "main job memory stop writes nothing" test ! -e "$tmp/job_mem"
-"$bin" "$tmp/expchain.sym" -o "$tmp/job_time" --stage-seconds 1 >"$tmp/out" 2>"$tmp/err"
+# --method canonical: auto would fall back to a design that does not need the stopped stage
+# (kalman-theta here, when the Lie chain's share of the budget runs out first).
+"$bin" "$tmp/expchain.sym" -o "$tmp/job_time" --stage-seconds 1 --method canonical \
+  --rank-method symbolic >"$tmp/out" 2>"$tmp/err"
 check "main job time stop exits 1" test $? -eq 1
+check "main job time stop diagnostic" grep -q "stage 'frame' exceeded its time budget of 1 s" "$tmp/err"
 check "main job time stop writes nothing" test ! -e "$tmp/job_time"
+# check runs the certificate-search verdicts (thau, kou) only with --certify.
+"$bin" check "$src/models/pendulum.sym" >"$tmp/out" 2>"$tmp/err"
+check "check leaves the searches out" grep -q "^  thau  *not evaluated: its verdict is a certificate search" "$tmp/out"
+"$bin" check "$src/models/pendulum.sym" --certify >"$tmp/out" 2>"$tmp/err"
+check "check --certify runs thau's search" grep -q "^  thau  *applies: " "$tmp/out"
+check "check --certify runs kou's search" grep -q "^  kou  *applies: .*(rigorous" "$tmp/out"
+# A named method's report evaluates only that design; the others say so.
+"$bin" "$src/models/pendulum.sym" -o "$tmp/named" --method high-gain >"$tmp/out" 2>"$tmp/err"
+check "named method report marks the others" grep -q '| `thau` | not evaluated | only --method high-gain was requested (`obsynth check --certify` evaluates every design)' "$tmp/named/pendulum_report.md"
+check "named method report has its verdict" grep -q '| `high-gain` | applies |' "$tmp/named/pendulum_report.md"
 
 # The design registry: --list-methods, auto's explanation, all, unknown and planned methods.
 "$bin" --list-methods >"$tmp/out" 2>&1
