@@ -552,13 +552,9 @@ std::vector<numeric> flat(const GiNaC::matrix& M) {
   return v;
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
-  const Model& m = a.model;
-  const Result& r = cached_design(m, o);
-  if (!r.not_applicable.empty() || !r.holds)
-    throw UserError(
-        SourceLoc{m.file, 0, 0},
-        "method 'kou' does not apply: " + fmt::format("{}", fmt::join(verdict_reasons(r), "; ")));
+// The spec without its texts: the estimate is the state, integrated by
+// xh' = f(xh) + g(xh, u) + L (h(xh) - y)  (seed 001 eq. 5).
+ObserverSpec kou_skeleton(const Model& m, const GiNaC::matrix& L) {
   const std::size_t n = m.n(), p = m.p();
   std::vector<GiNaC::symbol> y;
   for (std::size_t i = 0; i < p; ++i)
@@ -567,7 +563,7 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   ExVec rhs;
   for (std::size_t i = 0; i < n; ++i) {
     ex acc = F[i];
-    for (std::size_t k = 0; k < p; ++k) acc += r.L(i, k) * (m.h[k] - y[k]);
+    for (std::size_t k = 0; k < p; ++k) acc += L(i, k) * (m.h[k] - y[k]);
     rhs.push_back(acc);
   }
   ObserverSpec s;
@@ -588,22 +584,12 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.state_doc = "the estimate itself";
   s.update = UpdateKind::ode;
   s.roles.rhs = "x_rhs";
-  const char* kind = r.rigorous ? "rigorous" : "sampled, not proven";
-  s.title = "Kou-Elliott-Tarn observer (uniformly negative definite P (df/dx + L dh/dx))";
-  s.description = {
-      "Observer: Kou-Elliott-Tarn (1975; seed 001 §4, Theorem 1, eq. 5-9)",
-      fmt::format("L = {}, P = {}", matrix_text(r.L), matrix_text(to_eigen(r.P))),
-      fmt::format(
-          "Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= {:.6g} on the "
-          "domain ({})",
-          r.verdict.max_eigenvalue_bound, kind)};
-  s.class_doc = {
-      "  xh' = f(xh) + g(xh, u) + L (h(xh) - y)   (seed 001 eq. 5, L (yh - y))",
-      fmt::format("V = e' P e decays while x and xh stay in the domain box: |e| rate >= {:.4g}.",
-                  r.rate())};
-  s.constants.push_back({"L", flat(r.L), "output-injection gain, n x p row-major"});
-  s.constants.push_back({"P", flat(r.P), "Lyapunov matrix of eq. (9), row-major"});
-  s.report = {
+  return s;
+}
+
+// The report rows: L, P, how they were found, and the certificate's numbers.
+std::vector<ReportRow> kou_report(const Result& r) {
+  return {
       {"convention", "xh' = f + g + L (h(xh) - y) (seed eq. 5), e = xh - x"},
       {"L",
        fmt::format("{} ({})", matrix_text(r.L), r.user_L ? "given with --kou-gain" : "searched")},
@@ -623,6 +609,32 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       {"decay rate",
        fmt::format("|e(t)| <= sqrt({:.6g}) |e(0)| exp(-{:.6g} t) while x, xh stay in the domain",
                    r.sigma_max_P / r.sigma_min_P, r.rate())}};
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  const Result& r = cached_design(m, o);
+  if (!r.not_applicable.empty() || !r.holds)
+    throw UserError(
+        SourceLoc{m.file, 0, 0},
+        "method 'kou' does not apply: " + fmt::format("{}", fmt::join(verdict_reasons(r), "; ")));
+  ObserverSpec s = kou_skeleton(m, r.L);
+  const char* kind = r.rigorous ? "rigorous" : "sampled, not proven";
+  s.title = "Kou-Elliott-Tarn observer (uniformly negative definite P (df/dx + L dh/dx))";
+  s.description = {
+      "Observer: Kou-Elliott-Tarn (1975; seed 001 §4, Theorem 1, eq. 5-9)",
+      fmt::format("L = {}, P = {}", matrix_text(r.L), matrix_text(to_eigen(r.P))),
+      fmt::format(
+          "Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= {:.6g} on the "
+          "domain ({})",
+          r.verdict.max_eigenvalue_bound, kind)};
+  s.class_doc = {
+      "  xh' = f(xh) + g(xh, u) + L (h(xh) - y)   (seed 001 eq. 5, L (yh - y))",
+      fmt::format("V = e' P e decays while x and xh stay in the domain box: |e| rate >= {:.4g}.",
+                  r.rate())};
+  s.constants.push_back({"L", flat(r.L), "output-injection gain, n x p row-major"});
+  s.constants.push_back({"P", flat(r.P), "Lyapunov matrix of eq. (9), row-major"});
+  s.report = kou_report(r);
   s.summary = fmt::format(
       "Kou-Elliott-Tarn observer, L = {}, certificate: largest eigenvalue of sym(P (dF/dx + L "
       "dh/dx)) "
