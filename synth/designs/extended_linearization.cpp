@@ -607,15 +607,9 @@ Verdict applies(const Analysis& a) {
   return v;
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
-  const Model& m = a.model;
-  const ExtendedLinearization& r = extended_linearization(m, o);
-  if (!r.failures.empty())
-    throw UserError(SourceLoc{m.file, 0, 0},
-                    fmt::format("method 'extended-linearization' does not apply: {}",
-                                fmt::join(r.failures, "; ")));
-  const std::size_t n = m.n();
-  // The output symbol of the generated functions, unique against the model's names.
+// The output symbols y (measured) and yh (= h(xh)) of the generated functions, unique against
+// the model's names.
+std::pair<GiNaC::symbol, GiNaC::symbol> output_symbols(const Model& m) {
   std::set<std::string> used;
   for (const auto& s : m.all_symbols()) used.insert(s.get_name());
   for (const auto& p : m.params) used.insert(p.name);
@@ -624,7 +618,13 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   used.insert(yname);
   std::string yhname = "yh";
   while (used.count(yhname)) yhname += "_";
-  const GiNaC::symbol y(yname), yh(yhname);
+  return {GiNaC::symbol(yname), GiNaC::symbol(yhname)};
+}
+
+// The spec without its texts: the injection k(y) and xh' = f + g + k(y) - k(h(xh)).
+ObserverSpec el_skeleton(const Model& m, const ExtendedLinearization& r) {
+  const std::size_t n = m.n();
+  const auto [y, yh] = output_symbols(m);
   ExVec k_y, rhs;
   const ExVec F = m.field();
   for (std::size_t i = 0; i < n; ++i) {
@@ -652,7 +652,38 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   spec.update = UpdateKind::ode;
   spec.roles.rhs = "x_rhs";
   spec.estimate = EstimateKind::identity;
+  return spec;
+}
 
+// The report rows: equations, constraints, family, poles, gain schedule and injection.
+std::vector<ReportRow> el_report(const Model& m, const ExtendedLinearization& r) {
+  std::vector<ReportRow> rows = {
+      {"equations",
+       "xh' = f(xh, u) + k(y) - k(h(xh)) (seed 001 eq. 29), dk/dy(y_eps) = C(eps)^T (eq. 34)"},
+      {"parametrisation",
+       "eps = y - y0, the output level of the equilibrium (regular by constraint (iii)); u is the "
+       "model's first input"}};
+  for (const auto& nt : r.notes) rows.push_back({"constraints", nt});
+  rows.push_back({"equilibrium family", family_text(m, r)});
+  rows.push_back(
+      {"poles", fmt::format("{} ({})", poles_text(r.poles),
+                            r.poles_given ? "given with --el-poles" : "default -1, -2, ..., -n")});
+  rows.push_back({"gain schedule C(eps)^T",
+                  fmt::format("{} (Ackermann: p(A_eps) O_eps^-1 e_n{})", vec_text(r.c_eps),
+                              r.family_closed ? "" : ", as a series")});
+  rows.push_back(
+      {"injection k(y)", fmt::format("{}; {}", vec_text(r.injection), injection_kind(r))});
+  return rows;
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  const ExtendedLinearization& r = extended_linearization(m, o);
+  if (!r.failures.empty())
+    throw UserError(SourceLoc{m.file, 0, 0},
+                    fmt::format("method 'extended-linearization' does not apply: {}",
+                                fmt::join(r.failures, "; ")));
+  ObserverSpec spec = el_skeleton(m, r);
   spec.title = "Extended linearization observer (Baumann-Rugh; seed 001 §5)";
   spec.description = {
       "Observer: extended linearization (Baumann-Rugh 1986; seed 001 §5, eq. 27-45)",
@@ -667,22 +698,7 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       "so the error dynamics linearized at every equilibrium x_eps of the family have the",
       "prescribed eigenvalues (a local design: near the family)."};
   spec.constants.push_back({"poles", r.poles, "eigenvalues of the linearized error dynamics"});
-  spec.report = {
-      {"equations",
-       "xh' = f(xh, u) + k(y) - k(h(xh)) (seed 001 eq. 29), dk/dy(y_eps) = C(eps)^T (eq. 34)"},
-      {"parametrisation",
-       "eps = y - y0, the output level of the equilibrium (regular by constraint (iii)); u is the "
-       "model's first input"}};
-  for (const auto& nt : r.notes) spec.report.push_back({"constraints", nt});
-  spec.report.push_back({"equilibrium family", family_text(m, r)});
-  spec.report.push_back(
-      {"poles", fmt::format("{} ({})", poles_text(r.poles),
-                            r.poles_given ? "given with --el-poles" : "default -1, -2, ..., -n")});
-  spec.report.push_back({"gain schedule C(eps)^T",
-                         fmt::format("{} (Ackermann: p(A_eps) O_eps^-1 e_n{})", vec_text(r.c_eps),
-                                     r.family_closed ? "" : ", as a series")});
-  spec.report.push_back(
-      {"injection k(y)", fmt::format("{}; {}", vec_text(r.injection), injection_kind(r))});
+  spec.report = el_report(m, r);
   spec.summary = fmt::format(
       "Extended linearization observer (Baumann-Rugh): linearized error eigenvalues {} along the "
       "equilibrium family ({}); injection {}",
