@@ -714,9 +714,9 @@ bool guarded(const ObserverSpec& s) {
   return s.update == UpdateKind::ode && (s.correction || !s.symmetric_blocks.empty());
 }
 
-// The solvers, total_rhs and the guarded RK4 step.
-std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b,
-                              Precision precision) {
+// The helpers the guarded step needs: unpacking a symmetric block, the Cholesky or LU
+// solver, and the packed positive-definiteness test.
+std::string guarded_helpers(const ObserverSpec& s, CBuilder& b, Precision precision) {
   const bool single = precision == Precision::single;
   std::size_t max_dim = 1;
   for (const auto& q : s.symmetric_blocks) max_dim = std::max(max_dim, q.dim);
@@ -740,7 +740,11 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
   bool pd = false;
   for (const auto& q : s.symmetric_blocks) pd = pd || q.keep_positive_definite;
   if (pd) out += helper(kPackedPositiveDefinite, {"zero", "max_dim"});
-  const bool params = !prm.empty();
+  return out;
+}
+
+// total_rhs: the rhs plus, with a solve correction, M^-1 v added to its target rows.
+std::string total_rhs_text(const ObserverSpec& s, bool params, CBuilder& b) {
   std::string correction = "  return 1;\n", doc;
   if (s.correction) {
     const SolveCorrection& k = *s.correction;
@@ -770,12 +774,19 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
     doc = fmt::format(" plus M^-1 v in rows {}..{} ({} solve)", k.target_offset,
                       k.target_offset + k.dim - 1, chol ? "Cholesky" : "LU");
   }
-  out += render_template(
+  return render_template(
       kTotalRhs, {{"correction_doc", doc},
                   {"prm_decl", params ? fmt::format(", const {}_params* prm", b.prefix()) : ""},
                   {"rhs", b.fn(s.roles.rhs)},
                   {"prm", params ? ", prm" : ""},
                   {"correction", correction}});
+}
+
+// The solvers, total_rhs and the guarded RK4 step.
+std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b,
+                              Precision precision) {
+  std::string out = guarded_helpers(s, b, precision);
+  out += total_rhs_text(s, !prm.empty(), b);
   std::string checks, names;
   for (const auto& q : s.symmetric_blocks) {
     if (!q.keep_positive_definite) continue;
