@@ -512,7 +512,23 @@ class Taylor {
     f_.set(r[0], fv);
     for (std::size_t c = 1; c < W_; ++c) f_.mul(r[c], dfv, a[c]);
   }
+  // tmp_ = sum_{j=1..k} w_j a_j y_{k-j}, a_j the coefficients of node a, y(j) a coefficient
+  // pointer, w(w_j, j) the weight.
+  template <class Y, class Wt>
+  void weighted(std::size_t a, std::size_t k, const Y& y, const Wt& w) {
+    T* s = tmp_.data();
+    zero(s);
+    if (scaled_.size() < k * W_) scaled_.resize(k * W_);
+    for (std::size_t j = 1; j <= k; ++j) {  // scaled_[j-1] = w_j a_j
+      T wj;
+      w(wj, j);
+      scale(&scaled_[(j - 1) * W_], at(a, j), wj);
+    }
+    f_.convolve(s, scaled_.data(), static_cast<long>(W_), y(k - 1), -static_cast<long>(W_), k, W_);
+  }
   bool coefficient(std::size_t i, std::size_t k);
+  bool trig_coefficient(std::size_t i, std::size_t k, const Node& nd, const T& inv_k);
+  bool log_atan_coefficient(std::size_t i, std::size_t k, const Node& nd, const T& inv_k);
   bool leading(std::size_t i);
 
   const Dag& dag_;
@@ -597,24 +613,12 @@ bool Taylor<F>::coefficient(std::size_t i, std::size_t k) {
   T* r = at(i, k);
   zero(r);
   T* s = tmp_.data();
-  auto A = [&](std::size_t j) { return at(static_cast<std::size_t>(nd.a), j); };
-  // s = sum_{j=1..k} w_j a_j y_{k-j}
-  auto weighted = [&](auto y, auto w) {
-    zero(s);
-    if (scaled_.size() < k * W_) scaled_.resize(k * W_);
-    for (std::size_t j = 1; j <= k; ++j) {  // scaled_[j-1] = w_j a_j
-      T wj;
-      w(wj, j);
-      scale(&scaled_[(j - 1) * W_], A(j), wj);
-    }
-    f_.convolve(s, scaled_.data(), static_cast<long>(W_), y(k - 1), -static_cast<long>(W_), k, W_);
-  };
+  const auto a = static_cast<std::size_t>(nd.a);
   T inv_k;
   f_.set_si(inv_k, static_cast<long>(k));
   if (!f_.inv(inv_k, inv_k)) return false;
   auto weight_j = [&](T& w, std::size_t j) { f_.set_si(w, static_cast<long>(j)); };
   auto self = [&](std::size_t j) { return at(i, j); };
-  auto companion = [&](std::size_t j) { return aux(i, j); };
   switch (nd.op) {
     case Op::constant:
     case Op::symbol:
@@ -626,78 +630,95 @@ bool Taylor<F>::coefficient(std::size_t i, std::size_t k) {
       return true;
     }
     case Op::add: {
-      const T *a = A(k), *b = at(nd.b, k);
-      for (std::size_t c = 0; c < W_; ++c) f_.add(r[c], a[c], b[c]);
+      const T *x = at(a, k), *b = at(nd.b, k);
+      for (std::size_t c = 0; c < W_; ++c) f_.add(r[c], x[c], b[c]);
       return true;
     }
     case Op::mul:
-      f_.convolve(r, A(0), static_cast<long>(W_), at(nd.b, k), -static_cast<long>(W_), k + 1, W_);
+      f_.convolve(r, at(a, 0), static_cast<long>(W_), at(nd.b, k), -static_cast<long>(W_), k + 1,
+                  W_);
       return true;
-    case Op::inv: {  // a c = 1: c_k = -(sum_{j>=1} a_j c_{k-j}) / a_0
-      weighted(self, [&](T& w, std::size_t) { f_.set_si(w, -1); });
-      return div(r, s, A(0));
-    }
-    case Op::pow_rat: {  // k a_0 c_k = sum_j (q j - (k - j)) a_j c_{k-j}
-      weighted(self, [&](T& w, std::size_t j) {
+    case Op::inv:  // a c = 1: c_k = -(sum_{j>=1} a_j c_{k-j}) / a_0
+      weighted(a, k, self, [&](T& w, std::size_t) { f_.set_si(w, -1); });
+      return div(r, s, at(a, 0));
+    case Op::pow_rat:  // k a_0 c_k = sum_j (q j - (k - j)) a_j c_{k-j}
+      weighted(a, k, self, [&](T& w, std::size_t j) {
         const numeric c = nd.value * static_cast<long>(j) - static_cast<long>(k - j);
         f_.set_rational(w, c);
       });
-      if (!div(r, s, A(0))) return false;
+      if (!div(r, s, at(a, 0))) return false;
       scale(r, r, inv_k);
       return true;
-    }
     case Op::exp:  // c' = a' c
-      weighted(self, weight_j);
+      weighted(a, k, self, weight_j);
       scale(r, s, inv_k);
       return true;
     case Op::sin:
-    case Op::cos: {  // s' = a' c, c' = -a' s; the node holds one, aux the other
-      const long sign_self = nd.op == Op::sin ? 1 : -1;
-      weighted(companion, weight_j);
-      scale(r, s, inv_k);
-      scale_si(r, r, sign_self);
-      weighted(self, weight_j);
-      T* x = aux(i, k);
-      scale(x, s, inv_k);
-      scale_si(x, x, -sign_self);
-      return true;
-    }
+    case Op::cos:
     case Op::tan:
-    case Op::tanh: {  // c' = a' q, q = 1 +- c^2
-      weighted(companion, weight_j);
-      scale(r, s, inv_k);
-      T* x = aux(i, k);
-      zero(x);
-      for (std::size_t j = 0; j <= k; ++j) mul_add(x, at(i, j), at(i, k - j));
-      if (nd.op == Op::tanh) scale_si(x, x, -1);
-      return true;
-    }
+    case Op::tanh:
+      return trig_coefficient(i, k, nd, inv_k);
     case Op::log:
-    case Op::atan: {  // b c' = a' with b = a (log) or 1 + a^2 (atan):
-      // k b_0 c_k = k a_k - sum_{j=1..k-1} (k - j) b_j c_{k-j}
-      auto B = [&](std::size_t j) { return nd.op == Op::log ? A(j) : aux(i, j); };
-      if (nd.op == Op::atan) {
-        T* x = aux(i, k);
-        zero(x);
-        for (std::size_t j = 0; j <= k; ++j) mul_add(x, A(j), A(k - j));
-      }
-      zero(s);
-      for (std::size_t j = 1; j < k; ++j) {
-        zero(tmp2_.data());
-        mul_add(tmp2_.data(), B(j), at(i, k - j));
-        T w;
-        f_.set_si(w, -static_cast<long>(k - j));
-        add_scaled(s, tmp2_.data(), w);
-      }
-      T kk;
-      f_.set_si(kk, static_cast<long>(k));
-      add_scaled(s, A(k), kk);
-      if (!div(r, s, B(0))) return false;
-      scale(r, r, inv_k);
-      return true;
-    }
+    case Op::atan:
+      return log_atan_coefficient(i, k, nd, inv_k);
   }
   return false;
+}
+
+// sin/cos: s' = a' c, c' = -a' s, the node holds one, aux the other. tan/tanh: c' = a' q with
+// q = 1 +- c^2 in aux.
+template <class F>
+bool Taylor<F>::trig_coefficient(std::size_t i, std::size_t k, const Node& nd, const T& inv_k) {
+  const auto a = static_cast<std::size_t>(nd.a);
+  T* r = at(i, k);
+  T* s = tmp_.data();
+  auto weight_j = [&](T& w, std::size_t j) { f_.set_si(w, static_cast<long>(j)); };
+  auto self = [&](std::size_t j) { return at(i, j); };
+  auto companion = [&](std::size_t j) { return aux(i, j); };
+  weighted(a, k, companion, weight_j);
+  scale(r, s, inv_k);
+  T* x = aux(i, k);
+  if (nd.op == Op::sin || nd.op == Op::cos) {
+    const long sign_self = nd.op == Op::sin ? 1 : -1;
+    scale_si(r, r, sign_self);
+    weighted(a, k, self, weight_j);
+    scale(x, s, inv_k);
+    scale_si(x, x, -sign_self);
+    return true;
+  }
+  zero(x);
+  for (std::size_t j = 0; j <= k; ++j) mul_add(x, at(i, j), at(i, k - j));
+  if (nd.op == Op::tanh) scale_si(x, x, -1);
+  return true;
+}
+
+// b c' = a' with b = a (log) or 1 + a^2 (atan, held in aux):
+// k b_0 c_k = k a_k - sum_{j=1..k-1} (k - j) b_j c_{k-j}
+template <class F>
+bool Taylor<F>::log_atan_coefficient(std::size_t i, std::size_t k, const Node& nd, const T& inv_k) {
+  const auto a = static_cast<std::size_t>(nd.a);
+  T* r = at(i, k);
+  T* s = tmp_.data();
+  auto B = [&](std::size_t j) { return nd.op == Op::log ? at(a, j) : aux(i, j); };
+  if (nd.op == Op::atan) {
+    T* x = aux(i, k);
+    zero(x);
+    for (std::size_t j = 0; j <= k; ++j) mul_add(x, at(a, j), at(a, k - j));
+  }
+  zero(s);
+  for (std::size_t j = 1; j < k; ++j) {
+    zero(tmp2_.data());
+    mul_add(tmp2_.data(), B(j), at(i, k - j));
+    T w;
+    f_.set_si(w, -static_cast<long>(k - j));
+    add_scaled(s, tmp2_.data(), w);
+  }
+  T kk;
+  f_.set_si(kk, static_cast<long>(k));
+  add_scaled(s, at(a, k), kk);
+  if (!div(r, s, B(0))) return false;
+  scale(r, r, inv_k);
+  return true;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -404,77 +404,61 @@ void lie_chain(const Model& m, Budget& budget, const ObservabilityOptions& opt, 
   ginac_lie_chain(m, &own, ob.lie, grads);
 }
 
-}  // namespace
-
-Observability analyse_observability(const Model& m, Budget& budget, const ObservabilityOptions& opt,
-                                    Observability* progress) {
-  Observability local;
-  Observability& ob = progress ? *progress : local;  // partial results survive a budget stop
-  if (opt.rank_method == RankMethod::jets)
-    return ob = observability_from_jets(m, budget, opt,
-                                        "the jets rank was requested (--rank-method jets)");
-  ob.n = m.n();
-  ob.p = m.p();
-  const Symbols& x = m.states;
-  std::vector<ExMatrix> grads(ob.p);
-  RingRows ring_rows;
+// The symbolic Lie chain into ob and grads. Under the automatic rank method, a chain that
+// exceeds its time, size or memory budget gives the reason to fall back to the jets rank
+// instead (nullopt: it completed).
+std::optional<std::string> lie_chain_or_fallback(const Model& m, Budget& budget,
+                                                 const ObservabilityOptions& opt, Observability& ob,
+                                                 std::vector<ExMatrix>& grads,
+                                                 RingRows& ring_rows) {
   try {
     lie_chain(m, budget, opt, ob, grads, ring_rows);
   } catch (const UserError& e) {  // the time or size budget of the symbolic chain
     if (opt.rank_method != RankMethod::automatic) throw;
     const std::string why = e.diagnostics().empty() ? e.what() : e.diagnostics()[0].message;
-    return ob = observability_from_jets(
-               m, budget, opt,
-               fmt::format("the symbolic Lie derivatives exceeded their budget ({})", why));
+    return fmt::format("the symbolic Lie derivatives exceeded their budget ({})", why);
   } catch (const std::bad_alloc&) {
     if (opt.rank_method != RankMethod::automatic) throw;
-    return ob = observability_from_jets(m, budget, opt,
-                                        "the symbolic Lie derivatives ran out of memory");
+    return std::string("the symbolic Lie derivatives ran out of memory");
   }
-  StageScope stage(budget, "observability");
-  for (std::size_t k = 0; k < ob.n; ++k)
-    for (std::size_t i = 0; i < ob.p; ++i) {
-      ob.O.push_back(std::move(grads[i][k]));
-      ob.rows.push_back({i, k});
-    }
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
-  ob.undefined = denominators(ob.O, x);
+  return std::nullopt;
+}
 
-  if (ob.p == 1) {
-    if (const auto cols = triangular_columns(ob.O)) {
-      bool exact = true, regular = true;
-      for (std::size_t k = 0; k < ob.n && regular; ++k)
-        regular = generically_nonzero(ob.O[k][(*cols)[k]], boxes, exact);
-      if (regular) {
-        ob.triangular = true;
-        ob.diag_columns = *cols;
-        ob.rank_exact = exact;
-        ob.generic_rank = ob.n;
-        ob.indices = {ob.n};
-        for (std::size_t k = 0; k < ob.n; ++k) ob.selected.push_back(k);
-        // det = sign(perm) prod_k O[k][c_k]; adj(O) e_n = det O^-1 e_n = det e_{c_n} / O[n][c_n].
-        ex det = permutation_sign(*cols), head = det;
-        for (std::size_t k = 0; k < ob.n; ++k) {
-          det *= ob.O[k][(*cols)[k]];
-          if (k + 1 < ob.n) head *= ob.O[k][(*cols)[k]];
-        }
-        ob.det = combine_exponentials(det);  // exp(a)*exp(b) as exp(a+b), still factored
-        ob.last_row_cofactors.assign(ob.n, 0);
-        ob.last_row_cofactors[cols->back()] = head;
-        finish_determinant(ob, x);
-        return ob;
-      }
-    }
-  }
-
-  bool exact = true;
-  for (const auto& row : ob.O)
-    for (const auto& e : row)
-      if (has_transcendental(e)) exact = false;
+// One output whose O is triangular up to a column permutation with a generically nonzero
+// diagonal: rank n, and det (and adj(O) e_n) as products, without sampling. False otherwise.
+bool triangular_rank(Observability& ob, const SampleBoxes& boxes, const Symbols& x) {
+  if (ob.p != 1) return false;
+  const auto cols = triangular_columns(ob.O);
+  if (!cols) return false;
+  bool exact = true, regular = true;
+  for (std::size_t k = 0; k < ob.n && regular; ++k)
+    regular = generically_nonzero(ob.O[k][(*cols)[k]], boxes, exact);
+  if (!regular) return false;
+  ob.triangular = true;
+  ob.diag_columns = *cols;
   ob.rank_exact = exact;
+  ob.generic_rank = ob.n;
+  ob.indices = {ob.n};
+  for (std::size_t k = 0; k < ob.n; ++k) ob.selected.push_back(k);
+  // det = sign(perm) prod_k O[k][c_k]; adj(O) e_n = det O^-1 e_n = det e_{c_n} / O[n][c_n].
+  ex det = permutation_sign(*cols), head = det;
+  for (std::size_t k = 0; k < ob.n; ++k) {
+    det *= ob.O[k][(*cols)[k]];
+    if (k + 1 < ob.n) head *= ob.O[k][(*cols)[k]];
+  }
+  ob.det = combine_exponentials(det);  // exp(a)*exp(b) as exp(a+b), still factored
+  ob.last_row_cofactors.assign(ob.n, 0);
+  ob.last_row_cofactors[cols->back()] = head;
+  finish_determinant(ob, x);
+  return true;
+}
 
-  // Symbols to sample: states and free parameters (O does not depend on u).
-  std::vector<GiNaC::symbol> syms(x);
+// The generic rank of O from its values at sample points of the states and free parameters
+// (O does not depend on u) into ob; returns O at the point of the largest rank.
+std::vector<std::vector<numeric>> sampled_rank(const Model& m, const SampleBoxes& boxes,
+                                               const ObservabilityOptions& opt, bool exact,
+                                               Budget& budget, Observability& ob) {
+  std::vector<GiNaC::symbol> syms(m.states);
   for (const auto& s : m.free_params()) syms.push_back(s);
   // Several points; some may be invalid (poles, log of negatives): take up to 4x as many.
   const auto points = sample_points(syms, boxes, opt.rank_points * 4, opt.seed);
@@ -497,15 +481,20 @@ Observability analyse_observability(const Model& m, Budget& budget, const Observ
     throw UserError(SourceLoc{m.file, 0, 0},
                     "the observability matrix is undefined at every sampled point of the domain; "
                     "declare a 'domain' where the model is defined");
+  return best_matrix;
+}
 
-  // Observability indices: add rows in k-major order, keeping those that raise the rank.
+// Observability indices: add rows in k-major order, keeping those that raise the rank (of O
+// at the sample point a).
+void observability_indices(const std::vector<std::vector<numeric>>& a, bool exact,
+                           Observability& ob) {
   ob.indices.assign(ob.p, 0);
   std::vector<bool> stopped(ob.p, false);
   std::vector<std::vector<numeric>> acc;
   for (std::size_t r = 0; r < ob.O.size(); ++r) {
     const std::size_t i = ob.rows[r].output;
     if (stopped[i]) continue;
-    acc.push_back(best_matrix[r]);
+    acc.push_back(a[r]);
     if (numeric_rank(acc, exact) == acc.size()) {
       ob.selected.push_back(r);
       ++ob.indices[i];
@@ -514,32 +503,71 @@ Observability analyse_observability(const Model& m, Budget& budget, const Observ
       stopped[i] = true;
     }
   }
+}
 
-  bool factored = false;
-  if (ob.generic_rank == ob.n && ob.selected.size() == ob.n &&
-      determinant_in_ring(ob, ring_rows, x, factored)) {
-    finish_determinant(ob, x, factored);
-  } else if (ob.generic_rank == ob.n && ob.selected.size() == ob.n) {
-    // det by cofactor expansion along the last selected row; the cofactors are adj(O) e_n.
-    const std::size_t n = ob.n;
-    ob.last_row_cofactors.assign(n, 0);
-    ex det = 0;
-    for (std::size_t c = 0; c < n; ++c) {
-      GiNaC::matrix minor(n - 1, n - 1);
-      for (std::size_t r = 0; r + 1 < n; ++r)
-        for (std::size_t cc = 0, k = 0; cc < n; ++cc) {
-          if (cc == c) continue;
-          minor(r, k++) = ob.O[ob.selected[r]][cc];
-        }
-      const ex md = n == 1 ? ex(1) : minor.determinant();
-      const ex cof = ((n - 1 + c) % 2 == 0 ? 1 : -1) * md;
-      ob.last_row_cofactors[c] = simplify(cof);
-      det += ob.O[ob.selected[n - 1]][c] * cof;
-      budget.check(expression_size(ob.last_row_cofactors[c]));
-    }
-    ob.det = simplify(det);
-    finish_determinant(ob, x);
+// det of the selected rows by cofactor expansion along the last one; the cofactors are
+// adj(O) e_n.
+void cofactor_determinant(const Symbols& x, Budget& budget, Observability& ob) {
+  const std::size_t n = ob.n;
+  ob.last_row_cofactors.assign(n, 0);
+  ex det = 0;
+  for (std::size_t c = 0; c < n; ++c) {
+    GiNaC::matrix minor(n - 1, n - 1);
+    for (std::size_t r = 0; r + 1 < n; ++r)
+      for (std::size_t cc = 0, k = 0; cc < n; ++cc) {
+        if (cc == c) continue;
+        minor(r, k++) = ob.O[ob.selected[r]][cc];
+      }
+    const ex md = n == 1 ? ex(1) : minor.determinant();
+    const ex cof = ((n - 1 + c) % 2 == 0 ? 1 : -1) * md;
+    ob.last_row_cofactors[c] = simplify(cof);
+    det += ob.O[ob.selected[n - 1]][c] * cof;
+    budget.check(expression_size(ob.last_row_cofactors[c]));
   }
+  ob.det = simplify(det);
+  finish_determinant(ob, x);
+}
+
+}  // namespace
+
+Observability analyse_observability(const Model& m, Budget& budget, const ObservabilityOptions& opt,
+                                    Observability* progress) {
+  Observability local;
+  Observability& ob = progress ? *progress : local;  // partial results survive a budget stop
+  if (opt.rank_method == RankMethod::jets)
+    return ob = observability_from_jets(m, budget, opt,
+                                        "the jets rank was requested (--rank-method jets)");
+  ob.n = m.n();
+  ob.p = m.p();
+  const Symbols& x = m.states;
+  std::vector<ExMatrix> grads(ob.p);
+  RingRows ring_rows;
+  if (const auto why = lie_chain_or_fallback(m, budget, opt, ob, grads, ring_rows))
+    return ob = observability_from_jets(m, budget, opt, *why);
+  StageScope stage(budget, "observability");
+  for (std::size_t k = 0; k < ob.n; ++k)
+    for (std::size_t i = 0; i < ob.p; ++i) {
+      ob.O.push_back(std::move(grads[i][k]));
+      ob.rows.push_back({i, k});
+    }
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  ob.undefined = denominators(ob.O, x);
+  if (triangular_rank(ob, boxes, x)) return ob;
+
+  bool exact = true;
+  for (const auto& row : ob.O)
+    for (const auto& e : row)
+      if (has_transcendental(e)) exact = false;
+  ob.rank_exact = exact;
+  const auto best_matrix = sampled_rank(m, boxes, opt, exact, budget, ob);
+  observability_indices(best_matrix, exact, ob);
+
+  const bool full = ob.generic_rank == ob.n && ob.selected.size() == ob.n;
+  bool factored = false;
+  if (full && determinant_in_ring(ob, ring_rows, x, factored))
+    finish_determinant(ob, x, factored);
+  else if (full)
+    cofactor_determinant(x, budget, ob);
   return ob;
 }
 

@@ -187,6 +187,71 @@ std::string num(double v) {
   return fmt::format("{:.4g}", v);
 }
 
+// The observability Gramians' smallest eigenvalues: over [0, horizon], and the smallest over
+// eleven windows of length r.window ending in [t0, horizon].
+void gramians(const InputPath& path, double horizon, PersistenceResult& r) {
+  const double dt_max = horizon / 20000.0;
+  r.gramian_min_eig = gramian_min_eig(path, 0, horizon, dt_max);
+  r.window_gramian_min_eig = std::numeric_limits<double>::infinity();
+  for (int k = 0; k <= 10; ++k) {
+    const double t = r.t0 + (horizon - r.t0) * k / 10.0;
+    r.window_gramian_min_eig =
+        std::min(r.window_gramian_min_eig, gramian_min_eig(path, t - r.window, t, dt_max));
+  }
+}
+
+// i): Gamma invertible and Psi positive definite for every theta, and alpha(theta)/theta
+// decreasing, at least like theta^-1/2 over the range.
+bool condition_i(const std::vector<PersistenceAtTheta>& by_theta) {
+  bool ok = !by_theta.empty();
+  for (const auto& b : by_theta) ok = ok && b.gamma_invertible && b.psi_positive;
+  if (ok && by_theta.size() >= 2) {
+    for (std::size_t k = 1; k < by_theta.size(); ++k)
+      ok = ok && by_theta[k].alpha / by_theta[k].theta <=
+                     1.05 * by_theta[k - 1].alpha / by_theta[k - 1].theta;
+    const auto& lo = by_theta.front();
+    const auto& hi = by_theta.back();
+    ok = ok && hi.alpha / hi.theta <= lo.alpha / lo.theta * std::sqrt(lo.theta / hi.theta);
+  }
+  return ok;
+}
+
+// ii): Gamma_ii / Gamma_jj bounded: finite, and at the largest theta no larger than before.
+bool condition_ii(const std::vector<PersistenceAtTheta>& by_theta) {
+  bool ok = !by_theta.empty();
+  double gmax = 0;
+  for (std::size_t k = 0; k < by_theta.size(); ++k) {
+    const auto& b = by_theta[k];
+    ok = ok && std::isfinite(b.gamma);
+    if (k + 1 == by_theta.size() && k > 0) ok = ok && b.gamma <= 1.0001 * gmax;
+    gmax = std::max(gmax, b.gamma);
+  }
+  return ok;
+}
+
+// Which condition failed, and where.
+std::string failure_text(const PersistenceResult& r) {
+  std::string failed;
+  if (!r.condition_i) {
+    for (const auto& b : r.by_theta)
+      if (!b.gamma_invertible || !b.psi_positive) {
+        failed = fmt::format(
+            "i) fails: at theta = {} Gamma{} is singular at t = {:.4g} (min eigenvalue of Psi "
+            "{:.3g})",
+            num(b.theta), b.gamma_invertible ? " is invertible but Psi" : "", b.worst_t,
+            b.min_psi_eig);
+        break;
+      }
+    if (failed.empty())
+      failed =
+          fmt::format("i) fails: alpha(theta)/theta does not decrease to 0 over theta in [{}, {}]",
+                      num(r.by_theta.front().theta), num(r.by_theta.back().theta));
+  } else if (!r.condition_ii) {
+    failed = "ii) fails: Gamma_ii / Gamma_jj (j <= i) is unbounded or grows with theta";
+  }
+  return failed;
+}
+
 }  // namespace
 
 PersistenceResult check_persistence(const Model& m, const PersistenceOptions& opt) {
@@ -217,62 +282,17 @@ PersistenceResult check_persistence(const Model& m, const PersistenceOptions& op
     if (!(th > 0)) throw UserError(SourceLoc{}, "theta values must be positive");
     r.by_theta.push_back(at_theta(path, th, opt.horizon, r.t0));
   }
-  const double dt_max = opt.horizon / 20000.0;
-  r.gramian_min_eig = gramian_min_eig(path, 0, opt.horizon, dt_max);
-  r.window_gramian_min_eig = std::numeric_limits<double>::infinity();
-  for (int k = 0; k <= 10; ++k) {
-    const double t = r.t0 + (opt.horizon - r.t0) * k / 10.0;
-    r.window_gramian_min_eig =
-        std::min(r.window_gramian_min_eig, gramian_min_eig(path, t - r.window, t, dt_max));
-  }
-  // i): Gamma invertible and Psi positive definite for every theta, and alpha(theta)/theta
-  // decreasing, at least like theta^-1/2 over the range.
-  bool i_ok = !r.by_theta.empty();
-  for (const auto& b : r.by_theta) i_ok = i_ok && b.gamma_invertible && b.psi_positive;
-  if (i_ok && r.by_theta.size() >= 2) {
-    for (std::size_t k = 1; k < r.by_theta.size(); ++k)
-      i_ok = i_ok && r.by_theta[k].alpha / r.by_theta[k].theta <=
-                         1.05 * r.by_theta[k - 1].alpha / r.by_theta[k - 1].theta;
-    const auto& lo = r.by_theta.front();
-    const auto& hi = r.by_theta.back();
-    i_ok = i_ok && hi.alpha / hi.theta <= lo.alpha / lo.theta * std::sqrt(lo.theta / hi.theta);
-  }
-  r.condition_i = i_ok;
-  bool ii_ok = !r.by_theta.empty();
-  double gmax = 0;
-  for (std::size_t k = 0; k < r.by_theta.size(); ++k) {
-    const auto& b = r.by_theta[k];
-    ii_ok = ii_ok && std::isfinite(b.gamma);
-    if (k + 1 == r.by_theta.size() && k > 0) ii_ok = ii_ok && b.gamma <= 1.0001 * gmax;
-    gmax = std::max(gmax, b.gamma);
-  }
-  r.condition_ii = ii_ok;
+  gramians(path, opt.horizon, r);
+  r.condition_i = condition_i(r.by_theta);
+  r.condition_ii = condition_ii(r.by_theta);
   r.persistent = r.condition_i && r.condition_ii;
-  std::string failed;
-  if (!r.condition_i) {
-    for (const auto& b : r.by_theta)
-      if (!b.gamma_invertible || !b.psi_positive) {
-        failed = fmt::format(
-            "i) fails: at theta = {} Gamma{} is singular at t = {:.4g} (min eigenvalue of Psi "
-            "{:.3g})",
-            num(b.theta), b.gamma_invertible ? " is invertible but Psi" : "", b.worst_t,
-            b.min_psi_eig);
-        break;
-      }
-    if (failed.empty())
-      failed =
-          fmt::format("i) fails: alpha(theta)/theta does not decrease to 0 over theta in [{}, {}]",
-                      num(r.by_theta.front().theta), num(r.by_theta.back().theta));
-  } else if (!r.condition_ii) {
-    failed = "ii) fails: Gamma_ii / Gamma_jj (j <= i) is unbounded or grows with theta";
-  }
   r.verdict =
       r.persistent
           ? fmt::format(
                 "strongly persistent on [{:.4g}, {:.4g}] for theta in [{}, {}] (numerical "
                 "check along the input, sampled in t and theta)",
                 r.t0, r.horizon, num(r.by_theta.front().theta), num(r.by_theta.back().theta))
-          : "not strongly persistent (numerical check along the input): " + failed;
+          : "not strongly persistent (numerical check along the input): " + failure_text(r);
   return r;
 }
 

@@ -342,11 +342,11 @@ std::string drift_deficit_text(const Analysis& a) {
                      ob.n - ob.generic_rank, u.reason.empty() ? "undecided" : u.reason);
 }
 
-ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
+namespace {
+
+// The model: schema, name, symbols, parameters and the maps.
+void add_model_json(const Analysis& a, ordered_json& j) {
   const Model& m = a.model;
-  const Observability& ob = a.observability;
-  const CanonicalForm& cf = a.canonical;
-  ordered_json j;
   // Schema 2: T_inverse is a list of elimination steps {state, equation (1-based), value}
   // (schema 1, without this key, had T_inverse as a list of expressions in z).
   j["schema"] = 2;
@@ -363,15 +363,11 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   j["f"] = expr_list(m.f);
   j["g"] = expr_list(m.g);
   j["h"] = expr_list(m.h);
-  if (ob.jets) {
-    j["lie_derivatives"] = nullptr;
-  } else if (ob.p == 1) {
-    j["lie_derivatives"] = expr_list(ob.lie[0]);
-  } else {
-    ordered_json l = ordered_json::array();
-    for (const auto& v : ob.lie) l.push_back(expr_list(v));
-    j["lie_derivatives"] = l;
-  }
+}
+
+// The "observability" object: rank, its method, O, indices, det and the rank drop.
+ordered_json observability_json(const Analysis& a) {
+  const Observability& ob = a.observability;
   ordered_json o;
   o["n"] = ob.n;
   o["p"] = ob.p;
@@ -388,25 +384,12 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   o["rank_drop"] = ob.jets ? ordered_json(nullptr) : expr_list(ob.rank_drop);
   o["undefined"] = ob.jets ? ordered_json(nullptr) : expr_list(ob.undefined);
   o["under_inputs"] = under_inputs_json(a);
-  j["observability"] = o;
-  if (!m.nominal_note.empty()) {
-    ordered_json nom = ordered_json::object();
-    for (std::size_t i = 0; i < m.inputs.size(); ++i)
-      nom[m.inputs[i].get_name()] = to_string(i < m.nominal.size() ? m.nominal[i] : 0);
-    j["nominal_input"] = {{"values", nom}, {"note", m.nominal_note}};
-  }
-  if (m.feedthrough()) j["feedthrough"] = true;
-  const bool app = cf.applicable;
-  j["canonical_applicable"] = app;
-  j["canonical_note"] = cf.not_applicable;
-  j["r"] = app ? expr_list(cf.r) : ordered_json(nullptr);
-  if (app) {
-    ordered_json fr = ordered_json::array();
-    for (const auto& t : cf.frame) fr.push_back(expr_list(t));
-    j["frame"] = fr;
-  } else {
-    j["frame"] = nullptr;
-  }
+  return o;
+}
+
+// The "conditions" object: the drift and input bracket conditions and completeness.
+ordered_json conditions_json(const Analysis& a) {
+  const CanonicalForm& cf = a.canonical;
   ordered_json c;
   ordered_json drift = ordered_json::array(), input = ordered_json::array();
   for (const auto& b : cf.drift) {
@@ -424,12 +407,30 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
                      {"residual", residual_json(b)}});
     if (!b.residual_note.empty()) input.back()["residual_note"] = b.residual_note;
   }
-  c["observable"] = ob.generic_rank == ob.n;
+  c["observable"] = a.observability.generic_rank == a.observability.n;
   c["drift"] = drift;
   c["input"] = input;
-  c["complete"] = app ? ordered_json(completeness_name(cf.complete)) : ordered_json(nullptr);
+  c["complete"] =
+      cf.applicable ? ordered_json(completeness_name(cf.complete)) : ordered_json(nullptr);
   c["complete_reason"] = cf.complete_reason;
-  j["conditions"] = c;
+  return c;
+}
+
+// The canonical form: r, frame, conditions, T, T^-1 and l with their kinds and verdicts.
+void add_canonical_json(const Analysis& a, ordered_json& j) {
+  const CanonicalForm& cf = a.canonical;
+  const bool app = cf.applicable;
+  j["canonical_applicable"] = app;
+  j["canonical_note"] = cf.not_applicable;
+  j["r"] = app ? expr_list(cf.r) : ordered_json(nullptr);
+  if (app) {
+    ordered_json fr = ordered_json::array();
+    for (const auto& t : cf.frame) fr.push_back(expr_list(t));
+    j["frame"] = fr;
+  } else {
+    j["frame"] = nullptr;
+  }
+  j["conditions"] = conditions_json(a);
   j["linearizable"] = app && cf.linearizable;
   j["base_point"] = cf.base_point.empty() ? ordered_json(nullptr) : expr_list(cf.base_point);
   auto map_entry = [&](const char* key, Availability kind, const ExVec& v, ZeroVerdict verdict,
@@ -443,8 +444,35 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   };
   map_entry("T", cf.T_kind, cf.T, cf.T_verdict, cf.T_note);
   map_entry("T_inverse", cf.T_inverse_kind, {}, cf.T_inverse_verdict, cf.T_inverse_note);
-  j["T_inverse"] = inverse_steps_json(m, cf);
+  j["T_inverse"] = inverse_steps_json(a.model, cf);
   map_entry("l", cf.l_kind, cf.l, cf.l_verdict, cf.l_note);
+}
+
+}  // namespace
+
+ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
+  const Model& m = a.model;
+  const Observability& ob = a.observability;
+  ordered_json j;
+  add_model_json(a, j);
+  if (ob.jets) {
+    j["lie_derivatives"] = nullptr;
+  } else if (ob.p == 1) {
+    j["lie_derivatives"] = expr_list(ob.lie[0]);
+  } else {
+    ordered_json l = ordered_json::array();
+    for (const auto& v : ob.lie) l.push_back(expr_list(v));
+    j["lie_derivatives"] = l;
+  }
+  j["observability"] = observability_json(a);
+  if (!m.nominal_note.empty()) {
+    ordered_json nom = ordered_json::object();
+    for (std::size_t i = 0; i < m.inputs.size(); ++i)
+      nom[m.inputs[i].get_name()] = to_string(i < m.nominal.size() ? m.nominal[i] : 0);
+    j["nominal_input"] = {{"values", nom}, {"note", m.nominal_note}};
+  }
+  if (m.feedthrough()) j["feedthrough"] = true;
+  add_canonical_json(a, j);
   ordered_json t = ordered_json::object();
   for (const auto& [stage, ms] : a.timings_ms) t[stage] = opt.timings ? ms : 0.0;
   j["timings_ms"] = t;
@@ -453,6 +481,7 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
     stages.push_back(
         {{"name", st.name}, {"status", stage_status_name(st.status)}, {"reason", st.reason}});
   j["stages"] = stages;
+  // A stage that did not complete: its keys are null, not half-built.
   for (const auto& [stage, keys] : stage_json_keys())
     if (a.lost(stage))
       for (const char* key : keys)
@@ -462,19 +491,16 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
 
 namespace {
 
-std::string render_text(const Analysis& a, const ReportOptions& opt) {
-  const Model& m = a.model;
+// Appends a line to the text.
+struct LineWriter {
+  std::string& s;
+  void operator()(const std::string& t) const { s += t + "\n"; }
+};
+
+// The observability section of the text report: Lie derivatives, O, its rank, det O, and
+// observability under inputs.
+void text_observability(const Analysis& a, SectionMarks& marks, const LineWriter& line) {
   const Observability& ob = a.observability;
-  const CanonicalForm& cf = a.canonical;
-  std::string s;
-  SectionMarks marks(s);
-  auto line = [&](const std::string& t) { s += t + "\n"; };
-  line(fmt::format("model {}  (n = {} states: {}; m = {} inputs{}{}; p = {} output{})", m.name,
-                   m.n(), fmt::join(names(m.states), ", "), m.m(), m.m() ? ": " : "",
-                   fmt::join(names(m.inputs), ", "), m.p(), m.p() == 1 ? "" : "s"));
-  line(fmt::format("  f = {}", vec_text(m.f)));
-  line(fmt::format("  g = {}", vec_text(m.g)));
-  line(fmt::format("  h = {}", vec_text(m.h)));
   marks.mark("lie");
   line("");
   line("Lie derivatives");
@@ -508,6 +534,38 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
   line("");
   line("Observability under inputs");
   for (const auto& t : under_inputs_lines(a)) line("  " + t);
+}
+
+// The diffeomorphism T, its inverse and the canonical form (a linearizable model).
+void text_diffeomorphism(const Analysis& a, SectionMarks& marks, const LineWriter& line) {
+  const Model& m = a.model;
+  const CanonicalForm& cf = a.canonical;
+  marks.mark("diffeomorphism");
+  line("");
+  line(fmt::format("Diffeomorphism z = T(x), T(x0) = 0 at x0 = {}", vec_text(cf.base_point)));
+  if (cf.T_kind == Availability::symbolic) line(fmt::format("  T = {}", vec_text(cf.T)));
+  line(fmt::format("  T: {} ({})", availability_name(cf.T_kind), cf.T_note));
+  if (cf.T_inverse_kind == Availability::symbolic) {
+    line("  T^-1, in this order:");
+    for (const auto& t : inverse_steps_text(m, cf)) line("    " + t);
+  }
+  line(fmt::format("  T^-1: {} ({})", availability_name(cf.T_inverse_kind), cf.T_inverse_note));
+  if (cf.l_kind == Availability::symbolic) {
+    line("");
+    line("Canonical form (output last)");
+    for (std::size_t i = 0; i < cf.l.size(); ++i)
+      line(fmt::format("  z{}' = {}{}", i + 1, i == 0 ? "" : fmt::format("z{} + ", i),
+                       to_string(cf.l[i])));
+    line(fmt::format("  y = z{}{}", cf.l.size(), cf.base_point.empty() ? "" : " + h(x0)"));
+    line(fmt::format("  l(u, y) free of x: {}", verdict_name(cf.l_verdict)));
+  } else {
+    line(fmt::format("  l: {}", cf.l_note));
+  }
+}
+
+// The linearization section: r, the frame, conditions C1-C4 and, if linearizable, T.
+void text_canonical(const Analysis& a, SectionMarks& marks, const LineWriter& line) {
+  const CanonicalForm& cf = a.canonical;
   marks.mark("frame");
   line("");
   line("Linearization by output injection (observer canonical form)");
@@ -533,30 +591,23 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
                      cf.complete_reason));
     line(cf.linearizable ? "  => linearizable by output injection"
                          : "  => NOT linearizable by output injection");
-    if (cf.linearizable) {
-      marks.mark("diffeomorphism");
-      line("");
-      line(fmt::format("Diffeomorphism z = T(x), T(x0) = 0 at x0 = {}", vec_text(cf.base_point)));
-      if (cf.T_kind == Availability::symbolic) line(fmt::format("  T = {}", vec_text(cf.T)));
-      line(fmt::format("  T: {} ({})", availability_name(cf.T_kind), cf.T_note));
-      if (cf.T_inverse_kind == Availability::symbolic) {
-        line("  T^-1, in this order:");
-        for (const auto& t : inverse_steps_text(m, cf)) line("    " + t);
-      }
-      line(fmt::format("  T^-1: {} ({})", availability_name(cf.T_inverse_kind), cf.T_inverse_note));
-      if (cf.l_kind == Availability::symbolic) {
-        line("");
-        line("Canonical form (output last)");
-        for (std::size_t i = 0; i < cf.l.size(); ++i)
-          line(fmt::format("  z{}' = {}{}", i + 1, i == 0 ? "" : fmt::format("z{} + ", i),
-                           to_string(cf.l[i])));
-        line(fmt::format("  y = z{}{}", cf.l.size(), cf.base_point.empty() ? "" : " + h(x0)"));
-        line(fmt::format("  l(u, y) free of x: {}", verdict_name(cf.l_verdict)));
-      } else {
-        line(fmt::format("  l: {}", cf.l_note));
-      }
-    }
+    if (cf.linearizable) text_diffeomorphism(a, marks, line);
   }
+}
+
+std::string render_text(const Analysis& a, const ReportOptions& opt) {
+  const Model& m = a.model;
+  std::string s;
+  SectionMarks marks(s);
+  const LineWriter line{s};
+  line(fmt::format("model {}  (n = {} states: {}; m = {} inputs{}{}; p = {} output{})", m.name,
+                   m.n(), fmt::join(names(m.states), ", "), m.m(), m.m() ? ": " : "",
+                   fmt::join(names(m.inputs), ", "), m.p(), m.p() == 1 ? "" : "s"));
+  line(fmt::format("  f = {}", vec_text(m.f)));
+  line(fmt::format("  g = {}", vec_text(m.g)));
+  line(fmt::format("  h = {}", vec_text(m.h)));
+  text_observability(a, marks, line);
+  text_canonical(a, marks, line);
   s.resize(marks.cut_position(a));
   s += incomplete_text(a);
   if (opt.timings) {
@@ -566,22 +617,10 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
   return s;
 }
 
-std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
-  const Model& m = a.model;
+// The observability section of the Markdown report: Lie derivatives, O, its rank, det O,
+// and observability under inputs.
+void markdown_observability(const Analysis& a, SectionMarks& marks, const LineWriter& line) {
   const Observability& ob = a.observability;
-  const CanonicalForm& cf = a.canonical;
-  std::string s;
-  SectionMarks marks(s);
-  auto line = [&](const std::string& t) { s += t + "\n"; };
-  line(fmt::format("# Observer analysis: `{}`", m.name));
-  line("");
-  line(fmt::format("States $x = ({})$, inputs $({})$, {} output{}.",
-                   fmt::join(names(m.states), ", "), fmt::join(names(m.inputs), ", "), m.p(),
-                   m.p() == 1 ? "" : "s"));
-  line("");
-  line(fmt::format("$$f = {}, \\quad g = {}, \\quad h = {}$$", vec_latex(m.f), vec_latex(m.g),
-                   vec_latex(m.h)));
-  line("");
   marks.mark("lie");
   line("## Observability");
   line("");
@@ -615,6 +654,35 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
   line("");
   for (const auto& t : under_inputs_lines(a)) line("- " + t);
   line("");
+}
+
+// The table of conditions C1-C4.
+void markdown_conditions(const Analysis& a, SectionMarks& marks, const LineWriter& line) {
+  const CanonicalForm& cf = a.canonical;
+  marks.mark("conditions");
+  line("| condition | verdict | residual |");
+  line("|---|---|---|");
+  line("| C1: rank $O = n$ | holds | |");
+  for (const auto& b : cf.drift)
+    line(fmt::format(
+        "| C2: $[\\tau_{{{}}}, \\tau_{{{}}}] = 0$ | {} ({}) | {} |", b.i, b.j,
+        holds_word(b.holds()), verdict_name(b.verdict),
+        b.holds() ? ""
+                  : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
+  for (const auto& b : cf.input)
+    line(fmt::format(
+        "| C3: $[g, \\tau_{{{}}}] = 0$ | {} ({}) | {} |", b.j, holds_word(b.holds()),
+        verdict_name(b.verdict),
+        b.holds() ? ""
+                  : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
+  line(fmt::format("| C4: completeness | {} | {} |", completeness_name(cf.complete),
+                   cf.complete_reason));
+}
+
+// The linearization section: r, the conditions and, if available, T, T^-1 and l.
+void markdown_canonical(const Analysis& a, SectionMarks& marks, const LineWriter& line) {
+  const Model& m = a.model;
+  const CanonicalForm& cf = a.canonical;
   marks.mark("frame");
   line("## Linearization by output injection");
   line("");
@@ -623,24 +691,7 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
   } else {
     line(fmt::format("$$r = {}$$", vec_latex(cf.r)));
     line("");
-    marks.mark("conditions");
-    line("| condition | verdict | residual |");
-    line("|---|---|---|");
-    line("| C1: rank $O = n$ | holds | |");
-    for (const auto& b : cf.drift)
-      line(fmt::format(
-          "| C2: $[\\tau_{{{}}}, \\tau_{{{}}}] = 0$ | {} ({}) | {} |", b.i, b.j,
-          holds_word(b.holds()), verdict_name(b.verdict),
-          b.holds() ? ""
-                    : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
-    for (const auto& b : cf.input)
-      line(fmt::format(
-          "| C3: $[g, \\tau_{{{}}}] = 0$ | {} ({}) | {} |", b.j, holds_word(b.holds()),
-          verdict_name(b.verdict),
-          b.holds() ? ""
-                    : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
-    line(fmt::format("| C4: completeness | {} | {} |", completeness_name(cf.complete),
-                     cf.complete_reason));
+    markdown_conditions(a, marks, line);
     line("");
     line(cf.linearizable ? "**Linearizable by output injection.**"
                          : "**Not linearizable by output injection.**");
@@ -658,6 +709,24 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
                        cf.l.size(), vec_latex(cf.l)));
     }
   }
+}
+
+std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
+  const Model& m = a.model;
+  std::string s;
+  SectionMarks marks(s);
+  const LineWriter line{s};
+  line(fmt::format("# Observer analysis: `{}`", m.name));
+  line("");
+  line(fmt::format("States $x = ({})$, inputs $({})$, {} output{}.",
+                   fmt::join(names(m.states), ", "), fmt::join(names(m.inputs), ", "), m.p(),
+                   m.p() == 1 ? "" : "s"));
+  line("");
+  line(fmt::format("$$f = {}, \\quad g = {}, \\quad h = {}$$", vec_latex(m.f), vec_latex(m.g),
+                   vec_latex(m.h)));
+  line("");
+  markdown_observability(a, marks, line);
+  markdown_canonical(a, marks, line);
   s.resize(marks.cut_position(a));
   s += incomplete_markdown(a);
   if (opt.timings) {

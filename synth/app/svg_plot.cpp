@@ -102,41 +102,83 @@ std::string polyline(const Panel& p, const std::vector<double>& t, const std::ve
                      color, dashed ? " stroke-dasharray='6 4'" : "", pts);
 }
 
-}  // namespace
-
-std::string render_svg(const TrajectoryPlot& p) {
-  const double W = 960, H = 720;
-  // Downsample to at most ~1500 points per curve.
-  const std::size_t N = p.t.size();
+// The sample indices plotted: at most ~1500 per curve, always the last one.
+std::vector<std::size_t> plotted_indices(std::size_t N) {
   const std::size_t stride = std::max<std::size_t>(1, N / 1500);
   std::vector<std::size_t> idx;
   for (std::size_t i = 0; i < N; i += stride) idx.push_back(i);
   if (N && idx.back() != N - 1) idx.push_back(N - 1);
-  std::vector<double> t;
-  for (auto i : idx) t.push_back(p.t[i]);
-  const std::size_t n = p.names.size();
+  return idx;
+}
 
+// The panels' value ranges: the states (both curves, padded later) and log10 of the error,
+// 16 decades at most below its ceiling.
+struct Ranges {
   double vmin = 1e300, vmax = -1e300, emin = 0, emax = -1e300;
+};
+
+Ranges value_ranges(const TrajectoryPlot& p, const std::vector<std::size_t>& idx) {
+  Ranges r;
+  const std::size_t n = p.names.size();
   for (auto i : idx)
     for (std::size_t k = 0; k < n; ++k) {
       for (double v : {p.x[i][k], p.xh[i][k]})
         if (std::isfinite(v)) {
-          vmin = std::min(vmin, v);
-          vmax = std::max(vmax, v);
+          r.vmin = std::min(r.vmin, v);
+          r.vmax = std::max(r.vmax, v);
         }
       const double e = std::fabs(p.x[i][k] - p.xh[i][k]);
-      if (e > 0 && std::isfinite(e)) emax = std::max(emax, std::log10(e));
+      if (e > 0 && std::isfinite(e)) r.emax = std::max(r.emax, std::log10(e));
     }
-  if (!(vmax > vmin)) {
-    vmin -= 1;
-    vmax += 1;
+  if (!(r.vmax > r.vmin)) {
+    r.vmin -= 1;
+    r.vmax += 1;
   }
-  const double pad = 0.05 * (vmax - vmin);
-  emax = std::ceil(std::max(emax, -15.0) + 0.5);
-  emin = std::max(emax - 16.0, -17.0);
+  r.emax = std::ceil(std::max(r.emax, -15.0) + 0.5);
+  r.emin = std::max(r.emax - 16.0, -17.0);
+  return r;
+}
+
+// State k's curves (true solid, estimate dashed; the error below) and its legend entry.
+std::string state_curves(const TrajectoryPlot& p, std::size_t k,
+                         const std::vector<std::size_t>& idx, const std::vector<double>& t,
+                         const Panel& top, const Panel& bottom, double emin, double W) {
+  const char* c = kColors[k % 8];
+  std::vector<double> xv, hv, ev;
+  for (auto i : idx) {
+    xv.push_back(p.x[i][k]);
+    hv.push_back(p.xh[i][k]);
+    const double e = std::fabs(p.x[i][k] - p.xh[i][k]);
+    ev.push_back(e > 0 ? std::log10(e) : emin);
+  }
+  std::string s = polyline(top, t, xv, c, false);
+  s += polyline(top, t, hv, c, true);
+  s += polyline(bottom, t, ev, c, false);
+  const double ly = 70 + 22.0 * static_cast<double>(k);
+  s += fmt::format("<line x1='{}' y1='{:.1f}' x2='{}' y2='{:.1f}' stroke='{}' stroke-width='2'/>",
+                   W - 145, ly, W - 120, ly, c);
+  s += fmt::format(
+      "<line x1='{}' y1='{:.1f}' x2='{}' y2='{:.1f}' stroke='{}' stroke-width='2' "
+      "stroke-dasharray='6 4'/>",
+      W - 115, ly, W - 90, ly, c);
+  s += fmt::format("<text x='{}' y='{:.1f}' font-size='12'>{}</text>\n", W - 84, ly + 4,
+                   escape(p.names[k]));
+  return s;
+}
+
+}  // namespace
+
+std::string render_svg(const TrajectoryPlot& p) {
+  const double W = 960, H = 720;
+  const std::vector<std::size_t> idx = plotted_indices(p.t.size());
+  std::vector<double> t;
+  for (auto i : idx) t.push_back(p.t[i]);
+  const std::size_t n = p.names.size();
+  const Ranges r = value_ranges(p, idx);
+  const double pad = 0.05 * (r.vmax - r.vmin);
   const double tmax = t.empty() ? 1 : std::max(t.back(), t.front() + 1e-12);
-  Panel top{80, 50, W - 240, 280, t.empty() ? 0 : t.front(), tmax, vmin - pad, vmax + pad};
-  Panel bottom{80, 390, W - 240, 270, top.tmin, tmax, emin, emax};
+  Panel top{80, 50, W - 240, 280, t.empty() ? 0 : t.front(), tmax, r.vmin - pad, r.vmax + pad};
+  Panel bottom{80, 390, W - 240, 270, top.tmin, tmax, r.emin, r.emax};
 
   std::string s = fmt::format(
       "<svg xmlns='http://www.w3.org/2000/svg' width='{}' height='{}' viewBox='0 0 {} {}' "
@@ -148,28 +190,7 @@ std::string render_svg(const TrajectoryPlot& p) {
       W / 2, escape(p.title));
   s += axes(top, "state", false);
   s += axes(bottom, "|x - x_hat| (log scale)", true);
-  for (std::size_t k = 0; k < n; ++k) {
-    const char* c = kColors[k % 8];
-    std::vector<double> xv, hv, ev;
-    for (auto i : idx) {
-      xv.push_back(p.x[i][k]);
-      hv.push_back(p.xh[i][k]);
-      const double e = std::fabs(p.x[i][k] - p.xh[i][k]);
-      ev.push_back(e > 0 ? std::log10(e) : emin);
-    }
-    s += polyline(top, t, xv, c, false);
-    s += polyline(top, t, hv, c, true);
-    s += polyline(bottom, t, ev, c, false);
-    const double ly = 70 + 22.0 * static_cast<double>(k);
-    s += fmt::format("<line x1='{}' y1='{:.1f}' x2='{}' y2='{:.1f}' stroke='{}' stroke-width='2'/>",
-                     W - 145, ly, W - 120, ly, c);
-    s += fmt::format(
-        "<line x1='{}' y1='{:.1f}' x2='{}' y2='{:.1f}' stroke='{}' stroke-width='2' "
-        "stroke-dasharray='6 4'/>",
-        W - 115, ly, W - 90, ly, c);
-    s += fmt::format("<text x='{}' y='{:.1f}' font-size='12'>{}</text>\n", W - 84, ly + 4,
-                     escape(p.names[k]));
-  }
+  for (std::size_t k = 0; k < n; ++k) s += state_curves(p, k, idx, t, top, bottom, r.emin, W);
   s += fmt::format("<text x='{}' y='{}' font-size='11' fill='#555'>solid: true</text>\n", W - 145,
                    60 + 22 * n + 20);
   s += fmt::format("<text x='{}' y='{}' font-size='11' fill='#555'>dashed: estimate</text>\n",

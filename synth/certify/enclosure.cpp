@@ -277,16 +277,9 @@ struct ArbMat {
   arb_mat_t m;
 };
 
-// Rigorous upper bound of the spectral radius of B'B (B r x c, entries >= 0 as doubles) by
-// Collatz-Wielandt with a power-iteration vector. With `square_only` (B symmetric, r == c):
-// of the spectral radius of B itself.
-double cw_bound(const std::vector<double>& B, std::size_t r, std::size_t c, bool symmetric) {
-  Eigen::MatrixXd M(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c));
-  for (std::size_t i = 0; i < r; ++i)
-    for (std::size_t j = 0; j < c; ++j)
-      M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = B[i * c + j];
-  if (M.maxCoeff() <= 0) return 0;
-  Eigen::MatrixXd G = symmetric ? M : Eigen::MatrixXd(M.transpose() * M);
+// A positive vector for Collatz-Wielandt: power iteration on G, entries floored at 1e-9 of
+// the largest and scaled to max 1.
+Eigen::VectorXd perron_vector(const Eigen::MatrixXd& G) {
   Eigen::VectorXd v = Eigen::VectorXd::Ones(G.rows());
   for (int it = 0; it < 60; ++it) {
     Eigen::VectorXd w = G * v;
@@ -296,34 +289,42 @@ double cw_bound(const std::vector<double>& B, std::size_t r, std::size_t c, bool
   }
   const double vmax = v.maxCoeff();
   for (Eigen::Index i = 0; i < v.size(); ++i) v(i) = std::max(v(i), 1e-9 * vmax) / vmax;
-  // In balls: w = G v (G = B'B or B), ratio_i = w_i / v_i.
-  BallVec t(r), w(c), acc(1);
+  return v;
+}
+
+// max_i (B v)_i / v_i in balls, rounded up (B n x n, row stride c).
+double symmetric_ratio_bound(const std::vector<double>& B, const Eigen::VectorXd& v, std::size_t n,
+                             std::size_t c) {
+  BallVec acc(1);
   arb_ptr s = acc[0];
   double worst = 0;
-  // Generic computation (both cases).
-  const std::size_t n = symmetric ? r : c;
-  if (symmetric) {
-    for (std::size_t i = 0; i < n; ++i) {
-      arb_zero(s);
-      for (std::size_t j = 0; j < n; ++j) {
-        arb_t bij, vj;
-        arb_init(bij);
-        arb_init(vj);
-        arb_set_d(bij, B[i * c + j]);
-        arb_set_d(vj, v(static_cast<Eigen::Index>(j)));
-        arb_addmul(s, bij, vj, kPrec);
-        arb_clear(bij);
-        arb_clear(vj);
-      }
-      arb_t vi;
-      arb_init(vi);
-      arb_set_d(vi, v(static_cast<Eigen::Index>(i)));
-      arb_div(s, s, vi, kPrec);
-      arb_clear(vi);
-      worst = std::max(worst, detail::upper(s));
+  for (std::size_t i = 0; i < n; ++i) {
+    arb_zero(s);
+    for (std::size_t j = 0; j < n; ++j) {
+      arb_t bij, vj;
+      arb_init(bij);
+      arb_init(vj);
+      arb_set_d(bij, B[i * c + j]);
+      arb_set_d(vj, v(static_cast<Eigen::Index>(j)));
+      arb_addmul(s, bij, vj, kPrec);
+      arb_clear(bij);
+      arb_clear(vj);
     }
-    return worst;
+    arb_t vi;
+    arb_init(vi);
+    arb_set_d(vi, v(static_cast<Eigen::Index>(i)));
+    arb_div(s, s, vi, kPrec);
+    arb_clear(vi);
+    worst = std::max(worst, detail::upper(s));
   }
+  return worst;
+}
+
+// max_j (B' B v)_j / v_j in balls, rounded up (B r x c).
+double gram_ratio_bound(const std::vector<double>& B, const Eigen::VectorXd& v, std::size_t r,
+                        std::size_t c) {
+  BallVec t(r), w(c);
+  double worst = 0;
   for (std::size_t i = 0; i < r; ++i) {  // t = B v
     arb_zero(t[i]);
     for (std::size_t j = 0; j < c; ++j) {
@@ -354,6 +355,21 @@ double cw_bound(const std::vector<double>& B, std::size_t r, std::size_t c, bool
     worst = std::max(worst, detail::upper(w[j]));
   }
   return worst;
+}
+
+// Rigorous upper bound of the spectral radius of B'B (B r x c, entries >= 0 as doubles) by
+// Collatz-Wielandt with a power-iteration vector. With `symmetric` (B symmetric, r == c):
+// of the spectral radius of B itself.
+double cw_bound(const std::vector<double>& B, std::size_t r, std::size_t c, bool symmetric) {
+  Eigen::MatrixXd M(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c));
+  for (std::size_t i = 0; i < r; ++i)
+    for (std::size_t j = 0; j < c; ++j)
+      M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = B[i * c + j];
+  if (M.maxCoeff() <= 0) return 0;
+  const Eigen::MatrixXd G = symmetric ? M : Eigen::MatrixXd(M.transpose() * M);
+  const Eigen::VectorXd v = perron_vector(G);
+  // In balls: w = G v (G = B'B or B), ratio_i = w_i / v_i.
+  return symmetric ? symmetric_ratio_bound(B, v, r, c) : gram_ratio_bound(B, v, r, c);
 }
 
 // Is mu I - G positive definite (G symmetric n x n, given as balls)? Proven by Arb's Cholesky.
@@ -657,6 +673,106 @@ Bound lipschitz_bound(const std::vector<ex>& phi, const std::vector<GiNaC::symbo
   return matrix_norm_bound(J, box, budget);
 }
 
+namespace {
+
+// The eigenvector of the largest eigenvalue of the symmetric n x n matrix v (row-major).
+Eigen::VectorXd top_eigenvector(const std::vector<double>& v, std::size_t n) {
+  Eigen::MatrixXd M(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j)
+      M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = v[i * n + j];
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M);
+  Eigen::Index top = 0;
+  es.eigenvalues().maxCoeff(&top);
+  return es.eigenvectors().col(top);
+}
+
+// Whether ev' S ev >= 0 is proven in ball arithmetic, S an n x n matrix of balls (row-major).
+bool quadratic_form_nonnegative(const BallVec& S, const Eigen::VectorXd& ev, std::size_t n) {
+  arb_t q, t;
+  arb_init(q);
+  arb_init(t);
+  arb_zero(q);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j) {
+      arb_set_d(t, ev(static_cast<Eigen::Index>(i)) * 1.0);
+      arb_mul(t, t, S[i * n + j], kPrec);
+      arb_t vj;
+      arb_init(vj);
+      arb_set_d(vj, ev(static_cast<Eigen::Index>(j)));
+      arb_mul(t, t, vj, kPrec);
+      arb_clear(vj);
+      arb_add(q, q, t, kPrec);
+    }
+  const bool proven = arb_is_nonnegative(q);
+  arb_clear(q);
+  arb_clear(t);
+  return proven;
+}
+
+// Failure proven at the point: v' S(p) v >= 0 in balls for the top eigenvector v of S(p).
+bool failure_proven_at(const std::vector<double>& point, PointEval& pe, Tape& tape, std::size_t n,
+                       std::size_t outputs) {
+  const Eigen::VectorXd ev = top_eigenvector(pe(point), n);
+  BallVec pb(outputs);
+  return tape.eval_point(point, pb) && quadratic_form_nonnegative(pb, ev, n);
+}
+
+// The verdict by branch and bound of lambda_max over the box: rigorous when the upper bound
+// is negative or failure is proven at the worst point, else sampled.
+DefinitenessVerdict enclosure_verdict(BoxEnclosure& enc, PointEval& pe, std::size_t n,
+                                      std::size_t outputs, const Box& box,
+                                      const EnclosureBudget& budget) {
+  Tape& tape = const_cast<Tape&>(enc.tape());
+  DefinitenessVerdict out;
+  BallVec balls(outputs);
+  Objective obj;
+  obj.upper = [&](const std::vector<double>& lo, const std::vector<double>& hi) {
+    if (!enc.eval(lo, hi, balls)) return kInf;
+    return lambda_max_upper(balls, n);
+  };
+  obj.at = [&](const std::vector<double>& p) { return lambda_max_d(pe(p), n); };
+  const BBResult r = branch_and_bound(
+      box, obj, budget, false,
+      [&budget](double ub, double best) {
+        // The sign is decided (proven negative, or a point with lambda_max >= 0) and the bound
+        // is tight, so the worst point is the worst within relative_gap.
+        const bool tight = ub - best <= std::max(budget.relative_gap * std::fabs(best), 1e-12);
+        return tight && (ub < 0 || best >= 0);
+      },
+      tape.used_vars());
+  out.worst_point = r.best_point;
+  if (std::isfinite(r.upper) && r.upper < 0) {
+    out.holds = true;
+    out.kind = BoundKind::rigorous;
+    out.max_eigenvalue_bound = r.upper;
+    out.method =
+        fmt::format("Arb balls, Gershgorin / midpoint-radius eigenvalue bounds, {} boxes", r.boxes);
+    return out;
+  }
+  if (!r.best_point.empty() && r.best >= 0 &&
+      failure_proven_at(r.best_point, pe, tape, n, outputs)) {
+    out.holds = false;
+    out.kind = BoundKind::rigorous;
+    out.max_eigenvalue_bound = r.upper;
+    out.method = fmt::format(
+        "Arb balls: fails at the worst point (v'Sv >= 0 verified in balls, lambda_max there "
+        "~ {:.6g}); {} boxes",
+        r.best, r.boxes);
+    return out;
+  }
+  out.holds = r.best < 0;
+  out.kind = BoundKind::sampled;
+  out.max_eigenvalue_bound = r.best;
+  out.method = fmt::format(
+      "sampled verdict: enclosure undecided after {} boxes (upper bound {:.6g}, largest "
+      "eigenvalue found {:.6g})",
+      r.boxes, r.upper, r.best);
+  return out;
+}
+
+}  // namespace
+
 DefinitenessVerdict negative_definite(const GiNaC::matrix& S, const Box& box,
                                       const EnclosureBudget& budget) {
   check_box(box);
@@ -667,87 +783,10 @@ DefinitenessVerdict negative_definite(const GiNaC::matrix& S, const Box& box,
   BoxEnclosure enc(outs, box);
   Tape& tape = const_cast<Tape&>(enc.tape());
   PointEval pe(outs, box, tape);
+  if (tape.supported()) return enclosure_verdict(enc, pe, n, outs.size(), box, budget);
   auto score = [n](const std::vector<double>& v) { return lambda_max_d(v, n); };
-  DefinitenessVerdict out;
-  if (tape.supported()) {
-    BallVec balls(outs.size());
-    Objective obj;
-    obj.upper = [&](const std::vector<double>& lo, const std::vector<double>& hi) {
-      if (!enc.eval(lo, hi, balls)) return kInf;
-      return lambda_max_upper(balls, n);
-    };
-    obj.at = [&](const std::vector<double>& p) { return score(pe(p)); };
-    const BBResult r = branch_and_bound(
-        box, obj, budget, false,
-        [&budget](double ub, double best) {
-          // The sign is decided (proven negative, or a point with lambda_max >= 0) and the bound
-          // is tight, so the worst point is the worst within relative_gap.
-          const bool tight = ub - best <= std::max(budget.relative_gap * std::fabs(best), 1e-12);
-          return tight && (ub < 0 || best >= 0);
-        },
-        tape.used_vars());
-    out.worst_point = r.best_point;
-    if (std::isfinite(r.upper) && r.upper < 0) {
-      out.holds = true;
-      out.kind = BoundKind::rigorous;
-      out.max_eigenvalue_bound = r.upper;
-      out.method = fmt::format(
-          "Arb balls, Gershgorin / midpoint-radius eigenvalue bounds, {} boxes", r.boxes);
-      return out;
-    }
-    // Try to prove failure at the worst point: v' S(p) v >= 0 in balls for the top eigenvector.
-    if (!r.best_point.empty() && r.best >= 0) {
-      const std::vector<double> v = pe(r.best_point);
-      Eigen::MatrixXd M(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
-      for (std::size_t i = 0; i < n; ++i)
-        for (std::size_t j = 0; j < n; ++j)
-          M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = v[i * n + j];
-      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M);
-      Eigen::Index top = 0;
-      es.eigenvalues().maxCoeff(&top);
-      const Eigen::VectorXd ev = es.eigenvectors().col(top);
-      BallVec pb(outs.size());
-      if (tape.eval_point(r.best_point, pb)) {
-        arb_t q, t;
-        arb_init(q);
-        arb_init(t);
-        arb_zero(q);
-        for (std::size_t i = 0; i < n; ++i)
-          for (std::size_t j = 0; j < n; ++j) {
-            arb_set_d(t, ev(static_cast<Eigen::Index>(i)) * 1.0);
-            arb_mul(t, t, pb[i * n + j], kPrec);
-            arb_t vj;
-            arb_init(vj);
-            arb_set_d(vj, ev(static_cast<Eigen::Index>(j)));
-            arb_mul(t, t, vj, kPrec);
-            arb_clear(vj);
-            arb_add(q, q, t, kPrec);
-          }
-        const bool proven = arb_is_nonnegative(q);
-        arb_clear(q);
-        arb_clear(t);
-        if (proven) {
-          out.holds = false;
-          out.kind = BoundKind::rigorous;
-          out.max_eigenvalue_bound = r.upper;
-          out.method = fmt::format(
-              "Arb balls: fails at the worst point (v'Sv >= 0 verified in balls, lambda_max there "
-              "~ {:.6g}); {} boxes",
-              r.best, r.boxes);
-          return out;
-        }
-      }
-    }
-    out.holds = r.best < 0;
-    out.kind = BoundKind::sampled;
-    out.max_eigenvalue_bound = r.best;
-    out.method = fmt::format(
-        "sampled verdict: enclosure undecided after {} boxes (upper bound {:.6g}, largest "
-        "eigenvalue found {:.6g})",
-        r.boxes, r.upper, r.best);
-    return out;
-  }
   const Bound b = sampled_max(pe, box, 4096, score);
+  DefinitenessVerdict out;
   out.holds = b.value < 0;
   out.kind = BoundKind::sampled;
   out.max_eigenvalue_bound = b.value;

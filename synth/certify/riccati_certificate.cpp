@@ -195,19 +195,10 @@ Num p_of_sigma(double sigma, double A, double N, double H, double P0, double r0)
   return beta0 / beta1 * p0 + (h * h + gamma * gamma) / (two * beta0);
 }
 
-}  // namespace
-
-RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& params,
-                                       const EnclosureBudget& budget) {
-  RiccatiCertificate c;
-  c.model = m.name;
-  c.n_states = m.n();
-  c.n_outputs = m.p();
-  c.box = model_box(m);
-  const SourceLoc where{m.file, 0, 0};
-  const auto n = static_cast<unsigned>(c.n_states), p = static_cast<unsigned>(c.n_outputs);
-
-  // Parameters and their defaults.
+// The parameters with their defaults (recorded in c.defaults_used); throws UserError for a
+// wrong size or a non-constant Q0, N or R.
+RiccatiParameters filled_parameters(const RiccatiParameters& params, unsigned n, unsigned p,
+                                    const SourceLoc& where, RiccatiCertificate& c) {
   RiccatiParameters P = params;
   auto fill = [&](matrix& M, unsigned r, unsigned k, const char* name, const matrix& def,
                   const char* def_text) {
@@ -227,34 +218,45 @@ RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& 
        {std::pair<const char*, const matrix*>{"Q0", &P.Q0}, {"N", &P.N}, {"R", &P.R}})
     if (!constant_matrix(*M))
       throw UserError(where, fmt::format("riccati: {} must be a constant matrix", name));
-  c.params = P;
+  return P;
+}
 
-  // Symbolic derivatives.
+// The symbolic derivatives the bounds need: A = Df, Dh, R^-1, H = R^-1 Dh and the stacked
+// Hessians of f and h.
+struct Derivatives {
+  matrix A, Dh, Rinv, H, D2f, D2h;
+};
+
+Derivatives derivatives(const Model& m, const RiccatiParameters& P, const SourceLoc& where,
+                        RiccatiCertificate& c) {
+  Derivatives d;
   const ExVec F = m.field();
-  const matrix A = jacobian(F, m.states);
-  const matrix Dh = jacobian(m.h, m.states);
-  matrix Rinv;
+  d.A = jacobian(F, m.states);
+  d.Dh = jacobian(m.h, m.states);
   try {
-    Rinv = P.R.inverse();
+    d.Rinv = P.R.inverse();
   } catch (const std::exception&) {
     throw UserError(where, "riccati: R must be invertible (R > 0)");
   }
-  const matrix H = Rinv.mul(Dh);
-  const matrix D2f = stacked_hessians(F, m.states, c.D2f_zero);
-  const matrix D2h = stacked_hessians(m.h, m.states, c.D2h_zero);
+  d.H = d.Rinv.mul(d.Dh);
+  d.D2f = stacked_hessians(F, m.states, c.D2f_zero);
+  d.D2h = stacked_hessians(m.h, m.states, c.D2h_zero);
+  return d;
+}
 
-  // Sup norms over the box.
-  c.Df = matrix_norm_bound(A, c.box, budget);
-  c.Dh = matrix_norm_bound(Dh, c.box, budget);
-  c.D2f = matrix_norm_bound(D2f, c.box, budget);
-  c.D2h = matrix_norm_bound(D2h, c.box, budget);
-  c.H = matrix_norm_bound(H, c.box, budget);
+// Sup norms of the derivatives over the box, the norms and smallest eigenvalues of the
+// constant design matrices; returns the lower bound of lambda_min((Q0 + Q0')/2).
+CertValue bound_norms(const Derivatives& d, const RiccatiParameters& P,
+                      const EnclosureBudget& budget, RiccatiCertificate& c) {
+  c.Df = matrix_norm_bound(d.A, c.box, budget);
+  c.Dh = matrix_norm_bound(d.Dh, c.box, budget);
+  c.D2f = matrix_norm_bound(d.D2f, c.box, budget);
+  c.D2h = matrix_norm_bound(d.D2h, c.box, budget);
+  c.H = matrix_norm_bound(d.H, c.box, budget);
   c.Lambda = matrix_norm_bound(P.Lambda, c.box, budget);
-
-  // Constant design matrices.
   const Bound q0n = matrix_norm_bound(P.Q0, c.box, budget);
   const Bound nn = matrix_norm_bound(P.N, c.box, budget);
-  const Bound rin = matrix_norm_bound(Rinv, c.box, budget);
+  const Bound rin = matrix_norm_bound(d.Rinv, c.box, budget);
   c.Q0_norm = {q0n.value, q0n.kind, "<="};
   c.N_norm = {nn.value, nn.kind, "<="};
   c.Rinv_norm = {rin.value, rin.kind, "<="};
@@ -263,13 +265,15 @@ RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& 
   c.R_min_eig = lambda_min_lower(Rsym, c.box, budget);
   const matrix Q0sym = (P.Q0.add(P.Q0.transpose())).mul_scalar(GiNaC::numeric(1, 2));
   const CertValue q0min = lambda_min_lower(Q0sym, c.box, budget);
-  {
-    const Num lm(q0min.value);
-    c.P0_norm = {q0min.value > 0 ? (Num(1.0) / lm).upper() : kInf, q0min.kind, "<="};
-    c.P0_sqrt_norm = {q0min.value > 0 ? (Num(1.0) / sqrt(lm)).upper() : kInf, q0min.kind, "<="};
-  }
+  const Num lm(q0min.value);
+  c.P0_norm = {q0min.value > 0 ? (Num(1.0) / lm).upper() : kInf, q0min.kind, "<="};
+  c.P0_sqrt_norm = {q0min.value > 0 ? (Num(1.0) / sqrt(lm)).upper() : kInf, q0min.kind, "<="};
+  return q0min;
+}
 
-  // Standing assumptions of §2.
+// The standing assumptions of §2: Q0 > 0, rank N = n, R > 0; failures into c.
+void standing_assumptions(const RiccatiParameters& P, const CertValue& q0min,
+                          RiccatiCertificate& c) {
   if (!P.Q0.is_equal(P.Q0.transpose()) || !(q0min.value > 0))
     c.failures.push_back(
         fmt::format("Q0 > 0 (symmetric positive definite) fails: lambda_min(Q0) "
@@ -281,127 +285,127 @@ RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& 
   if (!(c.R_min_eig.value > 0))
     c.failures.push_back(
         fmt::format("R > 0 fails: lambda_min((R + R')/2) bound {}", num(c.R_min_eig.value)));
+}
 
-  // (3.3) uniform detectability with the given Lambda.
-  const matrix S = A.add(P.Lambda.mul(H));
+// The largest eigenvalue of the symmetric part of S at the detectability test's worst point,
+// in double (GiNaC + Eigen, independent of the enclosure); NaN when S is not finite there.
+double largest_eigenvalue_at_worst(const matrix& S, const RiccatiCertificate& c) {
+  Eigen::MatrixXd Sw = at_point(S, c.box, c.detectability.worst_point);
+  Sw = (0.5 * (Sw + Sw.transpose())).eval();
+  return Sw.allFinite() ? Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Sw, Eigen::EigenvaluesOnly)
+                              .eigenvalues()
+                              .maxCoeff()
+                        : std::nan("");
+}
+
+// (3.3) uniform detectability with the given Lambda: S = A + Lambda H negative definite on
+// the box, alpha0 = -its largest eigenvalue; false (with the failure in c) when not shown.
+bool detectability(const matrix& S, const EnclosureBudget& budget, RiccatiCertificate& c) {
   c.detectability = negative_definite(S, c.box, budget);
   c.alpha0 = {-c.detectability.max_eigenvalue_bound, c.detectability.kind, ">="};
   const bool detectable = c.detectability.holds && c.alpha0.value > 0;
-  if (!detectable) {
-    // The largest eigenvalue at the worst point, recomputed independently (GiNaC + Eigen).
-    Eigen::MatrixXd Sw = at_point(S, c.box, c.detectability.worst_point);
-    Sw = (0.5 * (Sw + Sw.transpose())).eval();
-    const double lam =
-        Sw.allFinite() ? Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Sw, Eigen::EigenvaluesOnly)
-                             .eigenvalues()
-                             .maxCoeff()
-                       : std::nan("");
-    if (c.detectability.kind == BoundKind::rigorous)
-      c.failures.push_back(fmt::format(
-          "uniform detectability (3.3) fails for the given Lambda (rigorous): at {} the symmetric "
-          "part of A + Lambda H has largest eigenvalue {} >= 0 (eta' (A + Lambda H) eta >= 0 "
-          "verified in ball arithmetic), so no alpha0 > 0 exists; it would need to be < 0",
-          point_text(c.box, c.detectability.worst_point), num(lam)));
-    else
-      c.failures.push_back(fmt::format(
-          "uniform detectability (3.3) is not established for the given Lambda (sampled): largest "
-          "eigenvalue of the symmetric part of A + Lambda H found {} at {}; {}",
-          num(lam), point_text(c.box, c.detectability.worst_point), c.detectability.method));
-  }
+  if (detectable) return true;
+  const double lam = largest_eigenvalue_at_worst(S, c);
+  if (c.detectability.kind == BoundKind::rigorous)
+    c.failures.push_back(fmt::format(
+        "uniform detectability (3.3) fails for the given Lambda (rigorous): at {} the symmetric "
+        "part of A + Lambda H has largest eigenvalue {} >= 0 (eta' (A + Lambda H) eta >= 0 "
+        "verified in ball arithmetic), so no alpha0 > 0 exists; it would need to be < 0",
+        point_text(c.box, c.detectability.worst_point), num(lam)));
+  else
+    c.failures.push_back(fmt::format(
+        "uniform detectability (3.3) is not established for the given Lambda (sampled): largest "
+        "eigenvalue of the symmetric part of A + Lambda H found {} at {}; {}",
+        num(lam), point_text(c.box, c.detectability.worst_point), c.detectability.method));
+  return false;
+}
 
-  const BoundKind consts = worst(worst(worst(c.Q0_norm.kind, c.N_norm.kind), c.r0.kind),
-                                 worst(c.Rinv_norm.kind, c.P0_norm.kind));
-  c.p_needed = !c.D2f_zero;
-  c.rho = {0, BoundKind::rigorous, ">="};
-  c.delta = {-kInf, BoundKind::rigorous, ">="};
-  c.q = {kInf, BoundKind::rigorous, "<="};
-  c.p = {kInf, BoundKind::rigorous, "<="};
-  c.sigma = {0, BoundKind::rigorous, "="};
-
-  // (3.8): p, minimised over sigma on a log grid.
-  {
-    double best = kInf, best_sigma = 0;
-    if (c.r0.value > 0)
-      for (int k = 0; k <= 80; ++k) {
-        const double sigma = std::pow(10.0, -4.0 + 6.0 * k / 80.0);
-        const double v =
-            p_of_sigma(sigma, c.Df.value, c.N_norm.value, c.H.value, c.P0_norm.value, c.r0.value)
-                .upper();
-        if (v < best) {
-          best = v;
-          best_sigma = sigma;
-        }
-      }
-    c.p = {best, worst(worst(consts, c.Df.kind), c.H.kind), "<="};
-    c.sigma = {best_sigma, BoundKind::rigorous, "="};
-  }
-
-  if (detectable && c.alpha0.value > 0) {
-    const Num q = Num(c.Q0_norm.value) + (Num(c.N_norm.value) * Num(c.N_norm.value) +
-                                          Num(c.Lambda.value) * Num(c.Lambda.value)) /
-                                             (Num(2.0) * Num(c.alpha0.value));
-    c.q = {q.upper(), worst(worst(consts, c.alpha0.kind), c.Lambda.kind), "<="};
-
-    // (2.3) rho, as a lower bound.
-    const Num qu(c.q.value), pu(c.p.value), r0(c.r0.value), ri(c.Rinv_norm.value);
-    Num C(0.0);
-    BoundKind rho_kind = worst(c.q.kind, c.P0_sqrt_norm.kind);
-    if (!c.D2f_zero) {
-      C = C + sqrt(pu) * Num(c.D2f.value);
-      rho_kind = worst(rho_kind, worst(c.p.kind, c.D2f.kind));
-    }
-    if (!c.D2h_zero) {
-      C = C + sqrt(qu) * ri * ri * Num(c.Dh.value) * Num(c.D2h.value);
-      rho_kind = worst(rho_kind, worst(c.Dh.kind, c.D2h.kind));
-    }
-    if (c.D2f_zero && c.D2h_zero)
-      c.rho = {kInf, rho_kind, ">="};
-    else
-      c.rho = {(r0 / (qu * qu * Num(c.P0_sqrt_norm.value)) / C).lower(), rho_kind, ">="};
-
-    // (2.6) delta, as a lower bound.
-    Num d = r0 / (qu * qu);
-    BoundKind dk = c.q.kind;
-    if (!c.D2f_zero) {
-      d = d - Num(4.0) * pu * Num(c.Df.value);
-      dk = worst(dk, worst(c.p.kind, c.Df.kind));
-    }
-    if (!c.D2h_zero) {
-      d = d - Num(4.0) * ri * ri * Num(c.Dh.value) * Num(c.Dh.value);
-      dk = worst(dk, c.Dh.kind);
-    }
-    c.delta = {d.lower(), dk, ">="};
-
-    // The same with the sampled maxima (values at the worst points found).
-    const double df_s = norm_at(A, c.box, c.Df.worst_point);
-    const double dh_s = norm_at(Dh, c.box, c.Dh.worst_point);
-    const double h_s = norm_at(H, c.box, c.H.worst_point);
-    const double lam_s = norm_at(P.Lambda, c.box, c.Lambda.worst_point);
-    Eigen::MatrixXd Sw = at_point(S, c.box, c.detectability.worst_point);
-    Sw = (0.5 * (Sw + Sw.transpose())).eval();
-    const double alpha_s =
-        -Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Sw, Eigen::EigenvaluesOnly)
-             .eigenvalues()
-             .maxCoeff();
-    const double nn2 = c.N_norm.value * c.N_norm.value;
-    const double q_s = c.Q0_norm.value + (nn2 + lam_s * lam_s) / (2 * alpha_s);
-    double p_s = kInf;
+// (3.8): p, minimised over sigma on a log grid (+inf when r0 is not positive).
+void p_bound(BoundKind consts, RiccatiCertificate& c) {
+  double best = kInf, best_sigma = 0;
+  if (c.r0.value > 0)
     for (int k = 0; k <= 80; ++k) {
       const double sigma = std::pow(10.0, -4.0 + 6.0 * k / 80.0);
-      const double e2 = std::exp(2 * sigma * df_s);
-      const double b0 = sigma / e2 / (1 + sigma * sigma * e2 * nn2);
-      const double b1 = sigma * std::exp(4 * sigma * df_s) * (1 + nn2 / (c.r0.value * sigma));
-      const double g = c.N_norm.value * b1;
-      p_s = std::min(p_s, b0 / b1 * c.P0_norm.value + (h_s * h_s + g * g) / (2 * b0));
+      const double v =
+          p_of_sigma(sigma, c.Df.value, c.N_norm.value, c.H.value, c.P0_norm.value, c.r0.value)
+              .upper();
+      if (v < best) {
+        best = v;
+        best_sigma = sigma;
+      }
     }
-    double ds = c.r0.value / (q_s * q_s);
-    if (!c.D2f_zero) ds -= 4 * p_s * df_s;
-    if (!c.D2h_zero) ds -= 4 * c.Rinv_norm.value * c.Rinv_norm.value * dh_s * dh_s;
-    c.delta_sampled = ds;
-  } else {
-    c.delta_sampled = std::nan("");
-  }
+  c.p = {best, worst(worst(consts, c.Df.kind), c.H.kind), "<="};
+  c.sigma = {best_sigma, BoundKind::rigorous, "="};
+}
 
+// (3.7) q as an upper bound, then (2.3) rho and (2.6) delta as lower bounds, in ball arithmetic.
+void rho_and_delta(BoundKind consts, RiccatiCertificate& c) {
+  const Num q = Num(c.Q0_norm.value) + (Num(c.N_norm.value) * Num(c.N_norm.value) +
+                                        Num(c.Lambda.value) * Num(c.Lambda.value)) /
+                                           (Num(2.0) * Num(c.alpha0.value));
+  c.q = {q.upper(), worst(worst(consts, c.alpha0.kind), c.Lambda.kind), "<="};
+
+  const Num qu(c.q.value), pu(c.p.value), r0(c.r0.value), ri(c.Rinv_norm.value);
+  Num C(0.0);
+  BoundKind rho_kind = worst(c.q.kind, c.P0_sqrt_norm.kind);
+  if (!c.D2f_zero) {
+    C = C + sqrt(pu) * Num(c.D2f.value);
+    rho_kind = worst(rho_kind, worst(c.p.kind, c.D2f.kind));
+  }
+  if (!c.D2h_zero) {
+    C = C + sqrt(qu) * ri * ri * Num(c.Dh.value) * Num(c.D2h.value);
+    rho_kind = worst(rho_kind, worst(c.Dh.kind, c.D2h.kind));
+  }
+  if (c.D2f_zero && c.D2h_zero)
+    c.rho = {kInf, rho_kind, ">="};
+  else
+    c.rho = {(r0 / (qu * qu * Num(c.P0_sqrt_norm.value)) / C).lower(), rho_kind, ">="};
+
+  Num d = r0 / (qu * qu);
+  BoundKind dk = c.q.kind;
+  if (!c.D2f_zero) {
+    d = d - Num(4.0) * pu * Num(c.Df.value);
+    dk = worst(dk, worst(c.p.kind, c.Df.kind));
+  }
+  if (!c.D2h_zero) {
+    d = d - Num(4.0) * ri * ri * Num(c.Dh.value) * Num(c.Dh.value);
+    dk = worst(dk, c.Dh.kind);
+  }
+  c.delta = {d.lower(), dk, ">="};
+}
+
+// delta of (2.6) again with the sampled maxima (the values at the worst points found), in
+// double: an estimate, for the report.
+double sampled_delta(const Derivatives& dv, const RiccatiParameters& P, const matrix& S,
+                     const RiccatiCertificate& c) {
+  const double df_s = norm_at(dv.A, c.box, c.Df.worst_point);
+  const double dh_s = norm_at(dv.Dh, c.box, c.Dh.worst_point);
+  const double h_s = norm_at(dv.H, c.box, c.H.worst_point);
+  const double lam_s = norm_at(P.Lambda, c.box, c.Lambda.worst_point);
+  Eigen::MatrixXd Sw = at_point(S, c.box, c.detectability.worst_point);
+  Sw = (0.5 * (Sw + Sw.transpose())).eval();
+  const double alpha_s = -Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Sw, Eigen::EigenvaluesOnly)
+                              .eigenvalues()
+                              .maxCoeff();
+  const double nn2 = c.N_norm.value * c.N_norm.value;
+  const double q_s = c.Q0_norm.value + (nn2 + lam_s * lam_s) / (2 * alpha_s);
+  double p_s = kInf;
+  for (int k = 0; k <= 80; ++k) {
+    const double sigma = std::pow(10.0, -4.0 + 6.0 * k / 80.0);
+    const double e2 = std::exp(2 * sigma * df_s);
+    const double b0 = sigma / e2 / (1 + sigma * sigma * e2 * nn2);
+    const double b1 = sigma * std::exp(4 * sigma * df_s) * (1 + nn2 / (c.r0.value * sigma));
+    const double g = c.N_norm.value * b1;
+    p_s = std::min(p_s, b0 / b1 * c.P0_norm.value + (h_s * h_s + g * g) / (2 * b0));
+  }
+  double ds = c.r0.value / (q_s * q_s);
+  if (!c.D2f_zero) ds -= 4 * p_s * df_s;
+  if (!c.D2h_zero) ds -= 4 * c.Rinv_norm.value * c.Rinv_norm.value * dh_s * dh_s;
+  return ds;
+}
+
+// Which result applies (Theorem 2.1 locally, Corollary 2.1 globally), and the summary.
+void conclude(RiccatiCertificate& c) {
   const bool standing = c.failures.empty();
   c.theorem_2_1 = standing && c.rho.value > 0;
   c.corollary_2_1 = standing && c.delta.value > 0;
@@ -412,7 +416,6 @@ RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& 
         "Corollary 2.1 needs delta > 0: delta {} {} (short by {}); with the sampled maxima "
         "delta ~ {}",
         c.delta.direction, num(c.delta.value), num(-c.delta.value), num(c.delta_sampled)));
-
   if (c.corollary_2_1)
     c.summary = fmt::format(
         "Corollary 2.1 applies (delta >= {}, {}): the James-Baras observer converges "
@@ -427,6 +430,43 @@ RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& 
   else
     c.summary = "neither Theorem 2.1 nor Corollary 2.1 applies: " +
                 (c.failures.empty() ? std::string("?") : c.failures.front());
+}
+
+}  // namespace
+
+RiccatiCertificate riccati_certificate(const Model& m, const RiccatiParameters& params,
+                                       const EnclosureBudget& budget) {
+  RiccatiCertificate c;
+  c.model = m.name;
+  c.n_states = m.n();
+  c.n_outputs = m.p();
+  c.box = model_box(m);
+  const SourceLoc where{m.file, 0, 0};
+  const auto n = static_cast<unsigned>(c.n_states), p = static_cast<unsigned>(c.n_outputs);
+  const RiccatiParameters P = filled_parameters(params, n, p, where, c);
+  c.params = P;
+  const Derivatives d = derivatives(m, P, where, c);
+  const CertValue q0min = bound_norms(d, P, budget, c);
+  standing_assumptions(P, q0min, c);
+  const matrix S = d.A.add(P.Lambda.mul(d.H));
+  const bool detectable = detectability(S, budget, c);
+
+  const BoundKind consts = worst(worst(worst(c.Q0_norm.kind, c.N_norm.kind), c.r0.kind),
+                                 worst(c.Rinv_norm.kind, c.P0_norm.kind));
+  c.p_needed = !c.D2f_zero;
+  c.rho = {0, BoundKind::rigorous, ">="};
+  c.delta = {-kInf, BoundKind::rigorous, ">="};
+  c.q = {kInf, BoundKind::rigorous, "<="};
+  c.p = {kInf, BoundKind::rigorous, "<="};
+  c.sigma = {0, BoundKind::rigorous, "="};
+  p_bound(consts, c);
+  if (detectable && c.alpha0.value > 0) {
+    rho_and_delta(consts, c);
+    c.delta_sampled = sampled_delta(d, P, S, c);
+  } else {
+    c.delta_sampled = std::nan("");
+  }
+  conclude(c);
   return c;
 }
 

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -141,6 +142,131 @@ bool abs_tight(arb_ptr r, arb_srcptr x) {
   return arb_is_finite(r);
 }
 
+std::string text_of(const ex& e) {
+  std::ostringstream os;
+  os << e;
+  return os.str();
+}
+
+// A leaf of the expression (a variable of the box, a number or a constant) as node n; why is
+// set for what balls cannot evaluate (a complex number, a constant other than pi). False when
+// e is not a leaf.
+bool leaf_node(const ex& e, const std::vector<GiNaC::symbol>& vars, Tape::Node& n,
+               std::string& why) {
+  if (GiNaC::is_a<GiNaC::symbol>(e)) {
+    std::size_t i = 0;
+    while (i < vars.size() && !(vars[i] == e)) ++i;
+    if (i == vars.size())
+      throw std::invalid_argument("certify: the symbol '" +
+                                  GiNaC::ex_to<GiNaC::symbol>(e).get_name() +
+                                  "' is not a variable of the box");
+    n.op = Tape::Op::var;
+    n.var = static_cast<long>(i);
+  } else if (GiNaC::is_a<numeric>(e)) {
+    const numeric& v = GiNaC::ex_to<numeric>(e);
+    if (!v.is_real()) why = "complex constant " + text_of(e);
+    n.op = Tape::Op::cst;
+    n.dval = v.is_real() ? v.to_double() : std::nan("");
+  } else if (GiNaC::is_a<GiNaC::constant>(e)) {
+    if (e == GiNaC::Pi) {
+      n.op = Tape::Op::cst;
+      n.var = 1;
+      n.dval = M_PI;
+    } else {
+      why = "constant " + text_of(e);
+    }
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// The power op for exponent x: integer, rational, else general (exp(x log b), which needs x
+// compiled as a second argument: returns true then).
+bool set_power_op(const ex& x, Tape::Node& n) {
+  if (GiNaC::is_a<numeric>(x) && GiNaC::ex_to<numeric>(x).is_integer()) {
+    n.op = Tape::Op::powi;
+    n.var = GiNaC::ex_to<numeric>(x).to_long();
+    return false;
+  }
+  if (GiNaC::is_a<numeric>(x) && GiNaC::ex_to<numeric>(x).is_rational()) {
+    n.op = Tape::Op::powq;
+    n.p = GiNaC::ex_to<numeric>(x).numer().to_long();
+    n.q = GiNaC::ex_to<numeric>(x).denom().to_long();
+    return false;
+  }
+  n.op = Tape::Op::powgen;  // exp(x log b)
+  return true;
+}
+
+// The op of a function of one argument that balls evaluate; nullopt for others.
+std::optional<Tape::Op> function_op(const std::string& name) {
+  static const std::map<std::string, Tape::Op> fns = {
+      {"sin", Tape::Op::sin},   {"cos", Tape::Op::cos}, {"tan", Tape::Op::tan},
+      {"exp", Tape::Op::exp},   {"log", Tape::Op::log}, {"tanh", Tape::Op::tanh},
+      {"atan", Tape::Op::atan}, {"abs", Tape::Op::abs}};
+  auto it = fns.find(name);
+  if (it == fns.end()) return std::nullopt;
+  return it->second;
+}
+
+// One node's ball r from its arguments' balls arg(k) (var and cst nodes are set by the
+// caller); t is scratch. False where the op is undefined on the ball.
+template <class Arg>
+bool eval_op(const Tape::Node& n, arb_ptr r, const Arg& arg, Ball& t, bool& clamped) {
+  using Op = Tape::Op;
+  switch (n.op) {
+    case Op::var:
+    case Op::cst:
+      return true;
+    case Op::add:
+      arb_set(t.v, arg(0));
+      for (std::size_t k = 1; k < n.args.size(); ++k) arb_add(t.v, t.v, arg(k), kPrec);
+      arb_swap(r, t.v);
+      return true;
+    case Op::mul:
+      arb_set(t.v, arg(0));
+      for (std::size_t k = 1; k < n.args.size(); ++k) arb_mul(t.v, t.v, arg(k), kPrec);
+      arb_swap(r, t.v);
+      return true;
+    case Op::powi:
+      return pow_int(r, arg(0), n.var);
+    case Op::powq:
+      return pow_rat(r, arg(0), n.p, n.q, clamped);
+    case Op::powgen:
+      if (!arb_is_positive(arg(0))) return false;
+      arb_log(t.v, arg(0), kPrec);
+      arb_mul(t.v, t.v, arg(1), kPrec);
+      arb_exp(r, t.v, kPrec);
+      return true;
+    case Op::sin:
+      arb_sin(r, arg(0), kPrec);
+      return true;
+    case Op::cos:
+      arb_cos(r, arg(0), kPrec);
+      return true;
+    case Op::tan:
+      arb_tan(r, arg(0), kPrec);
+      return true;
+    case Op::exp:
+      arb_exp(r, arg(0), kPrec);
+      return true;
+    case Op::log:
+      if (!arb_is_positive(arg(0))) return false;
+      arb_log(r, arg(0), kPrec);
+      return true;
+    case Op::tanh:
+      arb_tanh(r, arg(0), kPrec);
+      return true;
+    case Op::atan:
+      arb_atan(r, arg(0), kPrec);
+      return true;
+    case Op::abs:
+      return abs_tight(r, arg(0));
+  }
+  return true;
+}
+
 }  // namespace
 
 double upper(arb_srcptr x) {
@@ -238,34 +364,8 @@ std::uint64_t Tape::key(const ex& e) {
 int Tape::compile(const ex& e, const std::vector<GiNaC::symbol>& vars) {
   if (auto it = memo_.find(e); it != memo_.end()) return it->second;
   Node n{Op::cst, {}, 0, 0, 1, 0};
-  if (GiNaC::is_a<GiNaC::symbol>(e)) {
-    std::size_t i = 0;
-    while (i < vars.size() && !(vars[i] == e)) ++i;
-    if (i == vars.size())
-      throw std::invalid_argument("certify: the symbol '" +
-                                  GiNaC::ex_to<GiNaC::symbol>(e).get_name() +
-                                  "' is not a variable of the box");
-    n.op = Op::var;
-    n.var = static_cast<long>(i);
-  } else if (GiNaC::is_a<numeric>(e)) {
-    const numeric& v = GiNaC::ex_to<numeric>(e);
-    if (!v.is_real()) {
-      std::ostringstream os;
-      os << e;
-      why_ = "complex constant " + os.str();
-    }
-    n.op = Op::cst;
-    n.dval = v.is_real() ? v.to_double() : std::nan("");
-  } else if (GiNaC::is_a<GiNaC::constant>(e)) {
-    if (e == GiNaC::Pi) {
-      n.op = Op::cst;
-      n.var = 1;
-      n.dval = M_PI;
-    } else {
-      std::ostringstream os;
-      os << e;
-      why_ = "constant " + os.str();
-    }
+  if (leaf_node(e, vars, n, why_)) {
+    // a variable, number or constant: n is complete
   } else if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
     n.op = GiNaC::is_a<GiNaC::add>(e) ? Op::add : Op::mul;
     // Operands in a canonical order (GiNaC's own order varies between runs), so the tape, its
@@ -278,33 +378,18 @@ int Tape::compile(const ex& e, const std::vector<GiNaC::symbol>& vars) {
   } else if (GiNaC::is_a<GiNaC::power>(e)) {
     const ex b = e.op(0), x = e.op(1);
     n.args.push_back(compile(b, vars));
-    if (GiNaC::is_a<numeric>(x) && GiNaC::ex_to<numeric>(x).is_integer()) {
-      n.op = Op::powi;
-      n.var = GiNaC::ex_to<numeric>(x).to_long();
-    } else if (GiNaC::is_a<numeric>(x) && GiNaC::ex_to<numeric>(x).is_rational()) {
-      n.op = Op::powq;
-      n.p = GiNaC::ex_to<numeric>(x).numer().to_long();
-      n.q = GiNaC::ex_to<numeric>(x).denom().to_long();
-    } else {
-      n.op = Op::powgen;  // exp(x log b)
-      n.args.push_back(compile(x, vars));
-    }
+    if (set_power_op(x, n)) n.args.push_back(compile(x, vars));
   } else if (GiNaC::is_a<GiNaC::function>(e)) {
     const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
-    static const std::map<std::string, Op> fns = {
-        {"sin", Op::sin}, {"cos", Op::cos},   {"tan", Op::tan},   {"exp", Op::exp},
-        {"log", Op::log}, {"tanh", Op::tanh}, {"atan", Op::atan}, {"abs", Op::abs}};
-    auto it = fns.find(name);
-    if (it == fns.end() || e.nops() != 1) {
+    const auto op = function_op(name);
+    if (!op || e.nops() != 1) {
       why_ = "function " + name;
     } else {
-      n.op = it->second;
+      n.op = *op;
       n.args.push_back(compile(e.op(0), vars));
     }
   } else {
-    std::ostringstream os;
-    os << e;
-    why_ = "expression " + os.str();
+    why_ = "expression " + text_of(e);
   }
   nodes_.push_back(n);
   const int id = static_cast<int>(nodes_.size()) - 1;
@@ -338,64 +423,8 @@ bool Tape::run(BallVec& out) {
     const Node& n = nodes_[i];
     arb_ptr r = work_[i];
     auto arg = [&](std::size_t k) { return work_[static_cast<std::size_t>(n.args[k])]; };
-    bool ok = true;
-    switch (n.op) {
-      case Op::var:
-        break;
-      case Op::cst:
-        arb_set(r, consts_[i]);
-        break;
-      case Op::add:
-        arb_set(t.v, arg(0));
-        for (std::size_t k = 1; k < n.args.size(); ++k) arb_add(t.v, t.v, arg(k), kPrec);
-        arb_swap(r, t.v);
-        break;
-      case Op::mul:
-        arb_set(t.v, arg(0));
-        for (std::size_t k = 1; k < n.args.size(); ++k) arb_mul(t.v, t.v, arg(k), kPrec);
-        arb_swap(r, t.v);
-        break;
-      case Op::powi:
-        ok = pow_int(r, arg(0), n.var);
-        break;
-      case Op::powq:
-        ok = pow_rat(r, arg(0), n.p, n.q, clamped_);
-        break;
-      case Op::powgen:
-        ok = arb_is_positive(arg(0));
-        if (ok) {
-          arb_log(t.v, arg(0), kPrec);
-          arb_mul(t.v, t.v, arg(1), kPrec);
-          arb_exp(r, t.v, kPrec);
-        }
-        break;
-      case Op::sin:
-        arb_sin(r, arg(0), kPrec);
-        break;
-      case Op::cos:
-        arb_cos(r, arg(0), kPrec);
-        break;
-      case Op::tan:
-        arb_tan(r, arg(0), kPrec);
-        break;
-      case Op::exp:
-        arb_exp(r, arg(0), kPrec);
-        break;
-      case Op::log:
-        ok = arb_is_positive(arg(0));
-        if (ok) arb_log(r, arg(0), kPrec);
-        break;
-      case Op::tanh:
-        arb_tanh(r, arg(0), kPrec);
-        break;
-      case Op::atan:
-        arb_atan(r, arg(0), kPrec);
-        break;
-      case Op::abs:
-        ok = abs_tight(r, arg(0));
-        break;
-    }
-    if (!ok || !arb_is_finite(r)) return false;
+    if (n.op == Op::cst) arb_set(r, consts_[i]);
+    if (!eval_op(n, r, arg, t, clamped_) || !arb_is_finite(r)) return false;
   }
   if (out.size() != outputs_.size()) out = BallVec(outputs_.size());
   for (std::size_t k = 0; k < outputs_.size(); ++k)

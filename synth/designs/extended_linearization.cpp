@@ -188,10 +188,15 @@ int order_option(const DesignOptions& o, const std::string& name, int dflt) {
   return v->to_int();
 }
 
-ExtendedLinearization run(const Model& m, const DesignOptions& o) {
-  ExtendedLinearization r;
-  const std::size_t n = m.n();
-  // Options first: bad options are errors whatever the model.
+// The --el-* choices besides the poles and the base point.
+struct RunOptions {
+  std::string injection, family;  // modes
+  int order = kDefaultOrder, family_order = kDefaultOrder;
+};
+
+// Reads the options first: bad options are errors whatever the model. The poles go into r
+// (default -1, ..., -n).
+RunOptions read_options(const DesignOptions& o, std::size_t n, ExtendedLinearization& r) {
   r.poles = real_list_option(o, "el-poles");
   r.poles_given = !r.poles.empty();
   if (r.poles_given) {
@@ -207,48 +212,57 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   } else {
     for (std::size_t k = 0; k < n; ++k) r.poles.push_back(-numeric(static_cast<long>(k + 1)));
   }
-  const std::string inj_mode =
-      choice_option(o, "el-injection", {"auto", "closed", "series"}).value_or("auto");
-  const std::string fam_mode = choice_option(o, "el-family", {"auto", "series"}).value_or("auto");
-  const int m_order = order_option(o, "el-order", kDefaultOrder);
-  const int fam_order = order_option(o, "el-family-order", m_order);
+  RunOptions ro;
+  ro.injection = choice_option(o, "el-injection", {"auto", "closed", "series"}).value_or("auto");
+  ro.family = choice_option(o, "el-family", {"auto", "series"}).value_or("auto");
+  ro.order = order_option(o, "el-order", kDefaultOrder);
+  ro.family_order = order_option(o, "el-family-order", ro.order);
+  return ro;
+}
 
+// The model shapes the construction handles (one output, an input, y = h(x), n small); false
+// with the failure in r otherwise.
+bool supported(const Model& m, ExtendedLinearization& r) {
   if (m.p() != 1) {
     r.failures.push_back(
         fmt::format("the model has p = {} outputs; extended linearization is built "
                     "here for one output (seed 001 §5, p = 1)",
                     m.p()));
-    return r;
+    return false;
   }
   if (m.m() == 0) {
     r.failures.push_back(
         "the model has no input: there is no family of equilibria x_eps, u_eps "
         "(seed 001 §5 needs a controlled system)");
-    return r;
+    return false;
   }
   if (m.feedthrough()) {
     r.failures.push_back(
         "the output depends on the input (y = h(x, u)); the seed assumes y = h(x)");
-    return r;
+    return false;
   }
-  if (n > kMaxStates) {
+  if (m.n() > kMaxStates) {
     r.failures.push_back(
         fmt::format("n = {} > {}: the symbolic Ackermann gain schedule is not "
                     "attempted",
-                    n, kMaxStates));
-    return r;
+                    m.n(), kMaxStates));
+    return false;
   }
-  const GiNaC::exmap params = param_point(m);
-  const GiNaC::symbol& eps = r.eps;
+  return true;
+}
 
-  // Base point: --el-base (x0 and the first input), else the origin with the nominal input.
+// The base point: --el-base (x0 and the first input), else the origin with the nominal input;
+// the other inputs held at u0 (into other_inputs). Fills r.x0, r.u0, r.y0 and P but for its
+// equations.
+Problem base_problem(const Model& m, const DesignOptions& o, ExtendedLinearization& r,
+                     GiNaC::exmap& other_inputs) {
+  const std::size_t n = m.n();
   const std::vector<numeric> base = real_list_option(o, "el-base");
   if (!base.empty() && base.size() != n + 1)
     throw UserError(SourceLoc{}, fmt::format("--el-base: expected n + 1 = {} numbers (the states, "
                                              "then the first input), got {}",
                                              n + 1, base.size()));
   Problem P;
-  GiNaC::exmap other_inputs;
   for (std::size_t j = 0; j < m.m(); ++j) {
     const numeric uj = j == 0 && !base.empty() ? base[n]
                        : j < m.nominal.size()  ? m.nominal[j]
@@ -267,7 +281,12 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   P.unknowns.push_back(m.inputs[0]);
   P.base[m.inputs[0]] = r.u0[0];
   r.y0 = simplify(P.h.subs(P.base, GiNaC::subs_options::no_pattern));
+  return P;
+}
 
+// Whether the base point is an equilibrium (F = 0 there, proved on the model's boxes);
+// false with the failure in r otherwise.
+bool at_equilibrium(const Model& m, const Problem& P, ExtendedLinearization& r) {
   SampleBoxes boxes = SampleBoxes::from_model(m);
   ExVec F0;
   bool equilibrium = true;
@@ -275,58 +294,28 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
     F0.push_back(simplify(e.subs(P.base, GiNaC::subs_options::no_pattern)));
     if (!is_zero_verdict(zero_test(F0.back(), boxes))) equilibrium = false;
   }
-  if (!equilibrium) {
+  if (!equilibrium)
     r.failures.push_back(fmt::format(
         "the base point x0 = ({}) with u = {} is not an equilibrium: f(x0) + g(x0, u0) = {} (seed "
         "001 eq. 27 needs f(0, 0) = 0; give an equilibrium with --el-base)",
         poles_list(r.x0), to_string(ex(r.u0[0])), vec_text(F0)));
-    return r;
-  }
-  for (const auto& e : P.F) P.equations.push_back(e);
-  P.equations.push_back(P.h - r.y0 - eps);
+  return equilibrium;
+}
 
-  // Linearisation at the base point and constraints (i)-(iii).
-  GiNaC::matrix A0(static_cast<unsigned>(n), static_cast<unsigned>(n)),
-      B0(static_cast<unsigned>(n), 1), H0(1, static_cast<unsigned>(n));
-  for (unsigned i = 0; i < n; ++i) {
-    for (unsigned j = 0; j < n; ++j)
-      A0(i, j) = P.F[i].diff(m.states[j]).subs(P.base, GiNaC::subs_options::no_pattern);
-    B0(i, 0) = P.F[i].diff(m.inputs[0]).subs(P.base, GiNaC::subs_options::no_pattern);
-    H0(0, i) = P.h.diff(m.states[i]).subs(P.base, GiNaC::subs_options::no_pattern);
+// The observability matrix of (A, H), H one row: rows H, H A, ..., H A^(n-1).
+GiNaC::matrix observability_matrix(const GiNaC::matrix& A, const GiNaC::matrix& H) {
+  const unsigned n = A.rows();
+  GiNaC::matrix O(n, n);
+  GiNaC::matrix row = H;
+  for (unsigned k = 0; k < n; ++k) {
+    for (unsigned j = 0; j < n; ++j) O(k, j) = row(0, j);
+    row = row.mul(A);
   }
-  r.det_A0 = value_at(A0.determinant(), params);
-  GiNaC::matrix O0(static_cast<unsigned>(n), static_cast<unsigned>(n));
-  {
-    GiNaC::matrix row = H0;
-    for (unsigned k = 0; k < n; ++k) {
-      for (unsigned j = 0; j < n; ++j) O0(k, j) = row(0, j);
-      row = row.mul(A0);
-    }
-  }
-  const double det_O0 = value_at(O0.determinant(), params);
-  r.obs_rank = std::isfinite(det_O0) && std::fabs(det_O0) > kTiny ? n : n - 1;
-  const std::string at_params =
-      params.empty() ? std::string() : " (free parameters at the centre of their boxes)";
-  const bool c1 = std::isfinite(r.det_A0) && std::fabs(r.det_A0) > kTiny;
-  const bool c2 = r.obs_rank == n;
-  r.notes.push_back(
-      fmt::format("base point x0 = ({}), u0 = {}, y0 = h(x0) = {}; A0 = d(f+g)/dx = {}, "
-                  "B0 = d(f+g)/du = {}, H0 = dh/dx = {}{}",
-                  poles_list(r.x0), to_string(ex(r.u0[0])), to_string(r.y0), matrix_text(A0),
-                  matrix_text(B0), matrix_text(H0), at_params));
-  if (c1) {
-    r.dy_deps = value_at((H0.mul(A0.inverse()).mul(B0))(0, 0) * -1, params);
-  } else {
-    r.dy_deps = std::numeric_limits<double>::quiet_NaN();
-  }
-  const bool c3 = c1 && std::isfinite(r.dy_deps) && std::fabs(r.dy_deps) > kTiny;
-  r.notes.push_back(
-      fmt::format("constraint (i) {}: det A0 = {}", c1 ? "holds" : "fails", num_text(r.det_A0)));
-  r.notes.push_back(fmt::format("constraint (ii) {}: det O(A0, H0) = {} (rank {} of n = {})",
-                                c2 ? "holds" : "fails", num_text(det_O0), c2 ? n : r.obs_rank, n));
-  r.notes.push_back(fmt::format("constraint (iii) {}: dy_eps/deps = -H0 A0^-1 B0 = {}",
-                                c3 ? "holds" : "fails",
-                                c1 ? num_text(r.dy_deps) : std::string("undefined (A0 singular)")));
+  return O;
+}
+
+// The failures of constraints (i)-(iii) into r.
+void constraint_failures(bool c1, bool c2, bool c3, double det_O0, ExtendedLinearization& r) {
   if (!c1)
     r.failures.push_back(fmt::format("constraint (i) fails: det(d(f+g)/dx) at the base point = {}",
                                      num_text(r.det_A0)));
@@ -338,147 +327,232 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   if (c1 && !c3)
     r.failures.push_back(fmt::format("constraint (iii) fails: dy_eps/deps = -H0 A0^-1 B0 = {}",
                                      num_text(r.dy_deps)));
-  if (!r.failures.empty()) return r;
+}
 
-  // The equilibrium family.
+// The linearisation at the base point and constraints (i) det A0 != 0, (ii) (A0, H0)
+// observable, (iii) dy_eps/deps != 0, with notes; false when one fails.
+bool check_constraints(const Model& m, const Problem& P, const GiNaC::exmap& params,
+                       ExtendedLinearization& r) {
+  const std::size_t n = m.n();
+  GiNaC::matrix A0(static_cast<unsigned>(n), static_cast<unsigned>(n)),
+      B0(static_cast<unsigned>(n), 1), H0(1, static_cast<unsigned>(n));
+  for (unsigned i = 0; i < n; ++i) {
+    for (unsigned j = 0; j < n; ++j)
+      A0(i, j) = P.F[i].diff(m.states[j]).subs(P.base, GiNaC::subs_options::no_pattern);
+    B0(i, 0) = P.F[i].diff(m.inputs[0]).subs(P.base, GiNaC::subs_options::no_pattern);
+    H0(0, i) = P.h.diff(m.states[i]).subs(P.base, GiNaC::subs_options::no_pattern);
+  }
+  r.det_A0 = value_at(A0.determinant(), params);
+  const double det_O0 = value_at(observability_matrix(A0, H0).determinant(), params);
+  r.obs_rank = std::isfinite(det_O0) && std::fabs(det_O0) > kTiny ? n : n - 1;
+  const std::string at_params =
+      params.empty() ? std::string() : " (free parameters at the centre of their boxes)";
+  const bool c1 = std::isfinite(r.det_A0) && std::fabs(r.det_A0) > kTiny;
+  const bool c2 = r.obs_rank == n;
+  r.notes.push_back(
+      fmt::format("base point x0 = ({}), u0 = {}, y0 = h(x0) = {}; A0 = d(f+g)/dx = {}, "
+                  "B0 = d(f+g)/du = {}, H0 = dh/dx = {}{}",
+                  poles_list(r.x0), to_string(ex(r.u0[0])), to_string(r.y0), matrix_text(A0),
+                  matrix_text(B0), matrix_text(H0), at_params));
+  r.dy_deps = c1 ? value_at((H0.mul(A0.inverse()).mul(B0))(0, 0) * -1, params)
+                 : std::numeric_limits<double>::quiet_NaN();
+  const bool c3 = c1 && std::isfinite(r.dy_deps) && std::fabs(r.dy_deps) > kTiny;
+  r.notes.push_back(
+      fmt::format("constraint (i) {}: det A0 = {}", c1 ? "holds" : "fails", num_text(r.det_A0)));
+  r.notes.push_back(fmt::format("constraint (ii) {}: det O(A0, H0) = {} (rank {} of n = {})",
+                                c2 ? "holds" : "fails", num_text(det_O0), c2 ? n : r.obs_rank, n));
+  r.notes.push_back(fmt::format("constraint (iii) {}: dy_eps/deps = -H0 A0^-1 B0 = {}",
+                                c3 ? "holds" : "fails",
+                                c1 ? num_text(r.dy_deps) : std::string("undefined (A0 singular)")));
+  constraint_failures(c1, c2, c3, det_O0, r);
+  return r.failures.empty();
+}
+
+// The equilibrium family x_eps, u_eps: in closed form when the mode allows and it is found,
+// else as a Taylor series; nullopt with the failure in r when neither exists.
+std::optional<GiNaC::exmap> equilibrium_family(const Model& m, const Problem& P,
+                                               const GiNaC::exmap& params, const RunOptions& ro,
+                                               ExtendedLinearization& r) {
   std::optional<GiNaC::exmap> fam;
   std::string why;
-  if (fam_mode == "auto") fam = closed_family(m, P, eps, params);
+  if (ro.family == "auto") fam = closed_family(m, P, r.eps, params);
   if (fam) {
     r.family_closed = true;
   } else {
-    fam = series_family(P, eps, fam_order, why);
+    fam = series_family(P, r.eps, ro.family_order, why);
     if (!fam) {
       r.failures.push_back("no equilibrium family: " + why);
-      return r;
+      return std::nullopt;
     }
-    r.family_order = fam_order;
+    r.family_order = ro.family_order;
   }
   for (const auto& x : m.states) r.x_eps.push_back(fam->at(x));
   r.u_eps = fam->at(m.inputs[0]);
+  return fam;
+}
 
-  // Gain schedule by Ackermann's formula on the family.
-  GiNaC::exmap on_family = *fam;
-  for (const auto& kv : other_inputs) on_family[kv.first] = kv.second;
-  GiNaC::matrix A(static_cast<unsigned>(n), static_cast<unsigned>(n)),
-      H(1, static_cast<unsigned>(n));
-  // Series family: entries stay unsimplified (the Taylor expansion below does the work).
-  auto tidy = [&](const ex& e) { return r.family_closed ? simplify(e) : e; };
+// A_eps and H_eps: the Jacobians of F and h along the family.
+struct FamilyJacobians {
+  GiNaC::matrix A, H;
+};
+
+FamilyJacobians family_jacobians(const Model& m, const Problem& P, const GiNaC::exmap& on_family,
+                                 bool closed) {
+  const unsigned n = static_cast<unsigned>(m.n());
+  FamilyJacobians j{GiNaC::matrix(n, n), GiNaC::matrix(1, n)};
+  // Series family: entries stay unsimplified (the Taylor expansion of the gain does the work).
+  auto tidy = [&](const ex& e) { return closed ? simplify(e) : e; };
   for (unsigned i = 0; i < n; ++i) {
-    for (unsigned j = 0; j < n; ++j)
-      A(i, j) = tidy(P.F[i].diff(m.states[j]).subs(on_family, GiNaC::subs_options::no_pattern));
-    H(0, i) = tidy(P.h.diff(m.states[i]).subs(on_family, GiNaC::subs_options::no_pattern));
+    for (unsigned k = 0; k < n; ++k)
+      j.A(i, k) = tidy(P.F[i].diff(m.states[k]).subs(on_family, GiNaC::subs_options::no_pattern));
+    j.H(0, i) = tidy(P.h.diff(m.states[i]).subs(on_family, GiNaC::subs_options::no_pattern));
   }
-  GiNaC::matrix O(static_cast<unsigned>(n), static_cast<unsigned>(n));
-  {
-    GiNaC::matrix row = H;
-    for (unsigned k = 0; k < n; ++k) {
-      for (unsigned j = 0; j < n; ++j) O(k, j) = row(0, j);
-      row = row.mul(A);
-    }
-  }
-  GiNaC::matrix en(static_cast<unsigned>(n), 1);
-  en(static_cast<unsigned>(n - 1), 0) = 1;
+  return j;
+}
+
+// The gain schedule c(eps) by Ackermann's formula on the family into r.c_eps (simplified, or a
+// Taylor polynomial to eps^(m-1)); false with the failure in r when O_eps is singular.
+bool gain_schedule(const FamilyJacobians& J, int order, ExtendedLinearization& r) {
+  const unsigned n = J.A.rows();
+  GiNaC::matrix en(n, 1);
+  en(n - 1, 0) = 1;
+  const GiNaC::matrix O = observability_matrix(J.A, J.H);
   GiNaC::matrix v;
   try {
     v = O.inverse().mul(en);
   } catch (const std::exception& e) {
     r.failures.push_back(std::string("the observability matrix along the family is singular: ") +
                          e.what());
-    return r;
+    return false;
   }
-  GiNaC::matrix pA = GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(static_cast<unsigned>(n)));
+  GiNaC::matrix pA = GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(n));
   for (const auto& q : r.poles)
-    pA = pA.mul(A.sub(
-        GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(static_cast<unsigned>(n))).mul_scalar(q)));
+    pA = pA.mul(J.A.sub(GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(n)).mul_scalar(q)));
   const GiNaC::matrix c = pA.mul(v);
   for (unsigned i = 0; i < n; ++i) {
     const ex ci =
-        r.family_closed ? simplify(c(i, 0)) : taylor(c(i, 0), eps, std::max(0, m_order - 1));
+        r.family_closed ? simplify(c(i, 0)) : taylor(c(i, 0), r.eps, std::max(0, order - 1));
     r.c_eps.push_back(ci);
   }
+  return true;
+}
 
-  // Self-check: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole), identically in eps
-  // (closed form) or up to eps^(m-1) (series).
-  {
-    const GiNaC::symbol lambda("lambda");
-    GiNaC::matrix M(static_cast<unsigned>(n), static_cast<unsigned>(n));
-    for (unsigned i = 0; i < n; ++i)
-      for (unsigned j = 0; j < n; ++j) M(i, j) = A(i, j) - r.c_eps[i] * H(0, j);
-    ex want = 1;
-    for (const auto& q : r.poles) want *= lambda - q;
-    const ex diff = GiNaC::expand(M.charpoly(lambda) - want);
-    bool ok = true;
-    SampleBoxes eboxes = SampleBoxes::from_model(m);
-    eboxes.by_name[eps.get_name()] = Interval{numeric(-1, 20), numeric(1, 20)};
-    for (unsigned k = 0; k < n && ok; ++k) {
-      const ex coef = diff.coeff(lambda, static_cast<int>(k));
-      ok = r.family_closed ? is_zero_verdict(zero_test(coef, eboxes))
-                           : GiNaC::normal(taylor(coef, eps, std::max(0, m_order - 1))).is_zero();
-    }
-    if (!ok) {
-      r.failures.push_back(
-          "internal check failed: the characteristic polynomial of A_eps - c(eps) H_eps "
-          "is not the prescribed one");
-      return r;
-    }
-    r.notes.push_back(
-        r.family_closed
-            ? "checked: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole) identically in "
-              "eps"
-            : fmt::format("checked: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole) + "
-                          "O(eps^{})",
-                          m_order));
+// Self-check: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole), identically in eps
+// (closed form) or up to eps^(m-1) (series); false with the failure in r otherwise.
+bool check_charpoly(const Model& m, const FamilyJacobians& J, int order, ExtendedLinearization& r) {
+  const unsigned n = J.A.rows();
+  const GiNaC::symbol lambda("lambda");
+  GiNaC::matrix M(n, n);
+  for (unsigned i = 0; i < n; ++i)
+    for (unsigned j = 0; j < n; ++j) M(i, j) = J.A(i, j) - r.c_eps[i] * J.H(0, j);
+  ex want = 1;
+  for (const auto& q : r.poles) want *= lambda - q;
+  const ex diff = GiNaC::expand(M.charpoly(lambda) - want);
+  bool ok = true;
+  SampleBoxes eboxes = SampleBoxes::from_model(m);
+  eboxes.by_name[r.eps.get_name()] = Interval{numeric(-1, 20), numeric(1, 20)};
+  for (unsigned k = 0; k < n && ok; ++k) {
+    const ex coef = diff.coeff(lambda, static_cast<int>(k));
+    ok = r.family_closed ? is_zero_verdict(zero_test(coef, eboxes))
+                         : GiNaC::normal(taylor(coef, r.eps, std::max(0, order - 1))).is_zero();
   }
+  if (!ok) {
+    r.failures.push_back(
+        "internal check failed: the characteristic polynomial of A_eps - c(eps) H_eps "
+        "is not the prescribed one");
+    return false;
+  }
+  r.notes.push_back(
+      r.family_closed
+          ? "checked: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole) identically in "
+            "eps"
+          : fmt::format("checked: det(lambda I - A_eps + c(eps) H_eps) = prod (lambda - pole) + "
+                        "O(eps^{})",
+                        order));
+  return true;
+}
 
-  // The injection k(y) = int_0^{y - y0} c(e) de.
+// The injection k(y) = int_0^{y - y0} c(e) de in closed form into r.injection: false with
+// r.injection_reason when the family is a series or an antiderivative is missing or undefined
+// at 0.
+bool closed_injection(const GiNaC::exmap& params, ExtendedLinearization& r) {
+  if (!r.family_closed) {
+    r.injection_reason = fmt::format(
+        "the equilibrium family is a series (order {}), so c(eps) is too", r.family_order);
+    return false;
+  }
   const ex shift = r.y - r.y0;
-  bool closed = false;
-  if (inj_mode != "series") {
-    if (!r.family_closed) {
-      r.injection_reason = fmt::format(
-          "the equilibrium family is a series (order {}), so c(eps) is too", r.family_order);
-    } else {
-      ExVec k;
-      closed = true;
-      for (unsigned i = 0; i < n && closed; ++i) {
-        const Integral I = integrate(r.c_eps[i], eps);
-        if (!I.value) {
-          closed = false;
-          r.injection_reason = fmt::format("no antiderivative of c_{}(eps) = {} found: {}", i + 1,
-                                           to_string(r.c_eps[i]), I.reason);
-          break;
-        }
-        const ex at0 = I.value->subs(eps == 0);
-        GiNaC::exmap z0 = params;
-        if (!std::isfinite(value_at(at0, z0))) {
-          closed = false;
-          r.injection_reason =
-              fmt::format("the antiderivative of c_{} is undefined at eps = 0", i + 1);
-          break;
-        }
-        k.push_back(simplify(I.value->subs(eps == shift) - at0));
-      }
-      if (closed) r.injection = k;
+  const GiNaC::symbol& eps = r.eps;
+  ExVec k;
+  for (unsigned i = 0; i < r.c_eps.size(); ++i) {
+    const Integral I = integrate(r.c_eps[i], eps);
+    if (!I.value) {
+      r.injection_reason = fmt::format("no antiderivative of c_{}(eps) = {} found: {}", i + 1,
+                                       to_string(r.c_eps[i]), I.reason);
+      return false;
     }
-    if (!closed && inj_mode == "closed") {
+    const ex at0 = I.value->subs(eps == 0);
+    GiNaC::exmap z0 = params;
+    if (!std::isfinite(value_at(at0, z0))) {
+      r.injection_reason = fmt::format("the antiderivative of c_{} is undefined at eps = 0", i + 1);
+      return false;
+    }
+    k.push_back(simplify(I.value->subs(eps == shift) - at0));
+  }
+  r.injection = k;
+  return true;
+}
+
+// The injection as the integral of c's Taylor polynomial to eps^(m-1).
+void series_injection(int order, ExtendedLinearization& r) {
+  const ex shift = r.y - r.y0;
+  r.injection_order = order;
+  r.injection.clear();
+  for (unsigned i = 0; i < r.c_eps.size(); ++i) {
+    const ex ci = taylor(r.c_eps[i], r.eps, order - 1);
+    ex k = 0;
+    for (int j = 0; j < order; ++j) k += ci.coeff(r.eps, j) / (j + 1) * GiNaC::pow(shift, j + 1);
+    r.injection.push_back(k);
+  }
+}
+
+// The injection: closed form unless --el-injection series (an error when closed is demanded
+// and not found), else the series.
+void injection(const GiNaC::exmap& params, const RunOptions& ro, ExtendedLinearization& r) {
+  bool closed = false;
+  if (ro.injection != "series") {
+    closed = closed_injection(params, r);
+    if (!closed && ro.injection == "closed") {
       r.failures.push_back("--el-injection closed: " + r.injection_reason);
-      return r;
+      return;
     }
   } else {
     r.injection_reason = "--el-injection series";
   }
   r.injection_closed = closed;
-  if (!closed) {
-    r.injection_order = m_order;
-    r.injection.clear();
-    for (unsigned i = 0; i < n; ++i) {
-      const ex ci = taylor(r.c_eps[i], eps, m_order - 1);
-      ex k = 0;
-      for (int j = 0; j < m_order; ++j) k += ci.coeff(eps, j) / (j + 1) * GiNaC::pow(shift, j + 1);
-      r.injection.push_back(k);
-    }
-  }
+  if (!closed) series_injection(ro.order, r);
+}
+
+ExtendedLinearization run(const Model& m, const DesignOptions& o) {
+  ExtendedLinearization r;
+  const RunOptions ro = read_options(o, m.n(), r);
+  if (!supported(m, r)) return r;
+  const GiNaC::exmap params = param_point(m);
+  GiNaC::exmap other_inputs;
+  Problem P = base_problem(m, o, r, other_inputs);
+  if (!at_equilibrium(m, P, r)) return r;
+  for (const auto& e : P.F) P.equations.push_back(e);
+  P.equations.push_back(P.h - r.y0 - r.eps);
+  if (!check_constraints(m, P, params, r)) return r;
+
+  const std::optional<GiNaC::exmap> fam = equilibrium_family(m, P, params, ro, r);
+  if (!fam) return r;
+  // Gain schedule by Ackermann's formula on the family, then its self-check.
+  GiNaC::exmap on_family = *fam;
+  for (const auto& kv : other_inputs) on_family[kv.first] = kv.second;
+  const FamilyJacobians J = family_jacobians(m, P, on_family, r.family_closed);
+  if (!gain_schedule(J, ro.order, r) || !check_charpoly(m, J, ro.order, r)) return r;
+  injection(params, ro, r);
   return r;
 }
 
@@ -533,15 +607,9 @@ Verdict applies(const Analysis& a) {
   return v;
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
-  const Model& m = a.model;
-  const ExtendedLinearization& r = extended_linearization(m, o);
-  if (!r.failures.empty())
-    throw UserError(SourceLoc{m.file, 0, 0},
-                    fmt::format("method 'extended-linearization' does not apply: {}",
-                                fmt::join(r.failures, "; ")));
-  const std::size_t n = m.n();
-  // The output symbol of the generated functions, unique against the model's names.
+// The output symbols y (measured) and yh (= h(xh)) of the generated functions, unique against
+// the model's names.
+std::pair<GiNaC::symbol, GiNaC::symbol> output_symbols(const Model& m) {
   std::set<std::string> used;
   for (const auto& s : m.all_symbols()) used.insert(s.get_name());
   for (const auto& p : m.params) used.insert(p.name);
@@ -550,7 +618,13 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   used.insert(yname);
   std::string yhname = "yh";
   while (used.count(yhname)) yhname += "_";
-  const GiNaC::symbol y(yname), yh(yhname);
+  return {GiNaC::symbol(yname), GiNaC::symbol(yhname)};
+}
+
+// The spec without its texts: the injection k(y) and xh' = f + g + k(y) - k(h(xh)).
+ObserverSpec el_skeleton(const Model& m, const ExtendedLinearization& r) {
+  const std::size_t n = m.n();
+  const auto [y, yh] = output_symbols(m);
   ExVec k_y, rhs;
   const ExVec F = m.field();
   for (std::size_t i = 0; i < n; ++i) {
@@ -578,7 +652,38 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   spec.update = UpdateKind::ode;
   spec.roles.rhs = "x_rhs";
   spec.estimate = EstimateKind::identity;
+  return spec;
+}
 
+// The report rows: equations, constraints, family, poles, gain schedule and injection.
+std::vector<ReportRow> el_report(const Model& m, const ExtendedLinearization& r) {
+  std::vector<ReportRow> rows = {
+      {"equations",
+       "xh' = f(xh, u) + k(y) - k(h(xh)) (seed 001 eq. 29), dk/dy(y_eps) = C(eps)^T (eq. 34)"},
+      {"parametrisation",
+       "eps = y - y0, the output level of the equilibrium (regular by constraint (iii)); u is the "
+       "model's first input"}};
+  for (const auto& nt : r.notes) rows.push_back({"constraints", nt});
+  rows.push_back({"equilibrium family", family_text(m, r)});
+  rows.push_back(
+      {"poles", fmt::format("{} ({})", poles_text(r.poles),
+                            r.poles_given ? "given with --el-poles" : "default -1, -2, ..., -n")});
+  rows.push_back({"gain schedule C(eps)^T",
+                  fmt::format("{} (Ackermann: p(A_eps) O_eps^-1 e_n{})", vec_text(r.c_eps),
+                              r.family_closed ? "" : ", as a series")});
+  rows.push_back(
+      {"injection k(y)", fmt::format("{}; {}", vec_text(r.injection), injection_kind(r))});
+  return rows;
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  const ExtendedLinearization& r = extended_linearization(m, o);
+  if (!r.failures.empty())
+    throw UserError(SourceLoc{m.file, 0, 0},
+                    fmt::format("method 'extended-linearization' does not apply: {}",
+                                fmt::join(r.failures, "; ")));
+  ObserverSpec spec = el_skeleton(m, r);
   spec.title = "Extended linearization observer (Baumann-Rugh; seed 001 §5)";
   spec.description = {
       "Observer: extended linearization (Baumann-Rugh 1986; seed 001 §5, eq. 27-45)",
@@ -593,22 +698,7 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       "so the error dynamics linearized at every equilibrium x_eps of the family have the",
       "prescribed eigenvalues (a local design: near the family)."};
   spec.constants.push_back({"poles", r.poles, "eigenvalues of the linearized error dynamics"});
-  spec.report = {
-      {"equations",
-       "xh' = f(xh, u) + k(y) - k(h(xh)) (seed 001 eq. 29), dk/dy(y_eps) = C(eps)^T (eq. 34)"},
-      {"parametrisation",
-       "eps = y - y0, the output level of the equilibrium (regular by constraint (iii)); u is the "
-       "model's first input"}};
-  for (const auto& nt : r.notes) spec.report.push_back({"constraints", nt});
-  spec.report.push_back({"equilibrium family", family_text(m, r)});
-  spec.report.push_back(
-      {"poles", fmt::format("{} ({})", poles_text(r.poles),
-                            r.poles_given ? "given with --el-poles" : "default -1, -2, ..., -n")});
-  spec.report.push_back({"gain schedule C(eps)^T",
-                         fmt::format("{} (Ackermann: p(A_eps) O_eps^-1 e_n{})", vec_text(r.c_eps),
-                                     r.family_closed ? "" : ", as a series")});
-  spec.report.push_back(
-      {"injection k(y)", fmt::format("{}; {}", vec_text(r.injection), injection_kind(r))});
+  spec.report = el_report(m, r);
   spec.summary = fmt::format(
       "Extended linearization observer (Baumann-Rugh): linearized error eigenvalues {} along the "
       "equilibrium family ({}); injection {}",

@@ -31,77 +31,86 @@ class ArrayFunction {
   std::vector<Array> operator()(const std::vector<Array>& in) const {
     const Eigen::Index len = in.empty() ? 1 : in[0].size();
     std::vector<Array> v(dag_.size());
-    for (std::size_t id = 0; id < dag_.size(); ++id) {
-      const Node& n = dag_.node(static_cast<int>(id));
-      auto arg = [&](std::size_t i) -> const Array& {
-        return v[static_cast<std::size_t>(n.args[i])];
-      };
-      Array r;
-      switch (n.op) {
-        case NodeOp::constant:
-          r = Array::Constant(len, n.value.to_double());
-          break;
-        case NodeOp::variable: {
-          auto it = input_.find(n.name);
-          OBSYNTH_ASSERT(it != input_.end(), "finite-time: unbound symbol " + n.name);
-          r = in[it->second];
-          break;
-        }
-        case NodeOp::add:
-          r = arg(0);
-          for (std::size_t i = 1; i < n.args.size(); ++i) r += arg(i);
-          break;
-        case NodeOp::mul:
-          r = arg(0);
-          for (std::size_t i = 1; i < n.args.size(); ++i) r *= arg(i);
-          break;
-        case NodeOp::div:
-          r = arg(0) / arg(1);
-          break;
-        case NodeOp::neg:
-          r = -arg(0);
-          break;
-        case NodeOp::pow_int:
-          r = arg(0);
-          for (long k = 1; k < n.exponent; ++k) r *= arg(0);
-          break;
-        case NodeOp::sqrt:
-          r = arg(0).sqrt();
-          break;
-        case NodeOp::pow_real:
-          r = arg(0).pow(n.value.to_double());
-          break;
-        case NodeOp::call: {
-          const Array& a = arg(0);
-          if (n.name == "sin")
-            r = a.sin();
-          else if (n.name == "cos")
-            r = a.cos();
-          else if (n.name == "tan")
-            r = a.tan();
-          else if (n.name == "exp")
-            r = a.exp();
-          else if (n.name == "log")
-            r = a.log();
-          else if (n.name == "tanh")
-            r = a.tanh();
-          else if (n.name == "atan")
-            r = a.atan();
-          else if (n.name == "atanh")
-            r = a.unaryExpr([](double q) { return std::atanh(q); });
-          else
-            OBSYNTH_ASSERT(false, "finite-time: unsupported function " + n.name);
-          break;
-        }
-      }
-      v[id] = std::move(r);
-    }
+    for (std::size_t id = 0; id < dag_.size(); ++id)
+      v[id] = node_value(dag_.node(static_cast<int>(id)), v, in, len);
     std::vector<Array> out;
     for (int id : out_) out.push_back(v[static_cast<std::size_t>(id)]);
     return out;
   }
 
  private:
+  // One node over the arrays, its arguments' values in v (the DAG is topologically ordered).
+  Array node_value(const Node& n, const std::vector<Array>& v, const std::vector<Array>& in,
+                   Eigen::Index len) const {
+    auto arg = [&](std::size_t i) -> const Array& {
+      return v[static_cast<std::size_t>(n.args[i])];
+    };
+    Array r;
+    switch (n.op) {
+      case NodeOp::constant:
+        r = Array::Constant(len, n.value.to_double());
+        break;
+      case NodeOp::variable: {
+        auto it = input_.find(n.name);
+        OBSYNTH_ASSERT(it != input_.end(), "finite-time: unbound symbol " + n.name);
+        r = in[it->second];
+        break;
+      }
+      case NodeOp::add:
+        r = arg(0);
+        for (std::size_t i = 1; i < n.args.size(); ++i) r += arg(i);
+        break;
+      case NodeOp::mul:
+        r = arg(0);
+        for (std::size_t i = 1; i < n.args.size(); ++i) r *= arg(i);
+        break;
+      case NodeOp::div:
+        r = arg(0) / arg(1);
+        break;
+      case NodeOp::neg:
+        r = -arg(0);
+        break;
+      case NodeOp::pow_int:
+        r = arg(0);
+        for (long k = 1; k < n.exponent; ++k) r *= arg(0);
+        break;
+      case NodeOp::sqrt:
+        r = arg(0).sqrt();
+        break;
+      case NodeOp::pow_real:
+        r = arg(0).pow(n.value.to_double());
+        break;
+      case NodeOp::call:
+        r = call_value(n.name, arg(0));
+        break;
+    }
+    return r;
+  }
+
+  // A function call node elementwise; the DAG admits only these functions here.
+  static Array call_value(const std::string& name, const Array& a) {
+    Array r;
+    if (name == "sin")
+      r = a.sin();
+    else if (name == "cos")
+      r = a.cos();
+    else if (name == "tan")
+      r = a.tan();
+    else if (name == "exp")
+      r = a.exp();
+    else if (name == "log")
+      r = a.log();
+    else if (name == "tanh")
+      r = a.tanh();
+    else if (name == "atan")
+      r = a.atan();
+    else if (name == "atanh")
+      r = a.unaryExpr([](double q) { return std::atanh(q); });
+    else
+      OBSYNTH_ASSERT(false, "finite-time: unsupported function " + name);
+    return r;
+  }
+
   Dag dag_;
   std::vector<int> out_;
   std::map<std::string, std::size_t> input_;
@@ -144,9 +153,9 @@ std::size_t count_for(double lo, double hi, double step, const std::string& what
   return static_cast<std::size_t>(r) + 1;
 }
 
-Choices choose(const Analysis& a, const DesignOptions& o) {
-  const Model& m = a.model;
-  Choices c;
+// The window T and the sample period dt: the delay line holds D = T / dt samples, a whole
+// number.
+void choose_window(const DesignOptions& o, Choices& c) {
   if (const auto T = real_option(o, "window")) {
     c.T = dbl(*T);
     if (!(c.T > 0)) throw option_error("--window: T must be positive");
@@ -167,6 +176,10 @@ Choices choose(const Analysis& a, const DesignOptions& o) {
         "has fixed length",
         c.T, c.dt, D));
   if (c.D > 1000000) throw option_error("the delay line would exceed 10^6 samples");
+}
+
+// The filter poles (the diagonal A), distinct and negative.
+void choose_filters(const DesignOptions& o, const Model& m, Choices& c) {
   for (const auto& q : real_list_option(o, "filter-poles")) {
     if (!q.is_negative())
       throw option_error(fmt::format("--filter-poles: {} is not negative", to_string(q)));
@@ -187,7 +200,10 @@ Choices choose(const Analysis& a, const DesignOptions& o) {
         throw option_error(
             "--filter-poles: the eigenvalues must be distinct (A diagonal, "
             "(A, b) controllable)");
-  // State grid over the domain box.
+}
+
+// The state grid over the domain box: --grid-step, else about 2048 points in all.
+void choose_grid(const DesignOptions& o, const Model& m, Choices& c) {
   const auto steps = real_list_option(o, "grid-step");
   if (steps.size() > 1 && steps.size() != m.n())
     throw option_error(fmt::format("--grid-step: give one step or one per state ({}), got {}",
@@ -211,20 +227,26 @@ Choices choose(const Analysis& a, const DesignOptions& o) {
   if (steps.empty())
     c.notes.push_back(fmt::format(
         "{} grid points per state (default; --grid-step refines or coarsens)", default_per_axis));
-  // Input levels.
-  if (m.m() == 1) {
-    const Interval b = m.box(m.inputs[0]);
-    c.level_lo = dbl(b.lo);
-    const double hi = dbl(b.hi);
-    if (const auto mu = real_option(o, "input-step")) {
-      c.level_step = dbl(*mu);
-      if (!(c.level_step > 0)) throw option_error("--input-step must be positive");
-    } else {
-      c.level_step = hi > c.level_lo ? (hi - c.level_lo) / 10 : 1;
-      c.notes.push_back("11 input levels (default; --input-step)");
-    }
-    c.levels = hi > c.level_lo ? count_for(c.level_lo, hi, c.level_step, "--input-step") : 1;
+}
+
+// The input levels (one table each) over the input's box: --input-step, else 11 levels.
+void choose_levels(const DesignOptions& o, const Model& m, Choices& c) {
+  if (m.m() != 1) return;
+  const Interval b = m.box(m.inputs[0]);
+  c.level_lo = dbl(b.lo);
+  const double hi = dbl(b.hi);
+  if (const auto mu = real_option(o, "input-step")) {
+    c.level_step = dbl(*mu);
+    if (!(c.level_step > 0)) throw option_error("--input-step must be positive");
+  } else {
+    c.level_step = hi > c.level_lo ? (hi - c.level_lo) / 10 : 1;
+    c.notes.push_back("11 input levels (default; --input-step)");
   }
+  c.levels = hi > c.level_lo ? count_for(c.level_lo, hi, c.level_step, "--input-step") : 1;
+}
+
+// The kernel (epsilon, weight power, metric), the level rule and the backward steps.
+void choose_kernel(const DesignOptions& o, Choices& c) {
   if (const auto e = real_option(o, "kernel-epsilon")) {
     c.eps = dbl(*e);
     c.eps_given = true;
@@ -248,6 +270,16 @@ Choices choose(const Analysis& a, const DesignOptions& o) {
     if (!k->is_pos_integer()) throw option_error("--backward-steps: a positive integer");
     c.backward_steps = static_cast<std::size_t>(k->to_long());
   }
+}
+
+Choices choose(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  Choices c;
+  choose_window(o, c);
+  choose_filters(o, m, c);
+  choose_grid(o, m, c);
+  choose_levels(o, m, c);
+  choose_kernel(o, c);
   return c;
 }
 
@@ -363,47 +395,42 @@ struct Tables {
   std::size_t tested = 0;
 };
 
-Tables tabulate(const Model& m, Choices& c) {
-  const auto t0 = std::chrono::steady_clock::now();
-  Tabulator tab(m, c);
-  const std::vector<Array> X = tab.grid();
-  const auto N = X[0].size();
-  const std::size_t n = m.n();
-  Tables t;
-  t.grid.resize(N, static_cast<Eigen::Index>(n));
-  for (std::size_t s = 0; s < n; ++s) t.grid.col(static_cast<Eigen::Index>(s)) = X[s].matrix();
-  for (std::size_t k = 0; k < c.levels; ++k)
-    t.q.push_back(tab.map(X, c.level_lo + c.level_step * static_cast<double>(k)));
-  // The kernel's metric: with --metric whiten, q is first whitened by its covariance over the
-  // grid (W = D^-1/2 V^T, eigenvalues floored at 1e-6 of the largest), so that directions in
-  // which q varies little (the phase, seen only by the fast filters) count as much as the
-  // others; then scaled by its median sensitivity.
+// With --metric whiten, q is whitened by its covariance over the grid (W = D^-1/2 V^T,
+// eigenvalues floored at 1e-6 of the largest), so that directions in which q varies little (the
+// phase, seen only by the fast filters) count as much as the others; returns W (I otherwise).
+Eigen::MatrixXd whiten(const Choices& c, Tables& t) {
   const std::size_t pz = c.lambda.size();
   Eigen::MatrixXd W =
       Eigen::MatrixXd::Identity(static_cast<Eigen::Index>(pz), static_cast<Eigen::Index>(pz));
-  if (c.whiten) {
-    Eigen::VectorXd mean = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(pz));
-    Eigen::MatrixXd C =
-        Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(pz), static_cast<Eigen::Index>(pz));
-    double count = 0;
-    for (const auto& q : t.q) {
-      mean += q.colwise().sum().transpose();
-      count += static_cast<double>(q.rows());
-    }
-    mean /= count;
-    for (const auto& q : t.q) {
-      const Eigen::MatrixXd d = q.rowwise() - mean.transpose();
-      C += d.transpose() * d;
-    }
-    C /= count;
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(C);
-    Eigen::VectorXd ev = es.eigenvalues();
-    const double top = ev.maxCoeff();
-    for (Eigen::Index i = 0; i < ev.size(); ++i) ev(i) = 1 / std::sqrt(std::max(ev(i), 1e-6 * top));
-    W = ev.asDiagonal() * es.eigenvectors().transpose();
-    for (auto& q : t.q) q = q * W.transpose();
+  if (!c.whiten) return W;
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(pz));
+  Eigen::MatrixXd C =
+      Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(pz), static_cast<Eigen::Index>(pz));
+  double count = 0;
+  for (const auto& q : t.q) {
+    mean += q.colwise().sum().transpose();
+    count += static_cast<double>(q.rows());
   }
-  // Neighbour separation in q-space (sampled uniform injectivity along grid edges).
+  mean /= count;
+  for (const auto& q : t.q) {
+    const Eigen::MatrixXd d = q.rowwise() - mean.transpose();
+    C += d.transpose() * d;
+  }
+  C /= count;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(C);
+  Eigen::VectorXd ev = es.eigenvalues();
+  const double top = ev.maxCoeff();
+  for (Eigen::Index i = 0; i < ev.size(); ++i) ev(i) = 1 / std::sqrt(std::max(ev(i), 1e-6 * top));
+  W = ev.asDiagonal() * es.eigenvectors().transpose();
+  for (auto& q : t.q) q = q * W.transpose();
+  return W;
+}
+
+// Neighbour separation in q-space, |q(x_i) - q(x_j)| / |x_i - x_j| along grid edges (sampled
+// uniform injectivity): all ratios, the smallest and where into t.
+std::vector<double> neighbour_ratios(const Choices& c, Tables& t) {
+  const std::size_t n = c.count.size();
+  const Eigen::Index N = t.grid.rows();
   std::vector<double> nn;
   t.min_separation = HUGE_VAL;
   std::vector<std::size_t> stride(n, 1);
@@ -425,31 +452,45 @@ Tables tabulate(const Model& m, Choices& c) {
         }
       }
     }
-  // Scale by the median sensitivity s = median |q(x_i) - q(x_j)| / |x_i - x_j| over grid
-  // neighbours: kernel distances, and epsilon, are then in state units, so that the grid step
-  // and epsilon compare directly (the paper's 0.0125 and 0.05).
-  std::sort(nn.begin(), nn.end());
-  t.scale = nn.empty() || !(nn[nn.size() / 2] > 0) ? 1 : nn[nn.size() / 2];
-  for (auto& q : t.q) q /= t.scale;
-  t.min_separation /= t.scale;
-  t.metric = W / t.scale;
-  if (!c.eps_given) {
-    c.eps = 4 * *std::max_element(c.step.begin(), c.step.end());
-    c.notes.push_back(fmt::format("kernel epsilon {:.4g} = 4 grid steps (default)", c.eps));
-  }
-  t.eps = c.eps;
-  const auto t1 = std::chrono::steady_clock::now();
-  t.synthesis_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
-  // Accuracy, sampled: grid points (a subsample), off-grid Halton states at the levels and
-  // between levels (u frozen over the window).
+  return nn;
+}
+
+// Off-grid test states: a Halton sequence over the grid's box.
+std::vector<Array> halton_states(const Choices& c) {
   static const unsigned primes[] = {2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37};
-  const std::size_t S = c.bound_samples;
+  const std::size_t n = c.count.size(), S = c.bound_samples;
   std::vector<Array> Y(n, Array(static_cast<Eigen::Index>(S)));
   for (std::size_t i = 0; i < S; ++i)
     for (std::size_t s = 0; s < n; ++s) {
       const double hi = c.lo[s] + c.step[s] * static_cast<double>(c.count[s] - 1);
       Y[s](static_cast<Eigen::Index>(i)) = c.lo[s] + (hi - c.lo[s]) * halton(i, primes[s % 12]);
     }
+  return Y;
+}
+
+// The largest inverse error at the test states Y with u frozen at nu, for level k's table.
+double inverse_error(const Tabulator& tab, const Choices& c, const Tables& t,
+                     const std::vector<Array>& Y, std::size_t k, double nu) {
+  const std::size_t n = Y.size(), S = static_cast<std::size_t>(Y[0].size());
+  const Eigen::MatrixXd q = tab.map(Y, nu) * t.metric.transpose();
+  double err = 0;
+  for (std::size_t i = 0; i < S; ++i) {
+    Eigen::VectorXd xi(static_cast<Eigen::Index>(n));
+    for (std::size_t s = 0; s < n; ++s)
+      xi(static_cast<Eigen::Index>(s)) = Y[s](static_cast<Eigen::Index>(i));
+    const double e =
+        (kernel_inverse(t.q[k], t.grid, q.row(static_cast<Eigen::Index>(i)), c.eps, c.power) - xi)
+            .norm();
+    err = std::max(err, e);
+  }
+  return err;
+}
+
+// Accuracy, sampled: grid points (a subsample), off-grid Halton states at the levels and
+// between levels (u frozen over the window).
+void sampled_accuracy(const Tabulator& tab, const Choices& c, Tables& t) {
+  const std::vector<Array> Y = halton_states(c);
+  const Eigen::Index N = t.grid.rows();
   const Eigen::Index gstride = std::max<Eigen::Index>(1, N / 200);
   for (std::size_t k = 0; k < c.levels; ++k) {
     for (Eigen::Index i = 0; i < N; i += gstride)
@@ -468,21 +509,41 @@ Tables tabulate(const Model& m, Choices& c) {
       inputs.push_back({uk + 0.999 * c.level_step, &t.between_error});
       inputs.push_back({uk + 0.5 * c.level_step, &t.between_error});
     }
-    for (auto [nu, err] : inputs) {
-      const Eigen::MatrixXd q = tab.map(Y, nu) * t.metric.transpose();
-      for (std::size_t i = 0; i < S; ++i) {
-        Eigen::VectorXd xi(static_cast<Eigen::Index>(n));
-        for (std::size_t s = 0; s < n; ++s)
-          xi(static_cast<Eigen::Index>(s)) = Y[s](static_cast<Eigen::Index>(i));
-        const double e =
-            (kernel_inverse(t.q[k], t.grid, q.row(static_cast<Eigen::Index>(i)), c.eps, c.power) -
-             xi)
-                .norm();
-        *err = std::max(*err, e);
-      }
-    }
+    for (auto [nu, err] : inputs) *err = std::max(*err, inverse_error(tab, c, t, Y, k, nu));
   }
-  t.tested = S;
+  t.tested = c.bound_samples;
+}
+
+Tables tabulate(const Model& m, Choices& c) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Tabulator tab(m, c);
+  const std::vector<Array> X = tab.grid();
+  const auto N = X[0].size();
+  const std::size_t n = m.n();
+  Tables t;
+  t.grid.resize(N, static_cast<Eigen::Index>(n));
+  for (std::size_t s = 0; s < n; ++s) t.grid.col(static_cast<Eigen::Index>(s)) = X[s].matrix();
+  for (std::size_t k = 0; k < c.levels; ++k)
+    t.q.push_back(tab.map(X, c.level_lo + c.level_step * static_cast<double>(k)));
+  // The kernel's metric: whitened (or not), then scaled by the median sensitivity.
+  const Eigen::MatrixXd W = whiten(c, t);
+  std::vector<double> nn = neighbour_ratios(c, t);
+  // Scale by the median sensitivity s = median |q(x_i) - q(x_j)| / |x_i - x_j| over grid
+  // neighbours: kernel distances, and epsilon, are then in state units, so that the grid step
+  // and epsilon compare directly (the paper's 0.0125 and 0.05).
+  std::sort(nn.begin(), nn.end());
+  t.scale = nn.empty() || !(nn[nn.size() / 2] > 0) ? 1 : nn[nn.size() / 2];
+  for (auto& q : t.q) q /= t.scale;
+  t.min_separation /= t.scale;
+  t.metric = W / t.scale;
+  if (!c.eps_given) {
+    c.eps = 4 * *std::max_element(c.step.begin(), c.step.end());
+    c.notes.push_back(fmt::format("kernel epsilon {:.4g} = 4 grid steps (default)", c.eps));
+  }
+  t.eps = c.eps;
+  const auto t1 = std::chrono::steady_clock::now();
+  t.synthesis_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+  sampled_accuracy(tab, c, t);
   return t;
 }
 
@@ -523,29 +584,12 @@ std::string list(const std::vector<double>& v) {
   return fmt::format("{}", fmt::join(s, ", "));
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
-  const Model& m = a.model;
-  const Verdict v = applies(a);
-  if (!v.applies)
-    throw UserError(SourceLoc{m.file, 0, 0}, "method 'finite-time' does not apply: " + v.text());
-  Choices c = choose(a, o);
-  const Tables t = tabulate(m, c);
-  const std::size_t pz = c.lambda.size(), N = static_cast<std::size_t>(t.grid.rows());
-
-  ObserverSpec s;
-  s.method = "finite-time";
-  s.class_suffix = "FiniteTime";
-  s.state_size = m.n();
-  s.state_name = "xh";
-  s.state_doc = "the estimate (the filter bank and its delay line are kept separately)";
-  s.update = UpdateKind::sampled_delay;
-  s.estimate = EstimateKind::identity;
-  s.functions = model_functions(m);
-
+// The runtime's sampled-delay description (without its metric table).
+SampledDelay sampled_delay(const Choices& c) {
   SampledDelay d;
   d.sample_period = c.dt;
   d.delay_steps = c.D;
-  d.filters = pz;
+  d.filters = c.lambda.size();
   d.decay_table = "filter_decay";
   d.gain_table = "filter_gain";
   d.delay_table = "delay_decay";
@@ -561,7 +605,13 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   d.level_window_mean = c.window_mean;
   d.epsilon = c.eps;
   d.weight_power = c.power;
-  const double T = c.dt * static_cast<double>(c.D);
+  return d;
+}
+
+// The constant tables: the filter bank over one sample, the delay's decay, the kernel metric
+// and the observation maps q_k (in the order the spec lists them).
+std::vector<ConstTable> const_tables(const Choices& c, const Tables& t, double T) {
+  const std::size_t pz = c.lambda.size(), N = static_cast<std::size_t>(t.grid.rows());
   ConstTable decay{"filter_decay", {pz}, {}, "e^{lambda_i dt}: the filter bank over one sample"};
   ConstTable gain{"filter_gain", {pz}, {}, "(e^{lambda_i dt} - 1) / lambda_i: y held, b = 1"};
   ConstTable delay{"delay_decay", {pz}, {}, "e^{lambda_i T}: eta = z - e^{A T} z(t - T)"};
@@ -586,12 +636,13 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   for (std::size_t i = 0; i < pz; ++i)
     for (std::size_t j = 0; j < pz; ++j)
       metric.values.push_back(t.metric(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
-  d.metric_table = "kernel_metric";
-  s.tables = {decay, gain, delay, metric, map};
-  s.sampled_delay = d;
+  return {decay, gain, delay, metric, map};
+}
 
-  const std::size_t entries = map.values.size() + 3 * pz + pz * pz;
-  const double bound = std::max(t.level_error, t.between_error);
+// Title, description, class documentation and constants; bound is the sampled error bound.
+void describe_finite_time(ObserverSpec& s, const Choices& c, const Tables& t, double T,
+                          double bound) {
+  const std::size_t N = static_cast<std::size_t>(t.grid.rows());
   s.title = "Finite-time epsilon-T observer (Kreisselmeier-Engel filter bank, tabulated inverse)";
   s.description = {
       "Observer: finite-time epsilon-T observer (Garcia & Hernandez, seed 004, eq. 10, 15)",
@@ -609,17 +660,20 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       "with k the level of the input at this step. step() accepts only the design's sample",
       "period; until T has passed since reset() the estimate stays the reset value.",
       fmt::format("Sampled accuracy (u frozen over the window): |x - xh| <= {:.4g}.", bound)};
-  s.constants.push_back({"filter_poles",
-                         [&] {
-                           std::vector<GiNaC::numeric> q;
-                           for (double l : c.lambda) q.push_back(GiNaC::numeric(l));
-                           return q;
-                         }(),
-                         "eigenvalues of the diagonal A"});
-  auto mem = [&](std::size_t bytes) {
-    return bytes >= 1 << 20 ? fmt::format("{:.2f} MiB", static_cast<double>(bytes) / (1 << 20))
-                            : fmt::format("{:.1f} KiB", static_cast<double>(bytes) / 1024);
-  };
+  std::vector<GiNaC::numeric> poles;
+  for (double l : c.lambda) poles.push_back(GiNaC::numeric(l));
+  s.constants.push_back({"filter_poles", poles, "eigenvalues of the diagonal A"});
+}
+
+std::string memory_text(std::size_t bytes) {
+  return bytes >= 1 << 20 ? fmt::format("{:.2f} MiB", static_cast<double>(bytes) / (1 << 20))
+                          : fmt::format("{:.1f} KiB", static_cast<double>(bytes) / 1024);
+}
+
+// The report rows (with the notes on defaults) and the summary.
+void report_finite_time(ObserverSpec& s, const Model& m, const Choices& c, const Tables& t,
+                        double T, double bound, std::size_t entries) {
+  const std::size_t pz = c.lambda.size(), N = static_cast<std::size_t>(t.grid.rows());
   s.report = {
       {"window T",
        fmt::format("{:g} ({} samples of {:g}; --window, --sample-period)", T, c.D, c.dt)},
@@ -638,10 +692,10 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       {"kernel", fmt::format("epsilon {:.6g}, weight power {} ({})", c.eps, c.power,
                              c.power == 1 ? "eq. 15" : "eq. 13 form")},
       {"table memory (flash)", fmt::format("{} entries: {} as float, {} as double", entries,
-                                           mem(entries * 4), mem(entries * 8))},
+                                           memory_text(entries * 4), memory_text(entries * 8))},
       {"delay line memory (RAM)",
        fmt::format("{} x {} entries: {} as float, {} as double", c.D + 1, pz,
-                   mem((c.D + 1) * pz * 4), mem((c.D + 1) * pz * 8))},
+                   memory_text((c.D + 1) * pz * 4), memory_text((c.D + 1) * pz * 8))},
       {"work per step", fmt::format("{} kernel terms of {} filters", N, pz)},
       {"injectivity (sampled)",
        fmt::format("min |q(x_i) - q(x_j)| / |x_i - x_j| over grid neighbours = {:.3g} at x = "
@@ -661,6 +715,38 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       "finite-time epsilon-T observer: T = {:g}, {} filters, {} grid points x {} input levels, "
       "sampled error bound {:.4g}",
       T, pz, N, c.levels, bound);
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  const Verdict v = applies(a);
+  if (!v.applies)
+    throw UserError(SourceLoc{m.file, 0, 0}, "method 'finite-time' does not apply: " + v.text());
+  Choices c = choose(a, o);
+  const Tables t = tabulate(m, c);
+  const std::size_t pz = c.lambda.size();
+
+  ObserverSpec s;
+  s.method = "finite-time";
+  s.class_suffix = "FiniteTime";
+  s.state_size = m.n();
+  s.state_name = "xh";
+  s.state_doc = "the estimate (the filter bank and its delay line are kept separately)";
+  s.update = UpdateKind::sampled_delay;
+  s.estimate = EstimateKind::identity;
+  s.functions = model_functions(m);
+
+  SampledDelay d = sampled_delay(c);
+  const double T = c.dt * static_cast<double>(c.D);
+  d.metric_table = "kernel_metric";
+  s.tables = const_tables(c, t, T);
+  s.sampled_delay = d;
+
+  // The map table is the last one.
+  const std::size_t entries = s.tables.back().values.size() + 3 * pz + pz * pz;
+  const double bound = std::max(t.level_error, t.between_error);
+  describe_finite_time(s, c, t, T, bound);
+  report_finite_time(s, m, c, t, T, bound, entries);
   return s;
 }
 

@@ -303,33 +303,30 @@ GeneratedFunction fn(const std::string& name, const std::string& doc, std::vecto
   return f;
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
-  const Model& m = a.model;
-  const HighGainStructure st = high_gain_structure(m);
-  if (!st.failures.empty())
-    throw UserError(SourceLoc{m.file, 0, 0}, fmt::format("method 'high-gain' does not apply: {}",
-                                                         fmt::join(st.failures, "; ")));
-  const std::size_t n = m.n();
-  const std::vector<numeric> poles = chosen_poles(o, n);
-  const std::vector<numeric> K = high_gain_K(poles);
-  const numeric theta = chosen_theta(o);
+// The gain chosen: poles of A - K C, K, theta and the gain Delta_theta K applied.
+struct GainChoice {
+  std::vector<numeric> poles, K;
+  numeric theta;
   std::vector<numeric> gain;  // Delta_theta K
+};
+
+GainChoice choose_gain(const DesignOptions& o, std::size_t n) {
+  GainChoice g;
+  g.poles = chosen_poles(o, n);
+  g.K = high_gain_K(g.poles);
+  g.theta = chosen_theta(o);
   numeric th = 1;
   for (std::size_t i = 0; i < n; ++i) {
-    th *= theta;
-    gain.push_back(th * K[i]);
+    th *= g.theta;
+    g.gain.push_back(th * g.K[i]);
   }
-  const Certificate cert = certify(m, st, K);
-  const std::string where_singular = singular_set(m, st);
+  return g;
+}
 
-  ObserverSpec s;
-  s.method = "high-gain";
-  s.class_suffix = "HighGain";
-  s.state_size = n;
-  s.state_name = "xh";
-  s.state_doc = "the estimate itself";
-  s.params = runtime_params(m);
-  s.functions = model_functions(m);
+// The generated functions (rhs, O(xh), gain vector), their roles and the LU-solved correction.
+void add_hg_functions(ObserverSpec& s, const Model& m, const HighGainStructure& st,
+                      const GainChoice& g, const std::string& where_singular) {
+  const std::size_t n = m.n();
   const FunctionArg w =
       vector_arg("w", "ObserverState", m.states, FunctionArg::Kind::observer_state);
   const GiNaC::symbol y("y");
@@ -346,7 +343,7 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
          "O(xh) = d(h, L_f h, ..., L_f^{n-1} h)/dx, the matrix of the gain solve.", {w, u}, Ocol, n,
          "GainMatrix"));
   ExVec v;
-  for (std::size_t i = 0; i < n; ++i) v.push_back(gain[i] * (y - m.h[0]));
+  for (std::size_t i = 0; i < n; ++i) v.push_back(g.gain[i] * (y - m.h[0]));
   s.functions.push_back(fn("gain_vector", "Delta_theta K (y - h(xh)), solved with O(xh).",
                            {w, u, yarg}, v, 1, "GainVector"));
   s.init = InitKind::identity;
@@ -361,72 +358,125 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   corr.dim = n;
   corr.singular_doc = "O(xh) is singular " + where_singular;
   s.correction = corr;
+}
 
-  // Only a rigorous L gives a guarantee; a sampled L is an estimate from below of the true one.
-  const bool above = theta.to_double() > cert.theta_star;
-  const bool guaranteed = above && cert.rigorous;
-  const std::string kind = cert.unbounded ? "unbounded" : cert.rigorous ? "rigorous" : "sampled";
+// What the certificate says of convergence for this theta. Only a rigorous L gives a
+// guarantee; a sampled L is an estimate from below of the true one.
+struct Convergence {
+  bool above = false, guaranteed = false;
+  std::string kind;  // of L: unbounded, rigorous or sampled
+};
+
+Convergence convergence(const GainChoice& g, const Certificate& cert) {
+  Convergence c;
+  c.above = g.theta.to_double() > cert.theta_star;
+  c.guaranteed = c.above && cert.rigorous;
+  c.kind = cert.unbounded ? "unbounded" : cert.rigorous ? "rigorous" : "sampled";
+  return c;
+}
+
+// Title, description, class documentation and constants.
+void describe_hg(ObserverSpec& s, const GainChoice& g, const Certificate& cert,
+                 const Convergence& c, const std::string& where_singular) {
   s.title = "High-gain observer (Gauthier-Hammouri-Kupka), realised in the original coordinates";
   s.description = {
       "Observer: high-gain observer (Gauthier-Hammouri-Kupka; seed 002 eq. 3)",
       fmt::format("theta = {}; poles of A - K C: {}; K = [{}]; Delta_theta K = [{}]",
-                  to_string(theta), numbers_text(poles), numbers_text(K), numbers_text(gain)),
+                  to_string(g.theta), numbers_text(g.poles), numbers_text(g.K),
+                  numbers_text(g.gain)),
       "Gain applied by an LU solve with O(xh); O singular -> Status::singular, " + where_singular,
       fmt::format("Lipschitz constant of phi in z: L = {} ({}); theta* = {}: convergence {}",
-                  up6(cert.L), kind, up6(cert.theta_star),
-                  guaranteed ? "guaranteed"
-                  : above    ? "not proven (sampled L)"
-                             : "not guaranteed")};
+                  up6(cert.L), c.kind, up6(cert.theta_star),
+                  c.guaranteed ? "guaranteed"
+                  : c.above    ? "not proven (sampled L)"
+                               : "not guaranteed")};
   s.class_doc = {"  xh' = f(xh) + g(xh, u) + O(xh)^-1 Delta_theta K (y - h(xh))",
                  "with O = d(h, L_f h, ..., L_f^{n-1} h)/dx and Delta_theta = diag(theta, ..., "
                  "theta^n); in z = (h, L_f h, ...) this is the",
                  "observer zh' = A zh + phi(zh, u) + Delta_theta K (y - zh_1). A step where O(xh) "
                  "is singular returns Status::singular."};
-  s.constants.push_back({"theta", {theta}, "high-gain parameter"});
+  s.constants.push_back({"theta", {g.theta}, "high-gain parameter"});
   s.constants.push_back(
-      {"poles", poles, "poles of A - K C (the error poles are theta times these)"});
+      {"poles", g.poles, "poles of A - K C (the error poles are theta times these)"});
   s.constants.push_back(
-      {"K", K, "gain of the unscaled error system, char(A - K C) = prod (s - pole)"});
-  s.constants.push_back({"gain", gain, "Delta_theta K"});
+      {"K", g.K, "gain of the unscaled error system, char(A - K C) = prod (s - pole)"});
+  s.constants.push_back({"gain", g.gain, "Delta_theta K"});
+}
+
+// The "convergence" report row.
+std::string convergence_text(const GainChoice& g, const Certificate& cert, const Convergence& c) {
+  if (cert.unbounded)
+    return "not guaranteed: the triangular nonlinearity has no finite Lipschitz bound on the "
+           "domain box (see the bounds above)";
+  if (c.above && !cert.rigorous)
+    return fmt::format(
+        "not proven: theta = {} > theta* = {}, but L is sampled (an estimate, not an upper "
+        "bound)",
+        to_string(g.theta), up6(cert.theta_star));
+  if (c.guaranteed)
+    return fmt::format(
+        "guaranteed: theta = {} > theta* = {} (while xh and x stay in the domain box, where L "
+        "holds)",
+        to_string(g.theta), up6(cert.theta_star));
+  return fmt::format(
+      "not guaranteed by the theorem: theta = {} <= theta* = {} (short by {}); raise --theta",
+      to_string(g.theta), up6(cert.theta_star), up6(cert.theta_star - g.theta.to_double()));
+}
+
+// The report rows and the summary.
+void report_hg(ObserverSpec& s, const HighGainStructure& st, const GainChoice& g,
+               const Certificate& cert, const Convergence& c, const std::string& where_singular,
+               const DesignOptions& o) {
   s.report = {
       {"coordinates", "z = (h, L_f h, ..., L_f^{n-1} h), output first (seed 002 convention)"},
-      {"theta", to_string(theta) + (o.find("theta") ? "" : " (default)")},
-      {"poles", numbers_text(poles) + (o.find("poles") ? "" : " (default)")},
-      {"K", numbers_text(K)},
-      {"Delta_theta K", numbers_text(gain)},
+      {"theta", to_string(g.theta) + (o.find("theta") ? "" : " (default)")},
+      {"poles", numbers_text(g.poles) + (o.find("poles") ? "" : " (default)")},
+      {"K", numbers_text(g.K)},
+      {"Delta_theta K", numbers_text(g.gain)},
       {"det O", to_string(st.det)},
       {"O singular", where_singular},
       {"phi (in x)", fmt::format("[{}]", fmt::join(to_strings(st.phi), ", "))},
       {"Lipschitz bounds", fmt::format("{}", fmt::join(cert.entries, "; "))},
       {"Lipschitz constant L",
-       fmt::format("{} ({}; spectral norm of the entry bounds, rounded up)", up6(cert.L), kind)},
+       fmt::format("{} ({}; spectral norm of the entry bounds, rounded up)", up6(cert.L), c.kind)},
       {"lambda_max(P)",
        fmt::format("{} (P: (A - K C)^T P + P (A - K C) = -I; rounded up)", up6(cert.lambda_P))},
-      {"theta*",
-       fmt::format("{} = max(1, 2 lambda_max(P) L) ({}, rounded up)", up6(cert.theta_star), kind)},
-      {"convergence",
-       cert.unbounded ? std::string("not guaranteed: the triangular nonlinearity has no finite "
-                                    "Lipschitz bound on the domain box (see the bounds above)")
-       : above && !cert.rigorous
-           ? fmt::format("not proven: theta = {} > theta* = {}, but L is sampled (an estimate, "
-                         "not an upper bound)",
-                         to_string(theta), up6(cert.theta_star))
-       : guaranteed
-           ? fmt::format("guaranteed: theta = {} > theta* = {} (while xh and x stay in the "
-                         "domain box, where L holds)",
-                         to_string(theta), up6(cert.theta_star))
-           : fmt::format("not guaranteed by the theorem: theta = {} <= theta* = {} (short "
-                         "by {}); raise --theta",
-                         to_string(theta), up6(cert.theta_star),
-                         up6(cert.theta_star - theta.to_double()))}};
+      {"theta*", fmt::format("{} = max(1, 2 lambda_max(P) L) ({}, rounded up)",
+                             up6(cert.theta_star), c.kind)},
+      {"convergence", convergence_text(g, cert, c)}};
   s.summary = fmt::format(
       "high-gain observer, theta = {}, poles {} (scaled by theta), gain Delta_theta K = [{}]; L = "
       "{} ({}), theta* = {}: convergence {}",
-      to_string(theta), numbers_text(poles), numbers_text(gain), up6(cert.L), kind,
+      to_string(g.theta), numbers_text(g.poles), numbers_text(g.gain), up6(cert.L), c.kind,
       up6(cert.theta_star),
-      guaranteed ? "guaranteed"
-      : above    ? "not proven"
-                 : "not guaranteed");
+      c.guaranteed ? "guaranteed"
+      : c.above    ? "not proven"
+                   : "not guaranteed");
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  const HighGainStructure st = high_gain_structure(m);
+  if (!st.failures.empty())
+    throw UserError(SourceLoc{m.file, 0, 0}, fmt::format("method 'high-gain' does not apply: {}",
+                                                         fmt::join(st.failures, "; ")));
+  const std::size_t n = m.n();
+  const GainChoice g = choose_gain(o, n);
+  const Certificate cert = certify(m, st, g.K);
+  const std::string where_singular = singular_set(m, st);
+
+  ObserverSpec s;
+  s.method = "high-gain";
+  s.class_suffix = "HighGain";
+  s.state_size = n;
+  s.state_name = "xh";
+  s.state_doc = "the estimate itself";
+  s.params = runtime_params(m);
+  s.functions = model_functions(m);
+  add_hg_functions(s, m, st, g, where_singular);
+  const Convergence c = convergence(g, cert);
+  describe_hg(s, g, cert, c, where_singular);
+  report_hg(s, st, g, cert, c, where_singular, o);
   return s;
 }
 

@@ -83,6 +83,120 @@ std::vector<std::vector<numeric>> chosen_S0(const DesignOptions& o, std::size_t 
   return S;
 }
 
+using ExMatrix = std::vector<std::vector<ex>>;
+
+// The observer state w = (zh, S packed): the states (zh = xh in these coordinates), then
+// S_r_c (r <= c), created in that order (it fixes GiNaC's term order in the output).
+struct KtSymbols {
+  std::vector<GiNaC::symbol> w;
+  ExMatrix S;  // n x n, symmetric, entries from w
+};
+
+KtSymbols kt_symbols(const Model& m) {
+  const std::size_t n = m.n();
+  KtSymbols sym;
+  sym.w.assign(m.states.begin(), m.states.end());
+  sym.S.assign(n, std::vector<ex>(n));
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = r; c < n; ++c) {
+      GiNaC::symbol q(fmt::format("S_{}_{}", r + 1, c + 1));
+      sym.w.push_back(q);
+      sym.S[r][c] = sym.S[c][r] = q;
+    }
+  return sym;
+}
+
+// zh' = A(u) zh + phi(u, zh) (= F(zh, u)), then S' = -theta S - A^T S - S A + C^T C packed.
+ExVec kt_rhs(const Model& m, const TriangularInX& form, const ExMatrix& S, const numeric& theta) {
+  const std::size_t n = m.n();
+  ExMatrix A(n, std::vector<ex>(n, 0));
+  for (std::size_t i = 0; i + 1 < n; ++i) A[i][i + 1] = form.a[i];
+  ExVec rhs = m.field();
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = r; c < n; ++c) {
+      ex acc = -theta * S[r][c] + (r == 0 && c == 0 ? 1 : 0);
+      for (std::size_t k = 0; k < n; ++k) acc -= A[k][r] * S[k][c] + S[r][k] * A[k][c];
+      rhs.push_back(acc);
+    }
+  return rhs;
+}
+
+// The generated functions (rhs, gain vector, init, estimate) and their roles.
+void add_kt_functions(ObserverSpec& s, const Model& m, const KtSymbols& sym, const ExVec& rhs,
+                      const std::vector<numeric>& S0packed) {
+  const GiNaC::symbol y("y");
+  const FunctionArg w = vector_arg("w", "ObserverState", sym.w, FunctionArg::Kind::observer_state);
+  const FunctionArg u = input_arg(m), yarg = output_arg({y});
+  s.functions.push_back(
+      make_function("kt_rhs",
+                    "zh' = A(u) zh + phi(u, zh); S' = -theta S - A(u)^T S - S A(u) + C^T C "
+                    "(packed); the gain is added by a Cholesky solve with S.",
+                    {w, u, yarg}, rhs, "ObserverState"));
+  ExVec v(m.n(), 0);
+  v[0] = y - m.states[0];  // -C^T (C zh - y)
+  s.functions.push_back(make_function("kt_gain_vector", "-C^T (C zh - y), solved with S.",
+                                      {w, u, yarg}, v, "GainVector"));
+  ExVec init(m.states.begin(), m.states.end());
+  init.insert(init.end(), S0packed.begin(), S0packed.end());
+  s.functions.push_back(
+      make_function("kt_init", "w = (xh0, S0 packed).", {state_arg(m)}, init, "ObserverState"));
+  ExVec est(m.states.begin(), m.states.end());
+  s.functions.push_back(
+      make_function("kt_estimate", "xh = zh (the first n entries of w).", {w}, est, "State"));
+  s.init = InitKind::function;
+  s.roles.init = "kt_init";
+  s.update = UpdateKind::ode;
+  s.roles.rhs = "kt_rhs";
+  s.estimate = EstimateKind::function;
+  s.roles.estimate = "kt_estimate";
+}
+
+// The gain S^-1 C^T (y - C zh), added to zh' by a Cholesky solve with the block S.
+SolveCorrection kt_correction(std::size_t n) {
+  SolveCorrection corr;
+  corr.factor = SolveCorrection::Factor::cholesky;
+  corr.matrix_block = "S";
+  corr.vector_function = "kt_gain_vector";
+  corr.target_offset = 0;
+  corr.dim = n;
+  corr.singular_doc =
+      "S is not positive definite (it stays so in exact arithmetic; loss is numerical, e.g. a "
+      "non-persistent input over a long time)";
+  return corr;
+}
+
+// Title, description, class documentation, constants, report rows and summary.
+void describe_kt(ObserverSpec& s, const Model& m, const TriangularInX& form, const numeric& theta,
+                 const std::vector<numeric>& S0packed, const DesignOptions& o) {
+  std::vector<std::string> as;
+  for (const auto& e : form.a) as.push_back(to_string(e));
+  s.title = "Kalman-like theta observer (Dufour-Flila-Hammouri)";
+  s.description = {"Observer: Kalman-like theta observer (seed 002 eq. 7/10)",
+                   fmt::format("Form in x: a(u) = [{}], y = {}; theta = {}; S0 (packed) = [{}]",
+                               fmt::join(as, ", "), m.states[0].get_name(), to_string(theta),
+                               numbers_text(S0packed)),
+                   "Gain S^-1 C^T (y - C zh) by a Cholesky solve; S not positive definite -> "
+                   "Status::singular"};
+  s.class_doc = {"  zh' = A(u) zh + phi(u, zh) - S^-1 C^T (C zh - y)",
+                 "  S'  = -theta S - A(u)^T S - S A(u) + C^T C",
+                 "Converges for strongly persistent inputs (seed 002, Theorem)."};
+  s.constants.push_back({"theta", {theta}, "forgetting rate of S"});
+  s.constants.push_back({"S0", S0packed, "initial S, packed upper triangle"});
+  s.report = {
+      {"form", fmt::format("z = x, a(u) = [{}], phi = [{}], C = e_1", fmt::join(as, ", "),
+                           fmt::join(to_strings(form.phi), ", "))},
+      {"theta", to_string(theta) + (o.find("theta") ? "" : " (default)")},
+      {"S0 (packed)", numbers_text(S0packed) + (o.find("S0") ? "" : " (default: identity)")},
+      {"gain", "S^-1 C^T (y - C zh), Cholesky solve with S"},
+      {"convergence",
+       "for strongly persistent inputs (seed 002's Theorem, phi globally Lipschitz in z); check "
+       "an input with `obsynth check model.sym --input \"...\" --horizon T`"}};
+  s.summary = fmt::format(
+      "Kalman-like theta observer, theta = {}, S0 = [{}] (packed); converges for strongly "
+      "persistent inputs",
+      to_string(theta), numbers_text(S0packed));
+}
+
 ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Model& m = a.model;
   std::string why;
@@ -95,6 +209,9 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const std::size_t n = m.n();
   const numeric theta = chosen_theta(o);
   const auto S0 = chosen_S0(o, n);
+  std::vector<numeric> S0packed;
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = r; c < n; ++c) S0packed.push_back(S0[r][c]);
 
   ObserverSpec s;
   s.method = "kalman-theta";
@@ -111,93 +228,10 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.params = runtime_params(m);
   s.functions = model_functions(m);
 
-  // w symbols: the states (zh = xh in these coordinates), then S_r_c (r <= c).
-  std::vector<GiNaC::symbol> wsyms(m.states.begin(), m.states.end());
-  std::vector<std::vector<ex>> S(n, std::vector<ex>(n));
-  for (std::size_t r = 0; r < n; ++r)
-    for (std::size_t c = r; c < n; ++c) {
-      GiNaC::symbol sym(fmt::format("S_{}_{}", r + 1, c + 1));
-      wsyms.push_back(sym);
-      S[r][c] = S[c][r] = sym;
-    }
-  // A(u)
-  std::vector<std::vector<ex>> A(n, std::vector<ex>(n, 0));
-  for (std::size_t i = 0; i + 1 < n; ++i) A[i][i + 1] = form->a[i];
-  // rhs: zh' = A(u) zh + phi(u, zh) (= F(zh, u)); S' packed.
-  ExVec rhs = m.field();
-  for (std::size_t r = 0; r < n; ++r)
-    for (std::size_t c = r; c < n; ++c) {
-      ex acc = -theta * S[r][c] + (r == 0 && c == 0 ? 1 : 0);
-      for (std::size_t k = 0; k < n; ++k) acc -= A[k][r] * S[k][c] + S[r][k] * A[k][c];
-      rhs.push_back(acc);
-    }
-  const GiNaC::symbol y("y");
-  const FunctionArg w = vector_arg("w", "ObserverState", wsyms, FunctionArg::Kind::observer_state);
-  const FunctionArg u = input_arg(m), yarg = output_arg({y});
-  s.functions.push_back(
-      make_function("kt_rhs",
-                    "zh' = A(u) zh + phi(u, zh); S' = -theta S - A(u)^T S - S A(u) + C^T C "
-                    "(packed); the gain is added by a Cholesky solve with S.",
-                    {w, u, yarg}, rhs, "ObserverState"));
-  ExVec v(n, 0);
-  v[0] = y - m.states[0];  // -C^T (C zh - y)
-  s.functions.push_back(make_function("kt_gain_vector", "-C^T (C zh - y), solved with S.",
-                                      {w, u, yarg}, v, "GainVector"));
-  ExVec init(m.states.begin(), m.states.end());
-  for (std::size_t r = 0; r < n; ++r)
-    for (std::size_t c = r; c < n; ++c) init.push_back(S0[r][c]);
-  s.functions.push_back(
-      make_function("kt_init", "w = (xh0, S0 packed).", {state_arg(m)}, init, "ObserverState"));
-  ExVec est(m.states.begin(), m.states.end());
-  s.functions.push_back(
-      make_function("kt_estimate", "xh = zh (the first n entries of w).", {w}, est, "State"));
-  s.init = InitKind::function;
-  s.roles.init = "kt_init";
-  s.update = UpdateKind::ode;
-  s.roles.rhs = "kt_rhs";
-  s.estimate = EstimateKind::function;
-  s.roles.estimate = "kt_estimate";
-  SolveCorrection corr;
-  corr.factor = SolveCorrection::Factor::cholesky;
-  corr.matrix_block = "S";
-  corr.vector_function = "kt_gain_vector";
-  corr.target_offset = 0;
-  corr.dim = n;
-  corr.singular_doc =
-      "S is not positive definite (it stays so in exact arithmetic; loss is numerical, e.g. a "
-      "non-persistent input over a long time)";
-  s.correction = corr;
-
-  std::vector<std::string> as;
-  for (const auto& e : form->a) as.push_back(to_string(e));
-  std::vector<numeric> S0packed;
-  for (std::size_t r = 0; r < n; ++r)
-    for (std::size_t c = r; c < n; ++c) S0packed.push_back(S0[r][c]);
-  s.title = "Kalman-like theta observer (Dufour-Flila-Hammouri)";
-  s.description = {"Observer: Kalman-like theta observer (seed 002 eq. 7/10)",
-                   fmt::format("Form in x: a(u) = [{}], y = {}; theta = {}; S0 (packed) = [{}]",
-                               fmt::join(as, ", "), m.states[0].get_name(), to_string(theta),
-                               numbers_text(S0packed)),
-                   "Gain S^-1 C^T (y - C zh) by a Cholesky solve; S not positive definite -> "
-                   "Status::singular"};
-  s.class_doc = {"  zh' = A(u) zh + phi(u, zh) - S^-1 C^T (C zh - y)",
-                 "  S'  = -theta S - A(u)^T S - S A(u) + C^T C",
-                 "Converges for strongly persistent inputs (seed 002, Theorem)."};
-  s.constants.push_back({"theta", {theta}, "forgetting rate of S"});
-  s.constants.push_back({"S0", S0packed, "initial S, packed upper triangle"});
-  s.report = {
-      {"form", fmt::format("z = x, a(u) = [{}], phi = [{}], C = e_1", fmt::join(as, ", "),
-                           fmt::join(to_strings(form->phi), ", "))},
-      {"theta", to_string(theta) + (o.find("theta") ? "" : " (default)")},
-      {"S0 (packed)", numbers_text(S0packed) + (o.find("S0") ? "" : " (default: identity)")},
-      {"gain", "S^-1 C^T (y - C zh), Cholesky solve with S"},
-      {"convergence",
-       "for strongly persistent inputs (seed 002's Theorem, phi globally Lipschitz in z); check "
-       "an input with `obsynth check model.sym --input \"...\" --horizon T`"}};
-  s.summary = fmt::format(
-      "Kalman-like theta observer, theta = {}, S0 = [{}] (packed); converges for strongly "
-      "persistent inputs",
-      to_string(theta), numbers_text(S0packed));
+  const KtSymbols sym = kt_symbols(m);
+  add_kt_functions(s, m, sym, kt_rhs(m, *form, sym.S, theta), S0packed);
+  s.correction = kt_correction(n);
+  describe_kt(s, m, *form, theta, S0packed, o);
   return s;
 }
 

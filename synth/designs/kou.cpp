@@ -197,22 +197,265 @@ GiNaC::matrix symmetric_part(const Model& m, const GiNaC::matrix& L, const GiNaC
 
 constexpr std::size_t kMaxSearchStates = 4;
 
-Result design(const Model& m, const DesignOptions& o) {
-  Result r;
-  const std::size_t n = m.n(), p = m.p();
-  r.n = n;
-  r.p = p;
-  r.box = certify::model_box(m);
-  const auto uL = matrix_option(o, "kou-gain", n, p, false);
-  const auto uP = matrix_option(o, "kou-p", n, n, true);
-  r.user_L = uL.has_value();
-  r.user_P = uP.has_value();
+struct Candidate {
+  Mat L, P;
+  double score = std::numeric_limits<double>::infinity();
+  std::string origin;
+};
+
+// The expansion point of the linearisation: the origin in the states and inputs when the box
+// holds it, else the box's centre (parameters always at their centre).
+std::vector<double> expansion_point(const Model& m, const certify::Box& box) {
+  std::vector<double> star;
+  for (std::size_t k = 0; k < box.vars.size(); ++k) {
+    const auto& rg = box.ranges[k];
+    bool is_param = true;
+    for (const auto& x : m.states) is_param = is_param && !box.vars[k].is_equal(x);
+    for (const auto& u : m.inputs) is_param = is_param && !box.vars[k].is_equal(u);
+    star.push_back(!is_param && rg.lo <= 0 && 0 <= rg.hi ? 0.0 : (rg.lo + rg.hi) / 2);
+  }
+  return star;
+}
+
+// One search-and-certify run of design(): the user's L and P where given, the Jacobians at
+// the search samples and the best candidate so far; the methods are its stages, in order.
+class KouSearch {
+ public:
+  KouSearch(const Model& m, Result& r, std::optional<Mat> uL, std::optional<Mat> uP)
+      : m_(m), r_(r), n_(m.n()), p_(m.p()), uL_(std::move(uL)), uP_(std::move(uP)) {
+    for (const auto& rg : r_.box.ranges) ranges_.emplace_back(rg.lo, rg.hi);
+    points_ = box_samples(ranges_, kSearchSamples);
+    jac_ = evaluate(m_, r_.box, points_);
+  }
+  void seed();
+  void refine();
+  bool finite() const { return std::isfinite(best_.score); }
+  const std::string& best_origin() const { return best_.origin; }
+  bool make_exact(const DesignOptions& o);
+  void certify_exact();
+  void add_counterexamples(int round);
+
+ private:
+  void consider(const Mat& L, const Mat& P, const std::string& origin);
+  std::optional<Mat> lyapunov_P(const Mat& L, const Mat& A0, const Mat& C0) const;
+  std::vector<Mat> gain_candidates(const Mat& A0, const Mat& C0) const;
+  std::vector<double> pack(const Candidate& c) const;
+  void unpack(const std::vector<double>& w, std::size_t nl, Mat& L, Mat& P) const;
+  Candidate nelder_mead_from(
+      const std::vector<double>& from, std::size_t nl, double scale,
+      const std::function<double(const Mat&, const Mat&, double)>& objective);
+
+  const Model& m_;
+  Result& r_;
+  const std::size_t n_, p_;
+  const std::optional<Mat> uL_, uP_;
+  std::vector<std::pair<double, double>> ranges_;
+  std::vector<std::vector<double>> points_;  // the search samples and counterexamples
+  Jacobians jac_;
+  Candidate best_;
+};
+
+void KouSearch::consider(const Mat& L, const Mat& P, const std::string& origin) {
+  ++r_.tried;
+  const double s = score(jac_, L, P);
+  if (s < best_.score) best_ = {L, P, s, origin};
+}
+
+// P solving the linearisation's Lyapunov equation for L, normalised to sigma_max(P) = 1.
+std::optional<Mat> KouSearch::lyapunov_P(const Mat& L, const Mat& A0, const Mat& C0) const {
+  const auto P =
+      solve_lyapunov(A0 + L * C0, Mat::Identity(static_cast<Idx>(n_), static_cast<Idx>(n_)));
+  if (!P || Eigen::SelfAdjointEigenSolver<Mat>(*P).eigenvalues()(0) <= 0) return std::nullopt;
+  return Mat(*P / Eigen::SelfAdjointEigenSolver<Mat>(*P).eigenvalues()(static_cast<Idx>(n_) - 1));
+}
+
+// The given L, or L = 0 and one pole placement per output and pole set of the linearisation.
+std::vector<Mat> KouSearch::gain_candidates(const Mat& A0, const Mat& C0) const {
+  std::vector<Mat> out;
+  if (uL_) return {*uL_};
+  out.push_back(Mat::Zero(static_cast<Idx>(n_), static_cast<Idx>(p_)));
+  for (std::size_t i = 0; i < p_; ++i)
+    for (const auto& poles : candidate_pole_sets(n_)) {
+      if (-*std::min_element(poles.begin(), poles.end()) > kMaxPole) continue;
+      const auto l = place_poles(A0, C0.row(static_cast<Idx>(i)), poles);
+      if (!l) continue;
+      Mat L = Mat::Zero(static_cast<Idx>(n_), static_cast<Idx>(p_));
+      L.col(static_cast<Idx>(i)) = *l;
+      out.push_back(L);
+    }
+  return out;
+}
+
+// The first candidates, from the linearisation at the expansion point: each L with the given
+// P, or with P = I and the Lyapunov P.
+void KouSearch::seed() {
+  const Jacobians lin = evaluate(m_, r_.box, {expansion_point(m_, r_.box)});
+  const Mat& A0 = lin.J[0];
+  const Mat& C0 = lin.H[0];
+  const Mat I = Mat::Identity(static_cast<Idx>(n_), static_cast<Idx>(n_));
+  for (const auto& L : gain_candidates(A0, C0)) {
+    if (uP_) {
+      consider(L, *uP_, "");
+      continue;
+    }
+    consider(L, I, "P = I");
+    if (const auto P = lyapunov_P(L, A0, C0))
+      consider(L, *P, "P from the Lyapunov equation of the linearisation");
+  }
+}
+
+// The free entries Nelder-Mead varies: L row-major unless given, then P's Cholesky factor
+// unless given.
+std::vector<double> KouSearch::pack(const Candidate& c) const {
+  std::vector<double> w;
+  if (!uL_)
+    for (Idx i = 0; i < c.L.rows(); ++i)
+      for (Idx j = 0; j < c.L.cols(); ++j) w.push_back(c.L(i, j));
+  if (!uP_) push_factor(c.P, w);
+  return w;
+}
+
+// The inverse of pack; nl is the number of L entries in w.
+void KouSearch::unpack(const std::vector<double>& w, std::size_t nl, Mat& L, Mat& P) const {
+  L = uL_ ? *uL_ : Mat(static_cast<Idx>(n_), static_cast<Idx>(p_));
+  if (!uL_)
+    for (std::size_t k = 0; k < nl; ++k)
+      L(static_cast<Idx>(k / p_), static_cast<Idx>(k % p_)) = w[k];
+  P = uP_ ? *uP_ : P_of(w, n_, nl);
+}
+
+Candidate KouSearch::nelder_mead_from(
+    const std::vector<double>& from, std::size_t nl, double scale,
+    const std::function<double(const Mat&, const Mat&, double)>& objective) {
+  const auto w = nelder_mead(
+      [&](const std::vector<double>& w) {
+        ++r_.tried;
+        Mat L, P;
+        unpack(w, nl, L, P);
+        return objective(L, P, score(jac_, L, P));
+      },
+      from, 0.1 * scale, 200 * static_cast<int>(from.size() + 1));
+  Candidate c;
+  unpack(w, nl, c.L, c.P);
+  c.score = score(jac_, c.L, c.P);
+  return c;
+}
+
+// Nelder-Mead on the free entries, in two phases; the score is capped at the decay rate
+// kRateCap, past which higher gains buy rate the certificate does not need.
+void KouSearch::refine() {
+  const std::vector<double> v = pack(best_);
+  const std::size_t nl = uL_ ? 0 : static_cast<std::size_t>(best_.L.size());
+  double scale = 1;
+  for (double x : v) scale = std::max(scale, std::fabs(x));
+  // Phase 1: the most negative sampled eigenvalue (per sigma_max(P)), capped at kRateCap.
+  Candidate c1 = nelder_mead_from(v, nl, scale, [](const Mat& L, const Mat&, double s) {
+    return std::max(s, -kRateCap) + 1e-6 * L.squaredNorm();
+  });
+  if (std::max(c1.score, -kRateCap) < std::max(best_.score, -kRateCap)) {
+    c1.origin = best_.origin;
+    if (c1.origin.find("refined") == std::string::npos)
+      c1.origin += std::string(c1.origin.empty() ? "" : ", ") + "refined by Nelder-Mead on samples";
+    best_ = c1;
+  }
+  // Phase 2, once certified on the samples: smaller gains, keeping at least half that rate.
+  if (best_.score < 0 && !uL_) {
+    const double keep = best_.score / 2;
+    Candidate c2 =
+        nelder_mead_from(pack(best_), nl, scale, [&](const Mat& L, const Mat&, double s) {
+          return s > keep ? std::numeric_limits<double>::infinity() : L.squaredNorm();
+        });
+    if (c2.score <= keep && c2.L.squaredNorm() < best_.L.squaredNorm()) {
+      c2.origin = best_.origin;
+      if (c2.origin.find("gains reduced") == std::string::npos)
+        c2.origin += std::string(c2.origin.empty() ? "" : ", ") +
+                     "gains reduced keeping half the sampled rate";
+      best_ = c2;
+    }
+  }
+}
+
+// Exact L and P: as given, or rounded (L to 1e-3, P normalised to sigma_max 1, to 1e-6).
+// False (r.not_applicable set) when the rounded P is not positive definite.
+bool KouSearch::make_exact(const DesignOptions& o) {
+  r_.L = uL_ ? exact_option(o, "kou-gain", n_, p_, false) : exact_matrix(best_.L, 1e3);
+  if (uP_) {
+    r_.P = exact_option(o, "kou-p", n_, n_, true);
+  } else {
+    const Mat Pn = best_.P / Eigen::SelfAdjointEigenSolver<Mat>(best_.P).eigenvalues()(
+                                 static_cast<Idx>(n_) - 1);
+    r_.P = exact_matrix((Pn + Pn.transpose()) / 2, 1e6);
+    for (unsigned i = 0; i < n_; ++i)
+      for (unsigned j = 0; j < i; ++j) r_.P(i, j) = r_.P(j, i);
+    // Ill-conditioned P: rounding to 1e-6 may lose definiteness; keep the doubles exactly.
+    if (Eigen::SelfAdjointEigenSolver<Mat>(to_eigen(r_.P)).eigenvalues()(0) <= 0)
+      for (unsigned i = 0; i < n_; ++i)
+        for (unsigned j = 0; j < n_; ++j) r_.P(i, j) = exact_of_double((Pn(i, j) + Pn(j, i)) / 2);
+  }
+  const Eigen::VectorXd ep = Eigen::SelfAdjointEigenSolver<Mat>(to_eigen(r_.P)).eigenvalues();
+  r_.sigma_min_P = ep(0);
+  r_.sigma_max_P = ep(ep.size() - 1);
+  if (!(r_.sigma_min_P > 0)) {
+    r_.not_applicable = "the rounded P is not positive definite";
+    return false;
+  }
+  return true;
+}
+
+// The sampled verdict on a denser set, then the enclosure (with a bigger budget when the
+// samples say it holds but the first enclosure could not prove it).
+void KouSearch::certify_exact() {
+  const auto report_points = box_samples(ranges_, kReportSamples);
+  const Jacobians dense = evaluate(m_, r_.box, report_points);
+  const Mat Ld = to_eigen(r_.L), Pd = to_eigen(r_.P);
+  std::size_t worst = 0;
+  r_.sampled_max_eig = score(dense, Ld, Pd, &worst) * r_.sigma_max_P;
+  r_.sampled_worst = report_points[worst];
+  const GiNaC::matrix S = symmetric_part(m_, r_.L, r_.P);
+  r_.verdict = certify::negative_definite(S, r_.box);
+  if (r_.verdict.kind == certify::BoundKind::sampled && r_.sampled_max_eig < 0) {
+    certify::EnclosureBudget big;
+    big.max_boxes = 1u << 15;
+    r_.verdict = certify::negative_definite(S, r_.box, big);
+  }
+  r_.holds = r_.verdict.holds;
+  r_.rigorous = r_.verdict.kind == certify::BoundKind::rigorous;
+}
+
+// The enclosure's and the samples' worst points join the search samples; the best candidate
+// is scored again on them for the next round.
+void KouSearch::add_counterexamples(int round) {
+  if (r_.verdict.worst_point.size() == r_.box.vars.size())
+    points_.push_back(r_.verdict.worst_point);
+  if (r_.sampled_max_eig >= 0) points_.push_back(r_.sampled_worst);
+  jac_ = evaluate(m_, r_.box, points_);
+  best_.score = score(jac_, best_.L, best_.P);
+  r_.rounds = round + 2;
+}
+
+// --kou-gain and --kou-p, P checked symmetric positive definite.
+std::pair<std::optional<Mat>, std::optional<Mat>> user_matrices(const DesignOptions& o,
+                                                                std::size_t n, std::size_t p) {
+  auto uL = matrix_option(o, "kou-gain", n, p, false);
+  auto uP = matrix_option(o, "kou-p", n, n, true);
   if (uP) {
     if (!uP->isApprox(uP->transpose(), 0))
       throw UserError(SourceLoc{}, "--kou-p: P must be symmetric");
     if (Eigen::SelfAdjointEigenSolver<Mat>(*uP).eigenvalues()(0) <= 0)
       throw UserError(SourceLoc{}, "--kou-p: P must be positive definite");
   }
+  return {std::move(uL), std::move(uP)};
+}
+
+Result design(const Model& m, const DesignOptions& o) {
+  Result r;
+  const std::size_t n = m.n(), p = m.p();
+  r.n = n;
+  r.p = p;
+  r.box = certify::model_box(m);
+  auto [uL, uP] = user_matrices(o, n, p);
+  r.user_L = uL.has_value();
+  r.user_P = uP.has_value();
   // The search certifies candidates by branch and bound of an n x n symmetric matrix over the
   // whole box; past kMaxSearchStates states it takes minutes (chain models, n = 5: > 60 s).
   if (!r.user_L && n > kMaxSearchStates) {
@@ -222,189 +465,27 @@ Result design(const Model& m, const DesignOptions& o) {
         n, kMaxSearchStates);
     return r;
   }
-  std::vector<std::pair<double, double>> ranges;
-  for (const auto& rg : r.box.ranges) ranges.emplace_back(rg.lo, rg.hi);
-  auto search_points = box_samples(ranges, kSearchSamples);
-  Jacobians jac = evaluate(m, r.box, search_points);
-
-  // Linearisation at the expansion point (origin when in the box, else the centre).
-  std::vector<double> star;
-  for (std::size_t k = 0; k < r.box.vars.size(); ++k) {
-    const auto& rg = r.box.ranges[k];
-    bool is_param = true;
-    for (const auto& x : m.states) is_param = is_param && !r.box.vars[k].is_equal(x);
-    for (const auto& u : m.inputs) is_param = is_param && !r.box.vars[k].is_equal(u);
-    star.push_back(!is_param && rg.lo <= 0 && 0 <= rg.hi ? 0.0 : (rg.lo + rg.hi) / 2);
-  }
-  const Jacobians lin = evaluate(m, r.box, {star});
-  const Mat& A0 = lin.J[0];
-  const Mat& C0 = lin.H[0];
-
-  struct Candidate {
-    Mat L, P;
-    double score = std::numeric_limits<double>::infinity();
-    std::string origin;
-  };
-  Candidate best;
-  auto consider = [&](const Mat& L, const Mat& P, const std::string& origin) {
-    ++r.tried;
-    const double s = score(jac, L, P);
-    if (s < best.score) best = {L, P, s, origin};
-  };
-  auto lyap_P = [&](const Mat& L) -> std::optional<Mat> {
-    const auto P =
-        solve_lyapunov(A0 + L * C0, Mat::Identity(static_cast<Idx>(n), static_cast<Idx>(n)));
-    if (!P || Eigen::SelfAdjointEigenSolver<Mat>(*P).eigenvalues()(0) <= 0) return std::nullopt;
-    return Mat(*P / Eigen::SelfAdjointEigenSolver<Mat>(*P).eigenvalues()(static_cast<Idx>(n) - 1));
-  };
-  const Mat I = Mat::Identity(static_cast<Idx>(n), static_cast<Idx>(n));
-  std::vector<Mat> L_candidates;
-  if (uL) {
-    L_candidates.push_back(*uL);
-  } else {
-    L_candidates.push_back(Mat::Zero(static_cast<Idx>(n), static_cast<Idx>(p)));
-    for (std::size_t i = 0; i < p; ++i)
-      for (const auto& poles : candidate_pole_sets(n)) {
-        if (-*std::min_element(poles.begin(), poles.end()) > kMaxPole) continue;
-        const auto l = place_poles(A0, C0.row(static_cast<Idx>(i)), poles);
-        if (!l) continue;
-        Mat L = Mat::Zero(static_cast<Idx>(n), static_cast<Idx>(p));
-        L.col(static_cast<Idx>(i)) = *l;
-        L_candidates.push_back(L);
-      }
-  }
-  for (const auto& L : L_candidates) {
-    if (uP) {
-      consider(L, *uP, "");
-      continue;
-    }
-    consider(L, I, "P = I");
-    if (const auto P = lyap_P(L))
-      consider(L, *P, "P from the Lyapunov equation of the linearisation");
-  }
-  r.origin = r.user_L && r.user_P ? "L and P given" : best.origin;
+  KouSearch search(m, r, std::move(uL), std::move(uP));
+  search.seed();
+  const bool both_given = r.user_L && r.user_P;
+  r.origin = both_given ? "L and P given" : search.best_origin();
   // Search and certify; when the enclosure refutes the candidate, its worst point joins the
   // samples and the search resumes from the candidate (up to kCertifyRounds rounds).
   for (int round = 0;; ++round) {
-    // Refinement: Nelder-Mead on the free entries, the score capped at the decay rate kRateCap.
-    if (!(r.user_L && r.user_P) && std::isfinite(best.score)) {
-      std::vector<double> v;
-      if (!uL)
-        for (Idx i = 0; i < best.L.rows(); ++i)
-          for (Idx j = 0; j < best.L.cols(); ++j) v.push_back(best.L(i, j));
-      const std::size_t nl = v.size();
-      if (!uP) push_factor(best.P, v);
-      auto unpack = [&](const std::vector<double>& w, Mat& L, Mat& P) {
-        L = uL ? *uL : Mat(static_cast<Idx>(n), static_cast<Idx>(p));
-        if (!uL)
-          for (std::size_t k = 0; k < nl; ++k)
-            L(static_cast<Idx>(k / p), static_cast<Idx>(k % p)) = w[k];
-        P = uP ? *uP : P_of(w, n, nl);
-      };
-      double scale = 1;
-      for (double x : v) scale = std::max(scale, std::fabs(x));
-      auto pack = [&](const Candidate& c) {
-        std::vector<double> w;
-        if (!uL)
-          for (Idx i = 0; i < c.L.rows(); ++i)
-            for (Idx j = 0; j < c.L.cols(); ++j) w.push_back(c.L(i, j));
-        if (!uP) push_factor(c.P, w);
-        return w;
-      };
-      auto refine = [&](const std::vector<double>& from,
-                        const std::function<double(const Mat&, const Mat&, double)>& objective) {
-        const auto w = nelder_mead(
-            [&](const std::vector<double>& w) {
-              ++r.tried;
-              Mat L, P;
-              unpack(w, L, P);
-              return objective(L, P, score(jac, L, P));
-            },
-            from, 0.1 * scale, 200 * static_cast<int>(from.size() + 1));
-        Candidate c;
-        unpack(w, c.L, c.P);
-        c.score = score(jac, c.L, c.P);
-        return c;
-      };
-      // Phase 1: the most negative sampled eigenvalue (per sigma_max(P)), capped at kRateCap.
-      Candidate c1 = refine(v, [](const Mat& L, const Mat&, double s) {
-        return std::max(s, -kRateCap) + 1e-6 * L.squaredNorm();
-      });
-      if (std::max(c1.score, -kRateCap) < std::max(best.score, -kRateCap)) {
-        c1.origin = best.origin;
-        if (c1.origin.find("refined") == std::string::npos)
-          c1.origin +=
-              std::string(c1.origin.empty() ? "" : ", ") + "refined by Nelder-Mead on samples";
-        best = c1;
-      }
-      // Phase 2, once certified on the samples: smaller gains, keeping at least half that rate.
-      if (best.score < 0 && !uL) {
-        const double keep = best.score / 2;
-        Candidate c2 = refine(pack(best), [&](const Mat& L, const Mat&, double s) {
-          return s > keep ? std::numeric_limits<double>::infinity() : L.squaredNorm();
-        });
-        if (c2.score <= keep && c2.L.squaredNorm() < best.L.squaredNorm()) {
-          c2.origin = best.origin;
-          if (c2.origin.find("gains reduced") == std::string::npos)
-            c2.origin += std::string(c2.origin.empty() ? "" : ", ") +
-                         "gains reduced keeping half the sampled rate";
-          best = c2;
-        }
-      }
-      r.origin = best.origin;
+    if (!both_given && search.finite()) {
+      search.refine();
+      r.origin = search.best_origin();
     }
-    if (!std::isfinite(best.score)) {
+    if (!search.finite()) {
       r.not_applicable = "no L, P candidate could be evaluated on the domain samples";
       return r;
     }
     if (r.origin.empty()) r.origin = r.user_L ? "L given, P searched" : "P given, L searched";
-    // Exact L and P: as given, or rounded (L to 1e-3, P normalised to sigma_max 1, to 1e-6).
-    r.L = uL ? exact_option(o, "kou-gain", n, p, false) : exact_matrix(best.L, 1e3);
-    if (uP) {
-      r.P = exact_option(o, "kou-p", n, n, true);
-    } else {
-      const Mat Pn = best.P / Eigen::SelfAdjointEigenSolver<Mat>(best.P).eigenvalues()(
-                                  static_cast<Idx>(n) - 1);
-      r.P = exact_matrix((Pn + Pn.transpose()) / 2, 1e6);
-      for (unsigned i = 0; i < n; ++i)
-        for (unsigned j = 0; j < i; ++j) r.P(i, j) = r.P(j, i);
-      // Ill-conditioned P: rounding to 1e-6 may lose definiteness; keep the doubles exactly.
-      if (Eigen::SelfAdjointEigenSolver<Mat>(to_eigen(r.P)).eigenvalues()(0) <= 0)
-        for (unsigned i = 0; i < n; ++i)
-          for (unsigned j = 0; j < n; ++j) r.P(i, j) = exact_of_double((Pn(i, j) + Pn(j, i)) / 2);
-    }
-    const Eigen::VectorXd ep = Eigen::SelfAdjointEigenSolver<Mat>(to_eigen(r.P)).eigenvalues();
-    r.sigma_min_P = ep(0);
-    r.sigma_max_P = ep(ep.size() - 1);
-    if (!(r.sigma_min_P > 0)) {
-      r.not_applicable = "the rounded P is not positive definite";
-      return r;
-    }
-    // Sampled verdict on a denser set, then the enclosure.
-    const auto report_points = box_samples(ranges, kReportSamples);
-    const Jacobians dense = evaluate(m, r.box, report_points);
-    const Mat Ld = to_eigen(r.L), Pd = to_eigen(r.P);
-    std::size_t worst = 0;
-    r.sampled_max_eig = score(dense, Ld, Pd, &worst) * r.sigma_max_P;
-    r.sampled_worst = report_points[worst];
-    const GiNaC::matrix S = symmetric_part(m, r.L, r.P);
-    r.verdict = certify::negative_definite(S, r.box);
-    if (r.verdict.kind == certify::BoundKind::sampled && r.sampled_max_eig < 0) {
-      certify::EnclosureBudget big;
-      big.max_boxes = 1u << 15;
-      r.verdict = certify::negative_definite(S, r.box, big);
-    }
-    r.holds = r.verdict.holds;
-    r.rigorous = r.verdict.kind == certify::BoundKind::rigorous;
-    if (r.holds || (r.user_L && r.user_P) || round + 1 >= kCertifyRounds ||
-        r.tried > kCertifyEvaluations)
+    if (!search.make_exact(o)) return r;
+    search.certify_exact();
+    if (r.holds || both_given || round + 1 >= kCertifyRounds || r.tried > kCertifyEvaluations)
       break;
-    if (r.verdict.worst_point.size() == r.box.vars.size())
-      search_points.push_back(r.verdict.worst_point);
-    if (r.sampled_max_eig >= 0) search_points.push_back(r.sampled_worst);
-    jac = evaluate(m, r.box, search_points);
-    best.score = score(jac, best.L, best.P);
-    r.rounds = round + 2;
+    search.add_counterexamples(round);
   }
   return r;
 }
@@ -471,13 +552,9 @@ std::vector<numeric> flat(const GiNaC::matrix& M) {
   return v;
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
-  const Model& m = a.model;
-  const Result& r = cached_design(m, o);
-  if (!r.not_applicable.empty() || !r.holds)
-    throw UserError(
-        SourceLoc{m.file, 0, 0},
-        "method 'kou' does not apply: " + fmt::format("{}", fmt::join(verdict_reasons(r), "; ")));
+// The spec without its texts: the estimate is the state, integrated by
+// xh' = f(xh) + g(xh, u) + L (h(xh) - y)  (seed 001 eq. 5).
+ObserverSpec kou_skeleton(const Model& m, const GiNaC::matrix& L) {
   const std::size_t n = m.n(), p = m.p();
   std::vector<GiNaC::symbol> y;
   for (std::size_t i = 0; i < p; ++i)
@@ -486,7 +563,7 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   ExVec rhs;
   for (std::size_t i = 0; i < n; ++i) {
     ex acc = F[i];
-    for (std::size_t k = 0; k < p; ++k) acc += r.L(i, k) * (m.h[k] - y[k]);
+    for (std::size_t k = 0; k < p; ++k) acc += L(i, k) * (m.h[k] - y[k]);
     rhs.push_back(acc);
   }
   ObserverSpec s;
@@ -507,22 +584,12 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.state_doc = "the estimate itself";
   s.update = UpdateKind::ode;
   s.roles.rhs = "x_rhs";
-  const char* kind = r.rigorous ? "rigorous" : "sampled, not proven";
-  s.title = "Kou-Elliott-Tarn observer (uniformly negative definite P (df/dx + L dh/dx))";
-  s.description = {
-      "Observer: Kou-Elliott-Tarn (1975; seed 001 §4, Theorem 1, eq. 5-9)",
-      fmt::format("L = {}, P = {}", matrix_text(r.L), matrix_text(to_eigen(r.P))),
-      fmt::format(
-          "Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= {:.6g} on the "
-          "domain ({})",
-          r.verdict.max_eigenvalue_bound, kind)};
-  s.class_doc = {
-      "  xh' = f(xh) + g(xh, u) + L (h(xh) - y)   (seed 001 eq. 5, L (yh - y))",
-      fmt::format("V = e' P e decays while x and xh stay in the domain box: |e| rate >= {:.4g}.",
-                  r.rate())};
-  s.constants.push_back({"L", flat(r.L), "output-injection gain, n x p row-major"});
-  s.constants.push_back({"P", flat(r.P), "Lyapunov matrix of eq. (9), row-major"});
-  s.report = {
+  return s;
+}
+
+// The report rows: L, P, how they were found, and the certificate's numbers.
+std::vector<ReportRow> kou_report(const Result& r) {
+  return {
       {"convention", "xh' = f + g + L (h(xh) - y) (seed eq. 5), e = xh - x"},
       {"L",
        fmt::format("{} ({})", matrix_text(r.L), r.user_L ? "given with --kou-gain" : "searched")},
@@ -542,6 +609,32 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       {"decay rate",
        fmt::format("|e(t)| <= sqrt({:.6g}) |e(0)| exp(-{:.6g} t) while x, xh stay in the domain",
                    r.sigma_max_P / r.sigma_min_P, r.rate())}};
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  const Result& r = cached_design(m, o);
+  if (!r.not_applicable.empty() || !r.holds)
+    throw UserError(
+        SourceLoc{m.file, 0, 0},
+        "method 'kou' does not apply: " + fmt::format("{}", fmt::join(verdict_reasons(r), "; ")));
+  ObserverSpec s = kou_skeleton(m, r.L);
+  const char* kind = r.rigorous ? "rigorous" : "sampled, not proven";
+  s.title = "Kou-Elliott-Tarn observer (uniformly negative definite P (df/dx + L dh/dx))";
+  s.description = {
+      "Observer: Kou-Elliott-Tarn (1975; seed 001 §4, Theorem 1, eq. 5-9)",
+      fmt::format("L = {}, P = {}", matrix_text(r.L), matrix_text(to_eigen(r.P))),
+      fmt::format(
+          "Certificate (9): largest eigenvalue of sym(P (dF/dx + L dh/dx)) <= {:.6g} on the "
+          "domain ({})",
+          r.verdict.max_eigenvalue_bound, kind)};
+  s.class_doc = {
+      "  xh' = f(xh) + g(xh, u) + L (h(xh) - y)   (seed 001 eq. 5, L (yh - y))",
+      fmt::format("V = e' P e decays while x and xh stay in the domain box: |e| rate >= {:.4g}.",
+                  r.rate())};
+  s.constants.push_back({"L", flat(r.L), "output-injection gain, n x p row-major"});
+  s.constants.push_back({"P", flat(r.P), "Lyapunov matrix of eq. (9), row-major"});
+  s.report = kou_report(r);
   s.summary = fmt::format(
       "Kou-Elliott-Tarn observer, L = {}, certificate: largest eigenvalue of sym(P (dF/dx + L "
       "dh/dx)) "

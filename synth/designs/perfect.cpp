@@ -108,24 +108,10 @@ GeneratedFunction jet_function(const std::string& name, const std::string& doc, 
   return f;
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
-  const Verdict v = applies(a);
-  if (!v.applies) throw UserError(SourceLoc{a.model.file, 0, 0}, "method 'perfect' " + v.text());
-  const Model& m = a.model;
-  const CanonicalForm& cf = a.canonical;
-  const std::size_t n = m.n(), uk = std::max<std::size_t>(n, 2) - 1;
-  ObserverSpec s;
-  s.method = "perfect";
-  s.class_suffix = "Perfect";
-  s.title = "Perfect observer (Slawinski, seed 003 Theorem 1, Procedure 1)";
-  s.state_size = n;
-  s.params = runtime_params(m);
-  s.update = UpdateKind::jets;
-  s.y_jet_order = n - 1;
-  s.u_jet_order = uk - 1;
-  if (const auto eps = real_option(o, "epsilon")) s.default_epsilon = eps->to_double();
-  s.functions = model_functions(m);
-  const bool newton = cf.T_inverse_kind != Availability::symbolic;
+// T, T^-1 when it is in closed form (newton false), and the output injection l.
+void add_canonical_functions(ObserverSpec& s, const Model& m, const CanonicalForm& cf,
+                             bool newton) {
+  const std::size_t n = m.n();
   s.functions.push_back({"T",
                          "Diffeomorphism z = T(x) to observer canonical form, T(x0) = 0.",
                          {state_arg(m)},
@@ -151,37 +137,47 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
                          n,
                          1,
                          "State"});
-  const Jets j = jet_symbols(m);
-  const ExVec z = z_of_jets(a, j);
-  if (newton) {
-    s.functions.push_back({"frame",
-                           "Frame [tau_1 ... tau_n](x) = (dT/dx)^-1, columns tau_k.",
-                           {state_arg(m)},
-                           {},
-                           frame_column_major(cf),
-                           n,
-                           n,
-                           "Frame"});
-    s.functions.push_back(jet_function(
-        "z_of_jets", "Canonical coordinates z from the jets (Procedure 1).", j, z, n, uk));
-    s.roles.reconstruct = "z_of_jets";
-    s.estimate = EstimateKind::newton;
-    s.roles.newton_map = "T";
-    s.roles.newton_inverse_jacobian = "frame";
-    used_orders(z, j, s);
-  } else {
-    // z(jets), then T^-1's elimination steps, as let-bindings: straight-line code.
-    GeneratedFunction inv = inverse_function(a);
-    GeneratedFunction r =
-        jet_function("reconstruct", "The state x = T^-1(z(jets)) from the jets (Procedure 1).", j,
-                     inv.outputs, n, uk);
-    for (std::size_t i = 0; i < n; ++i) r.lets.push_back({cf.z[i], z[i]});
-    r.lets.insert(r.lets.end(), inv.lets.begin(), inv.lets.end());
-    s.functions.push_back(r);
-    s.roles.reconstruct = "reconstruct";
-    s.estimate = EstimateKind::identity;
-    used_orders(z, j, s);
-  }
+}
+
+// T^-1 by runtime Newton: z from the jets, then Newton on T with the frame as inverse
+// Jacobian.
+void add_newton_reconstruction(ObserverSpec& s, const Model& m, const CanonicalForm& cf,
+                               const Jets& j, const ExVec& z, std::size_t uk) {
+  const std::size_t n = m.n();
+  s.functions.push_back({"frame",
+                         "Frame [tau_1 ... tau_n](x) = (dT/dx)^-1, columns tau_k.",
+                         {state_arg(m)},
+                         {},
+                         frame_column_major(cf),
+                         n,
+                         n,
+                         "Frame"});
+  s.functions.push_back(jet_function(
+      "z_of_jets", "Canonical coordinates z from the jets (Procedure 1).", j, z, n, uk));
+  s.roles.reconstruct = "z_of_jets";
+  s.estimate = EstimateKind::newton;
+  s.roles.newton_map = "T";
+  s.roles.newton_inverse_jacobian = "frame";
+}
+
+// T^-1 in closed form: z(jets), then T^-1's elimination steps, as let-bindings:
+// straight-line code.
+void add_closed_reconstruction(ObserverSpec& s, const Analysis& a, const Jets& j, const ExVec& z,
+                               std::size_t uk) {
+  const std::size_t n = a.model.n();
+  GeneratedFunction inv = inverse_function(a);
+  GeneratedFunction r =
+      jet_function("reconstruct", "The state x = T^-1(z(jets)) from the jets (Procedure 1).", j,
+                   inv.outputs, n, uk);
+  for (std::size_t i = 0; i < n; ++i) r.lets.push_back({a.canonical.z[i], z[i]});
+  r.lets.insert(r.lets.end(), inv.lets.begin(), inv.lets.end());
+  s.functions.push_back(r);
+  s.roles.reconstruct = "reconstruct";
+  s.estimate = EstimateKind::identity;
+}
+
+// Description, report rows and summary: the jets used and how T^-1 is computed.
+void describe_perfect(ObserverSpec& s, const Model& m, bool newton) {
   std::string u_orders;
   for (std::size_t q = 0; q < m.m(); ++q)
     u_orders +=
@@ -201,6 +197,35 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.summary = fmt::format("perfect observer; needs y up to y^({}){}; T^-1 {}", s.y_order_used,
                           u_orders.empty() ? "" : fmt::format(" and{}", u_orders),
                           newton ? "by runtime Newton" : "in closed form");
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Verdict v = applies(a);
+  if (!v.applies) throw UserError(SourceLoc{a.model.file, 0, 0}, "method 'perfect' " + v.text());
+  const Model& m = a.model;
+  const CanonicalForm& cf = a.canonical;
+  const std::size_t n = m.n(), uk = std::max<std::size_t>(n, 2) - 1;
+  ObserverSpec s;
+  s.method = "perfect";
+  s.class_suffix = "Perfect";
+  s.title = "Perfect observer (Slawinski, seed 003 Theorem 1, Procedure 1)";
+  s.state_size = n;
+  s.params = runtime_params(m);
+  s.update = UpdateKind::jets;
+  s.y_jet_order = n - 1;
+  s.u_jet_order = uk - 1;
+  if (const auto eps = real_option(o, "epsilon")) s.default_epsilon = eps->to_double();
+  s.functions = model_functions(m);
+  const bool newton = cf.T_inverse_kind != Availability::symbolic;
+  add_canonical_functions(s, m, cf, newton);
+  const Jets j = jet_symbols(m);
+  const ExVec z = z_of_jets(a, j);
+  if (newton)
+    add_newton_reconstruction(s, m, cf, j, z, uk);
+  else
+    add_closed_reconstruction(s, a, j, z, uk);
+  used_orders(z, j, s);
+  describe_perfect(s, m, newton);
   return s;
 }
 

@@ -123,86 +123,93 @@ Verdict applies(const Analysis& a) {
   return v;
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
-  const Model& m = a.model;
+using ExMatrix = std::vector<std::vector<ex>>;
+
+// The observer's symbols. Their creation order fixes GiNaC's term order in the output, so
+// it must not change: Q's entries first, then the outputs.
+struct RiccatiSymbols {
+  // w = (m, Q packed): m uses the model's own state symbols, so f, g, h and their Jacobians
+  // apply unchanged; then Q's upper triangle row by row.
+  std::vector<GiNaC::symbol> w;
+  ExMatrix Q;  // n x n, symmetric, entries from w
+  std::vector<GiNaC::symbol> y;
+};
+
+RiccatiSymbols riccati_symbols(const Model& m, Names& names) {
   const std::size_t n = m.n(), p = m.p();
-  const RiccatiParameters prm = riccati_parameters(n, p, o);
-  Names names(m);
-
-  // W = R^-1 R^-1 = R^-2 (R symmetric): H^T R^-1 = Dh^T R^-2 and H^T H = Dh^T R^-2 Dh.
-  const GiNaC::matrix Rinv = prm.R.inverse();
-  const GiNaC::matrix W = Rinv.mul(Rinv);
-  const GiNaC::matrix NNt = prm.N.mul(prm.N.transpose());
-
-  SymmetricBlock Q;
-  Q.name = "Q";
-  Q.offset = n;
-  Q.dim = n;
-  Q.keep_positive_definite = true;
-
-  // Observer state w = (m, Q packed): m uses the model's own state symbols, so f, g, h and
-  // their Jacobians apply unchanged.
-  std::vector<GiNaC::symbol> w(m.states.begin(), m.states.end());
-  std::vector<std::vector<ex>> Qs(n, std::vector<ex>(n));
+  RiccatiSymbols sym;
+  sym.w.assign(m.states.begin(), m.states.end());
+  sym.Q.assign(n, std::vector<ex>(n));
   for (std::size_t r = 0; r < n; ++r)
     for (std::size_t c = r; c < n; ++c) {
       const GiNaC::symbol q = names.make(fmt::format("Q_{}_{}", r + 1, c + 1));
-      w.push_back(q);
-      Qs[r][c] = Qs[c][r] = q;
+      sym.w.push_back(q);
+      sym.Q[r][c] = sym.Q[c][r] = q;
     }
-  std::vector<GiNaC::symbol> ys;
   for (std::size_t k = 0; k < p; ++k)
-    ys.push_back(names.make(p == 1 ? std::string("y") : fmt::format("y{}", k + 1)));
+    sym.y.push_back(names.make(p == 1 ? std::string("y") : fmt::format("y{}", k + 1)));
+  return sym;
+}
 
-  const ExVec F = m.field();
-  GeneratedFunction rhs;
-  rhs.name = "riccati_rhs";
-  rhs.doc =
-      "d/dt (m, Q): m' = f + g + G R^-2 (y - h), Q' = A Q + Q A^T - G R^-2 G^T + N N^T "
-      "(upper triangle), G = Q Dh^T.";
-  rhs.args = {vector_arg("w", "ObserverState", w, FunctionArg::Kind::observer_state), input_arg(m),
-              output_arg(ys)};
-  rhs.out_type = "ObserverState";
-  rhs.out_rows = w.size();
+// A let of f named after stem holding value, so that the emitted code computes it once; a
+// symbol or number needs none and is returned as is.
+ex bind_let(GeneratedFunction& f, Names& names, const std::string& stem, const ex& value) {
+  if (GiNaC::is_a<GiNaC::symbol>(value) || GiNaC::is_a<numeric>(value)) return value;
+  const GiNaC::symbol s = names.make(stem);
+  f.lets.push_back({s, value});
+  return s;
+}
 
-  // e = y - h(m)
-  std::vector<ex> e(p);
-  for (std::size_t k = 0; k < p; ++k) {
+// The innovation e = y - h(m), one let per output.
+std::vector<ex> bind_innovation(GeneratedFunction& f, Names& names, const Model& m,
+                                const std::vector<GiNaC::symbol>& y) {
+  std::vector<ex> e(m.p());
+  for (std::size_t k = 0; k < m.p(); ++k) {
     const GiNaC::symbol s = names.make(fmt::format("innovation_{}", k + 1));
-    rhs.lets.push_back({s, ys[k] - m.h[k]});
+    f.lets.push_back({s, y[k] - m.h[k]});
     e[k] = s;
   }
-  // G = Q Dh^T (n x p), Gw = G W.
-  std::vector<std::vector<ex>> G(n, std::vector<ex>(p)), Gw(n, std::vector<ex>(p));
-  auto bind = [&](const std::string& stem, const ex& value) -> ex {
-    if (GiNaC::is_a<GiNaC::symbol>(value) || GiNaC::is_a<numeric>(value)) return value;
-    const GiNaC::symbol s = names.make(stem);
-    rhs.lets.push_back({s, value});
-    return s;
-  };
+  return e;
+}
+
+// G = Q Dh^T (n x p) and the gain Gw = G W, W = R^-2; both appear in m' and in Q'.
+struct RiccatiGain {
+  ExMatrix G, Gw;
+};
+
+RiccatiGain bind_gain(GeneratedFunction& f, Names& names, const Model& m, const ExMatrix& Q,
+                      const GiNaC::matrix& W) {
+  const std::size_t n = m.n(), p = m.p();
+  RiccatiGain g{ExMatrix(n, std::vector<ex>(p)), ExMatrix(n, std::vector<ex>(p))};
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t k = 0; k < p; ++k) {
       ex acc = 0;
-      for (std::size_t j = 0; j < n; ++j) acc += Qs[i][j] * m.h[k].diff(m.states[j]);
-      G[i][k] = bind(fmt::format("G_{}_{}", i + 1, k + 1), acc);
+      for (std::size_t j = 0; j < n; ++j) acc += Q[i][j] * m.h[k].diff(m.states[j]);
+      g.G[i][k] = bind_let(f, names, fmt::format("G_{}_{}", i + 1, k + 1), acc);
     }
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t k = 0; k < p; ++k) {
       ex acc = 0;
       for (std::size_t l = 0; l < p; ++l)
-        acc += G[i][l] * W(static_cast<unsigned>(l), static_cast<unsigned>(k));
-      Gw[i][k] = bind(fmt::format("GW_{}_{}", i + 1, k + 1), acc);
+        acc += g.G[i][l] * W(static_cast<unsigned>(l), static_cast<unsigned>(k));
+      g.Gw[i][k] = bind_let(f, names, fmt::format("GW_{}_{}", i + 1, k + 1), acc);
     }
-  // A = D_x(f + g)
-  std::vector<std::vector<ex>> A(n, std::vector<ex>(n));
+  return g;
+}
+
+// A = D_x(f + g), n x n.
+ExMatrix field_jacobian(const Model& m, const ExVec& F) {
+  const std::size_t n = m.n();
+  ExMatrix A(n, std::vector<ex>(n));
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t j = 0; j < n; ++j) A[i][j] = F[i].diff(m.states[j]);
+  return A;
+}
 
-  for (std::size_t i = 0; i < n; ++i) {
-    ex acc = F[i];
-    for (std::size_t k = 0; k < p; ++k) acc += Gw[i][k] * e[k];
-    rhs.outputs.push_back(acc);
-  }
+// The packed upper triangle of Q' = A Q + Q A^T - Gw G^T + N N^T, row by row.
+void push_riccati_rows(GeneratedFunction& f, Names& names, const ExMatrix& A, const ExMatrix& Q,
+                       const RiccatiGain& g, const GiNaC::matrix& NNt) {
+  const std::size_t n = Q.size(), p = g.G.empty() ? 0 : g.G[0].size();
   for (std::size_t r = 0; r < n; ++r)
     for (std::size_t c = r; c < n; ++c) {
       ex acc = NNt(static_cast<unsigned>(r), static_cast<unsigned>(c));
@@ -210,24 +217,68 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
         // (A Q + Q A^T)_rr = 2 (A Q)_rr: bound once, so that the factor 2 is one product
         // instead of being distributed over the sum's terms.
         ex aq = 0;
-        for (std::size_t k = 0; k < n; ++k) aq += A[r][k] * Qs[k][r];
-        acc += 2 * bind(fmt::format("AQ_{}_{}", r + 1, r + 1), aq);
+        for (std::size_t k = 0; k < n; ++k) aq += A[r][k] * Q[k][r];
+        acc += 2 * bind_let(f, names, fmt::format("AQ_{}_{}", r + 1, r + 1), aq);
       } else {
-        for (std::size_t k = 0; k < n; ++k) acc += A[r][k] * Qs[k][c] + Qs[r][k] * A[c][k];
+        for (std::size_t k = 0; k < n; ++k) acc += A[r][k] * Q[k][c] + Q[r][k] * A[c][k];
       }
-      for (std::size_t k = 0; k < p; ++k) acc -= Gw[r][k] * G[c][k];
-      rhs.outputs.push_back(acc);
+      for (std::size_t k = 0; k < p; ++k) acc -= g.Gw[r][k] * g.G[c][k];
+      f.outputs.push_back(acc);
     }
+}
+
+// The right-hand side d/dt (m, Q), and A = D_x(f + g) for the report.
+struct RiccatiRhs {
+  GeneratedFunction f;
+  ExMatrix A;
+};
+
+RiccatiRhs riccati_rhs(const Model& m, const RiccatiSymbols& sym, const GiNaC::matrix& W,
+                       const GiNaC::matrix& NNt, Names& names) {
+  const ExVec F = m.field();
+  RiccatiRhs out;
+  GeneratedFunction& rhs = out.f;
+  rhs.name = "riccati_rhs";
+  rhs.doc =
+      "d/dt (m, Q): m' = f + g + G R^-2 (y - h), Q' = A Q + Q A^T - G R^-2 G^T + N N^T "
+      "(upper triangle), G = Q Dh^T.";
+  rhs.args = {vector_arg("w", "ObserverState", sym.w, FunctionArg::Kind::observer_state),
+              input_arg(m), output_arg(sym.y)};
+  rhs.out_type = "ObserverState";
+  rhs.out_rows = sym.w.size();
+
+  const std::vector<ex> e = bind_innovation(rhs, names, m, sym.y);
+  const RiccatiGain g = bind_gain(rhs, names, m, sym.Q, W);
+  out.A = field_jacobian(m, F);
+  // m' = f + g + Gw e
+  for (std::size_t i = 0; i < m.n(); ++i) {
+    ex acc = F[i];
+    for (std::size_t k = 0; k < m.p(); ++k) acc += g.Gw[i][k] * e[k];
+    rhs.outputs.push_back(acc);
+  }
+  push_riccati_rows(rhs, names, out.A, sym.Q, g, NNt);
+  return out;
+}
+
+// The spec without its texts: state layout, functions (init, rhs, estimate) and their roles.
+ObserverSpec riccati_skeleton(const Model& m, const RiccatiParameters& prm,
+                              const RiccatiSymbols& sym, GeneratedFunction rhs) {
+  const std::size_t n = m.n();
+  SymmetricBlock Q;
+  Q.name = "Q";
+  Q.offset = n;
+  Q.dim = n;
+  Q.keep_positive_definite = true;
 
   ObserverSpec s;
   s.method = "riccati";
   s.class_suffix = "Riccati";
-  s.state_size = w.size();
+  s.state_size = sym.w.size();
   s.state_name = "w";
   s.state_doc = fmt::format(
       "w = (m, Q): the estimate m (rows 0..{}) and Q as its packed upper triangle, row by row "
       "(rows {}..{})",
-      n - 1, n, w.size() - 1);
+      n - 1, n, sym.w.size() - 1);
   s.params = runtime_params(m);
   s.functions = model_functions(m);
 
@@ -237,10 +288,10 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       init.push_back(prm.Q0(static_cast<unsigned>(r), static_cast<unsigned>(c)));
   s.functions.push_back(make_function("riccati_init", "w = (xh0, Q0 packed upper triangle).",
                                       {state_arg(m)}, init, "ObserverState"));
-  s.functions.push_back(rhs);
+  s.functions.push_back(std::move(rhs));
   s.functions.push_back(
       make_function("riccati_estimate", "The estimate m: the first n entries of w.",
-                    {vector_arg("w", "ObserverState", w, FunctionArg::Kind::observer_state)},
+                    {vector_arg("w", "ObserverState", sym.w, FunctionArg::Kind::observer_state)},
                     ExVec(m.states.begin(), m.states.end()), "State"));
   s.init = InitKind::function;
   s.roles.init = "riccati_init";
@@ -249,7 +300,11 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.estimate = EstimateKind::function;
   s.roles.estimate = "riccati_estimate";
   s.symmetric_blocks = {Q};
+  return s;
+}
 
+// Title, description, class documentation and the constants of the generated class.
+void describe_riccati(ObserverSpec& s, const RiccatiParameters& prm) {
   s.title = "James-Baras Riccati observer (seed 000, eq. 2.1-2.2)";
   s.description = {
       "Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)",
@@ -269,26 +324,40 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.constants.push_back({"Q0", row_major(prm.Q0), "initial Q (row-major), symmetric > 0"});
   s.constants.push_back({"N", row_major(prm.N), "N (row-major); N N^T drives Q"});
   s.constants.push_back({"R", row_major(prm.R), "R (row-major), acts as a standard deviation"});
+}
 
-  std::vector<std::string> a_rows;
-  for (std::size_t i = 0; i < n; ++i) {
+// "[[a, b], [c, d]]" of the rows given.
+std::string rows_text(const ExMatrix& M) {
+  std::vector<std::string> rows;
+  for (const auto& r : M) {
     std::vector<std::string> row;
-    for (std::size_t j = 0; j < n; ++j) row.push_back(to_string(A[i][j]));
-    a_rows.push_back(fmt::format("[{}]", fmt::join(row, ", ")));
+    for (const auto& e : r) row.push_back(to_string(e));
+    rows.push_back(fmt::format("[{}]", fmt::join(row, ", ")));
   }
-  std::vector<std::string> dh_rows;
-  for (std::size_t k = 0; k < p; ++k) {
-    std::vector<std::string> row;
-    for (std::size_t j = 0; j < n; ++j) row.push_back(to_string(m.h[k].diff(m.states[j])));
-    dh_rows.push_back(fmt::format("[{}]", fmt::join(row, ", ")));
-  }
+  return fmt::format("[{}]", fmt::join(rows, ", "));
+}
+
+// Dh, p x n.
+ExMatrix output_jacobian(const Model& m) {
+  ExMatrix Dh(m.p(), std::vector<ex>(m.n()));
+  for (std::size_t k = 0; k < m.p(); ++k)
+    for (std::size_t j = 0; j < m.n(); ++j) Dh[k][j] = m.h[k].diff(m.states[j]);
+  return Dh;
+}
+
+// The report rows: equations, A, Dh, the parameters, warnings, then the certificate of
+// Theorem 2.1 / Corollary 2.1 over the domain box (rigorous or sampled, each number labelled).
+void report_riccati(ObserverSpec& s, const Analysis& a, const DesignOptions& o,
+                    const RiccatiParameters& prm, const ExMatrix& A, const GiNaC::matrix& W) {
+  const Model& m = a.model;
+  const std::size_t n = m.n(), p = m.p();
   s.report = {
       {"equations",
        "m' = f(m,u) + Q H^T R^-1 (y - h(m)), Q' = A Q + Q A^T - Q H^T H Q + N N^T "
        "(seed 000 eq. 2.1-2.2)"},
       {"convention", "A = D_x(f+g)(m,u), H = R^-1 Dh(m): R acts as a standard deviation"},
-      {"A = D_x(f+g)", fmt::format("[{}]", fmt::join(a_rows, ", "))},
-      {"Dh", fmt::format("[{}]", fmt::join(dh_rows, ", "))},
+      {"A = D_x(f+g)", rows_text(A)},
+      {"Dh", rows_text(output_jacobian(m))},
       {"Q0", matrix_text(prm.Q0) + (prm.Q0_given ? " (--Q0)" : " (default: I)")},
       {"N", matrix_text(prm.N) + (prm.N_given ? " (--N)" : " (default: I)")},
       {"R", matrix_text(prm.R) + (prm.R_given ? " (--R)" : " (default: I)")},
@@ -303,11 +372,26 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
                                                prm.N.rank(), n)});
   const Verdict v = applies(a);
   if (!v.applies) s.report.push_back({"warning", v.text()});
-  // The certificate of Theorem 2.1 / Corollary 2.1 over the domain box (rigorous or sampled,
-  // each number labelled).
   const certify::RiccatiCertificate cert = certify::riccati_certificate(
       m, certify::RiccatiParameters{prm.Q0, prm.N, prm.R, lambda_option(o, n, p)});
   for (auto& row : certify::riccati_certificate_rows(cert)) s.report.push_back(std::move(row));
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  const RiccatiParameters prm = riccati_parameters(m.n(), m.p(), o);
+  Names names(m);
+
+  // W = R^-1 R^-1 = R^-2 (R symmetric): H^T R^-1 = Dh^T R^-2 and H^T H = Dh^T R^-2 Dh.
+  const GiNaC::matrix Rinv = prm.R.inverse();
+  const GiNaC::matrix W = Rinv.mul(Rinv);
+  const GiNaC::matrix NNt = prm.N.mul(prm.N.transpose());
+
+  const RiccatiSymbols sym = riccati_symbols(m, names);
+  RiccatiRhs rhs = riccati_rhs(m, sym, W, NNt, names);
+  ObserverSpec s = riccati_skeleton(m, prm, sym, std::move(rhs.f));
+  describe_riccati(s, prm);
+  report_riccati(s, a, o, prm, rhs.A, W);
   s.summary = fmt::format(
       "James-Baras Riccati observer (seed 000): RK4 of (m, Q) with Q packed and kept positive "
       "definite; Q0 = {}, N = {}, R = {}",

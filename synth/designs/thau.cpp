@@ -316,10 +316,9 @@ numeric expansion_coordinate(const Interval& b) {
   return (b.lo + b.hi) / 2;
 }
 
-Split split_model(const Model& m) {
-  Split s;
-  const std::size_t n = m.n(), p = m.p();
-  const ExVec F = m.field();
+// The expansion point (x*, u*) into s, and the substitution of it (parameters at their
+// box centre).
+GiNaC::exmap expansion_point(const Model& m, Split& s) {
   GiNaC::exmap at;
   for (const auto& x : m.states) {
     s.x_star.push_back(expansion_coordinate(m.box(x)));
@@ -333,7 +332,13 @@ Split split_model(const Model& m) {
     const Interval b = m.box(q);
     at[q] = (b.lo + b.hi) / 2;
   }
-  // h must be linear in x with constant coefficients.
+  return at;
+}
+
+// y = C x + c0: h must be linear in x with constant coefficients. False (s.not_applicable
+// set) when it is not.
+bool linear_output(const Model& m, Split& s) {
+  const std::size_t n = m.n(), p = m.p();
   s.C = GiNaC::matrix(static_cast<unsigned>(p), static_cast<unsigned>(n));
   GiNaC::exmap zero_x;
   for (const auto& x : m.states) zero_x[x] = 0;
@@ -344,12 +349,19 @@ Split split_model(const Model& m) {
         s.not_applicable = fmt::format(
             "h is not linear in x: dh{}/d{} = {} is not a constant (Thau needs y = C x)",
             p > 1 ? std::to_string(i + 1) : std::string(), m.states[j].get_name(), to_string(d));
-        return s;
+        return false;
       }
       s.C(i, j) = d;
     }
     s.c0.push_back(simplify(m.h[i].subs(zero_x)));
   }
+  return true;
+}
+
+// F = A x + B u + phi with A, B the exact Jacobians at the expansion point. False
+// (s.not_applicable set) when they are not exact numbers there.
+bool linear_part(const Model& m, const ExVec& F, const GiNaC::exmap& at, Split& s) {
+  const std::size_t n = m.n();
   s.A = GiNaC::matrix(static_cast<unsigned>(n), static_cast<unsigned>(n));
   s.B = GiNaC::matrix(static_cast<unsigned>(n), static_cast<unsigned>(m.m()));
   try {
@@ -366,7 +378,7 @@ Split split_model(const Model& m) {
   } catch (const UserError& e) {
     s.not_applicable = fmt::format("no linear part at the expansion point ({}): {}",
                                    point_text(m.states, s.x_star), e.what());
-    return s;
+    return false;
   }
   for (std::size_t i = 0; i < n; ++i) {
     ex lin = 0;
@@ -374,7 +386,12 @@ Split split_model(const Model& m) {
     for (std::size_t j = 0; j < m.m(); ++j) lin += s.B(i, j) * m.inputs[j];
     s.phi.push_back(simplify(F[i] - lin));
   }
-  // Pole placement through one output with (c_i, A) observable.
+  return true;
+}
+
+// Pole placement goes through one output with (c_i, A) observable: the first such output
+// into s.output, else s.not_applicable says why none.
+void choose_output(std::size_t n, std::size_t p, Split& s) {
   GiNaC::matrix Oall(static_cast<unsigned>(n * p), static_cast<unsigned>(n));
   for (std::size_t i = 0; i < p; ++i) {
     GiNaC::matrix row(1, static_cast<unsigned>(n));
@@ -389,7 +406,7 @@ Split split_model(const Model& m) {
     }
     if (!O.determinant().is_zero()) {
       s.output = i;
-      return s;
+      return;
     }
   }
   const unsigned rank = Oall.rank();
@@ -398,6 +415,14 @@ Split split_model(const Model& m) {
                              rank, n)
                : "no single output makes (c_i, A) observable; multi-output pole placement is not "
                  "implemented";
+}
+
+Split split_model(const Model& m) {
+  Split s;
+  const ExVec F = m.field();
+  const GiNaC::exmap at = expansion_point(m, s);
+  if (!linear_output(m, s) || !linear_part(m, F, at, s)) return s;
+  choose_output(m.n(), m.p(), s);
   return s;
 }
 
@@ -518,81 +543,97 @@ struct SearchOutcome {
   std::size_t tried = 0;
 };
 
-// Maximises sigma_min(Q)/sigma_max(P) over the free choices.
+// A + L c with L placing the poles; nullopt when placement fails.
+std::optional<Eigen::MatrixXd> closed_loop(const Eigen::MatrixXd& A, const Eigen::RowVectorXd& c,
+                                           const std::vector<double>& poles) {
+  const auto L = place_poles(A, c, poles);
+  if (!L) return std::nullopt;
+  return Eigen::MatrixXd(A + (*L) * c);
+}
+
+// The given Q, or the Q maximising the ratio for this A + L c (Nelder-Mead on Q's Cholesky
+// factor from I), into o.Q and o.ratio.
+void best_Q(const Eigen::MatrixXd& AL, const std::optional<Eigen::MatrixXd>& user_Q,
+            SearchOutcome& o) {
+  const std::size_t n = static_cast<std::size_t>(AL.rows());
+  if (user_Q) {
+    o.Q = *user_Q;
+    o.ratio = ratio_of(AL, *user_Q);
+    ++o.tried;
+    return;
+  }
+  const auto r = nelder_mead(
+      [&](const std::vector<double>& v) {
+        ++o.tried;
+        return -ratio_of(AL, Q_of(v, n));
+      },
+      identity_factor(n), 0.3, 60 * static_cast<int>(n * (n + 1) / 2 + 1));
+  o.Q = Q_of(r, n);
+  o.ratio = ratio_of(AL, o.Q);
+}
+
+// Joint Nelder-Mead refinement of the poles (log magnitudes, clamped to [kMinPole, kMaxPole])
+// and Q (its Cholesky factor, unless given), from best; tried counts the evaluations.
+SearchOutcome refine_search(const Eigen::MatrixXd& A, const Eigen::RowVectorXd& c,
+                            const std::optional<Eigen::MatrixXd>& user_Q, const SearchOutcome& best,
+                            std::size_t& tried) {
+  const std::size_t n = static_cast<std::size_t>(A.rows());
+  std::vector<double> v;
+  for (double p : best.poles) v.push_back(std::log(-p));
+  const std::size_t np = v.size();
+  if (!user_Q) {
+    Eigen::LLT<Eigen::MatrixXd> llt(best.Q);
+    const Eigen::MatrixXd R = llt.matrixL();
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t j = 0; j <= i; ++j)
+        v.push_back(R(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
+  }
+  auto unpack = [&](const std::vector<double>& w, std::vector<double>& poles, Eigen::MatrixXd& Q) {
+    poles.clear();
+    for (std::size_t k = 0; k < np; ++k)
+      poles.push_back(-std::exp(std::clamp(w[k], std::log(kMinPole), std::log(kMaxPole))));
+    Q = user_Q ? *user_Q : Q_of(std::vector<double>(w.begin() + static_cast<long>(np), w.end()), n);
+  };
+  const auto w = nelder_mead(
+      [&](const std::vector<double>& w) {
+        ++tried;
+        std::vector<double> poles;
+        Eigen::MatrixXd Q;
+        unpack(w, poles, Q);
+        const auto AL = closed_loop(A, c, poles);
+        // A small price on fast poles: among near-equal certificates, the gentler gain.
+        return AL ? -ratio_of(*AL, Q) + kPolePenalty * -poles.front()
+                  : std::numeric_limits<double>::infinity();
+      },
+      v, 0.2, 150 * static_cast<int>(v.size() + 1));
+  SearchOutcome o;
+  unpack(w, o.poles, o.Q);
+  if (const auto AL = closed_loop(A, c, o.poles)) o.ratio = ratio_of(*AL, o.Q);
+  return o;
+}
+
+// Maximises sigma_min(Q)/sigma_max(P) over the free choices: a grid of pole sets (each with
+// its best Q), then a joint refinement from the best grid point.
 SearchOutcome search(const Eigen::MatrixXd& A, const Eigen::RowVectorXd& c,
                      const std::vector<double>& user_poles,
                      const std::optional<Eigen::MatrixXd>& user_Q) {
   const std::size_t n = static_cast<std::size_t>(A.rows());
   SearchOutcome best;
-  auto AL_of = [&](const std::vector<double>& poles) -> std::optional<Eigen::MatrixXd> {
-    const auto L = place_poles(A, c, poles);
-    if (!L) return std::nullopt;
-    return Eigen::MatrixXd(A + (*L) * c);
-  };
-  auto best_Q = [&](const Eigen::MatrixXd& AL, SearchOutcome& o) {
-    if (user_Q) {
-      o.Q = *user_Q;
-      o.ratio = ratio_of(AL, *user_Q);
-      ++o.tried;
-      return;
-    }
-    const auto r = nelder_mead(
-        [&](const std::vector<double>& v) {
-          ++o.tried;
-          return -ratio_of(AL, Q_of(v, n));
-        },
-        identity_factor(n), 0.3, 60 * static_cast<int>(n * (n + 1) / 2 + 1));
-    o.Q = Q_of(r, n);
-    o.ratio = ratio_of(AL, o.Q);
-  };
   const auto pole_sets =
       user_poles.empty() ? candidate_pole_sets(n) : std::vector<std::vector<double>>{user_poles};
   std::size_t tried = 0;
   for (const auto& poles : pole_sets) {
     if (user_poles.empty() && -*std::min_element(poles.begin(), poles.end()) > kMaxPole) continue;
-    const auto AL = AL_of(poles);
+    const auto AL = closed_loop(A, c, poles);
     if (!AL) continue;
     SearchOutcome o;
     o.poles = poles;
-    best_Q(*AL, o);
+    best_Q(*AL, user_Q, o);
     tried += o.tried;
     if (o.ratio > best.ratio) best = o;
   }
-  // Joint refinement of the poles (log magnitudes) and Q, from the best grid point.
   if (user_poles.empty() && std::isfinite(best.ratio)) {
-    std::vector<double> v;
-    for (double p : best.poles) v.push_back(std::log(-p));
-    const std::size_t np = v.size();
-    if (!user_Q) {
-      Eigen::LLT<Eigen::MatrixXd> llt(best.Q);
-      const Eigen::MatrixXd R = llt.matrixL();
-      for (std::size_t i = 0; i < n; ++i)
-        for (std::size_t j = 0; j <= i; ++j)
-          v.push_back(R(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
-    }
-    auto unpack = [&](const std::vector<double>& w, std::vector<double>& poles,
-                      Eigen::MatrixXd& Q) {
-      poles.clear();
-      for (std::size_t k = 0; k < np; ++k)
-        poles.push_back(-std::exp(std::clamp(w[k], std::log(kMinPole), std::log(kMaxPole))));
-      Q = user_Q ? *user_Q
-                 : Q_of(std::vector<double>(w.begin() + static_cast<long>(np), w.end()), n);
-    };
-    const auto w = nelder_mead(
-        [&](const std::vector<double>& w) {
-          ++tried;
-          std::vector<double> poles;
-          Eigen::MatrixXd Q;
-          unpack(w, poles, Q);
-          const auto AL = AL_of(poles);
-          // A small price on fast poles: among near-equal certificates, the gentler gain.
-          return AL ? -ratio_of(*AL, Q) + kPolePenalty * -poles.front()
-                    : std::numeric_limits<double>::infinity();
-        },
-        v, 0.2, 150 * static_cast<int>(v.size() + 1));
-    SearchOutcome o;
-    unpack(w, o.poles, o.Q);
-    if (const auto AL = AL_of(o.poles)) o.ratio = ratio_of(*AL, o.Q);
+    const SearchOutcome o = refine_search(A, c, user_Q, best, tried);
     if (o.ratio > best.ratio) {
       best.poles = o.poles;
       best.Q = o.Q;
@@ -652,6 +693,98 @@ std::string options_key(const DesignOptions& o) {
 
 constexpr std::size_t kMaxSearchStates = 4;
 
+// Exact poles and L: the poles as given or rounded to 3 significant digits, L by exact
+// Ackermann through the chosen output.
+void exact_gain(const Split& s, const DesignOptions& o, const SearchOutcome& best, Result& r) {
+  const std::size_t n = static_cast<std::size_t>(s.A.rows());
+  if (r.user_poles)
+    for (const auto& q : real_list_option(o, "thau-poles")) r.poles.push_back(q);
+  else
+    for (double p : best.poles) r.poles.push_back(round_rational(p, 3));
+  GiNaC::matrix crow(1, static_cast<unsigned>(n));
+  for (std::size_t j = 0; j < n; ++j) crow(0, j) = s.C(s.output, j);
+  r.L = place_poles_exact(s.A, crow, r.poles);
+}
+
+// Q normalised to sigma_max 1 and rounded to 1e-6 (I if that loses definiteness).
+GiNaC::matrix exact_Q(const Eigen::MatrixXd& Q, unsigned n) {
+  Eigen::MatrixXd Qd = Q;
+  Qd /= Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Qd).eigenvalues()(Qd.rows() - 1);
+  GiNaC::matrix E(n, n);
+  for (unsigned i = 0; i < n; ++i)
+    for (unsigned j = i; j < n; ++j) {
+      const numeric v =
+          round_absolute(Qd(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)), 1e6);
+      E(i, j) = v;
+      E(j, i) = v;
+    }
+  if (Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(to_eigen(E)).eigenvalues()(0) <= 0)
+    return GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(n));
+  return E;
+}
+
+// P of (21) for A + L C and Q: exact for n <= 6, else numeric with its residual; then the
+// ratio sigma_min(Q)/sigma_max(P).
+void solve_P(const Split& s, Result& r) {
+  const std::size_t n = static_cast<std::size_t>(s.A.rows());
+  GiNaC::matrix AL = s.A;
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j) AL(i, j) = s.A(i, j) + r.L[i] * s.C(s.output, j);
+  std::optional<GiNaC::matrix> P = n <= 6 ? solve_lyapunov_exact(AL, r.Q) : std::nullopt;
+  Eigen::MatrixXd Pd;
+  if (P) {
+    r.P = *P;
+    Pd = to_eigen(r.P);
+    r.P_exact = true;
+    r.lyapunov_residual = 0;
+  } else {
+    const auto Pn = solve_lyapunov(to_eigen(AL), to_eigen(r.Q));
+    r.P_exact = false;
+    Pd = Pn ? *Pn
+            : Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+    r.P = GiNaC::matrix(static_cast<unsigned>(n), static_cast<unsigned>(n));
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t j = 0; j < n; ++j)
+        r.P(i, j) = exact_of_double(Pd(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
+    const Eigen::MatrixXd ALd = to_eigen(AL);
+    r.lyapunov_residual = (ALd.transpose() * Pd + Pd * ALd + 2 * to_eigen(r.Q)).norm();
+  }
+  const Eigen::VectorXd ep = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Pd).eigenvalues();
+  const Eigen::VectorXd eq =
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(to_eigen(r.Q)).eigenvalues();
+  r.sigma_max_P = ep(ep.size() - 1);
+  // With a numeric P, the residual E changes Q by at most ||E||_2 / 2 <= ||E||_F / 2; eigenvalues
+  // in double: a relative 1e-12 safety on both.
+  r.sigma_min_Q = eq(0) * (1 - 1e-12) - r.lyapunov_residual / 2;
+  r.ratio = ep(0) > 0 ? r.sigma_min_Q / (r.sigma_max_P * (1 + 1e-12))
+                      : -std::numeric_limits<double>::infinity();
+}
+
+// M on the declared domain, then (unless --thau-region domain) the largest sub-box around x*
+// where (26) holds, by bisection of its scale.
+void find_region(const Model& m, const Split& s, Result& r) {
+  r.domain = region_at(m, s, 1.0, true);
+  r.region = r.domain;
+  r.region_found = r.domain_margin() > 0;
+  if (!r.region_found && !r.whole_domain_only && r.ratio > 0) {
+    double lo = 0, hi = 1;
+    for (int k = 0; k < kRegionBisections; ++k) {
+      const double mid = (lo + hi) / 2;
+      const Region t = region_at(m, s, mid, false);
+      if (t.M.value < kRegionTarget * r.ratio)
+        lo = mid;
+      else
+        hi = mid;
+    }
+    if (lo > 0) {
+      r.region = region_at(m, s, lo, true);
+      r.region_found = r.margin() > 0;
+    }
+  }
+  r.holds = r.region_found && r.margin() > 0;
+  r.rigorous = r.region.M.kind == certify::BoundKind::rigorous;
+}
+
 Result design(const Model& m, const DesignOptions& o) {
   Result r;
   r.split = split_model(m);
@@ -685,83 +818,10 @@ Result design(const Model& m, const DesignOptions& o) {
 
   // Exact design: poles rounded to 3 significant digits, L by exact Ackermann, Q rounded to
   // 6 digits (or as given), P exact from (21).
-  if (r.user_poles)
-    for (const auto& q : real_list_option(o, "thau-poles")) r.poles.push_back(q);
-  else
-    for (double p : best.poles) r.poles.push_back(round_rational(p, 3));
-  GiNaC::matrix crow(1, static_cast<unsigned>(n));
-  for (std::size_t j = 0; j < n; ++j) crow(0, j) = s.C(s.output, j);
-  r.L = place_poles_exact(s.A, crow, r.poles);
-  if (uQ) {
-    r.Q = *uQ;
-  } else {
-    Eigen::MatrixXd Qd = best.Q;
-    Qd /= Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Qd).eigenvalues()(Qd.rows() - 1);
-    r.Q = GiNaC::matrix(static_cast<unsigned>(n), static_cast<unsigned>(n));
-    for (std::size_t i = 0; i < n; ++i)
-      for (std::size_t j = i; j < n; ++j) {
-        const numeric v =
-            round_absolute(Qd(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)), 1e6);
-        r.Q(i, j) = v;
-        r.Q(j, i) = v;
-      }
-    const Eigen::MatrixXd E = to_eigen(r.Q);
-    if (Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(E).eigenvalues()(0) <= 0)
-      r.Q = GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(static_cast<unsigned>(n)));
-  }
-  GiNaC::matrix AL = s.A;
-  for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t j = 0; j < n; ++j) AL(i, j) = s.A(i, j) + r.L[i] * s.C(s.output, j);
-  std::optional<GiNaC::matrix> P = n <= 6 ? solve_lyapunov_exact(AL, r.Q) : std::nullopt;
-  Eigen::MatrixXd Pd;
-  if (P) {
-    r.P = *P;
-    Pd = to_eigen(r.P);
-    r.P_exact = true;
-    r.lyapunov_residual = 0;
-  } else {
-    const auto Pn = solve_lyapunov(to_eigen(AL), to_eigen(r.Q));
-    r.P_exact = false;
-    Pd = Pn ? *Pn
-            : Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
-    r.P = GiNaC::matrix(static_cast<unsigned>(n), static_cast<unsigned>(n));
-    for (std::size_t i = 0; i < n; ++i)
-      for (std::size_t j = 0; j < n; ++j)
-        r.P(i, j) = exact_of_double(Pd(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
-    const Eigen::MatrixXd ALd = to_eigen(AL);
-    r.lyapunov_residual = (ALd.transpose() * Pd + Pd * ALd + 2 * to_eigen(r.Q)).norm();
-  }
-  const Eigen::VectorXd ep = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Pd).eigenvalues();
-  const Eigen::VectorXd eq =
-      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(to_eigen(r.Q)).eigenvalues();
-  r.sigma_max_P = ep(ep.size() - 1);
-  // With a numeric P, the residual E changes Q by at most ||E||_2 / 2 <= ||E||_F / 2; eigenvalues
-  // in double: a relative 1e-12 safety on both.
-  r.sigma_min_Q = eq(0) * (1 - 1e-12) - r.lyapunov_residual / 2;
-  r.ratio = ep(0) > 0 ? r.sigma_min_Q / (r.sigma_max_P * (1 + 1e-12))
-                      : -std::numeric_limits<double>::infinity();
-
-  // M on the declared domain, then the largest sub-box around x* where (26) holds.
-  r.domain = region_at(m, s, 1.0, true);
-  r.region = r.domain;
-  r.region_found = r.domain_margin() > 0;
-  if (!r.region_found && !r.whole_domain_only && r.ratio > 0) {
-    double lo = 0, hi = 1;
-    for (int k = 0; k < kRegionBisections; ++k) {
-      const double mid = (lo + hi) / 2;
-      const Region t = region_at(m, s, mid, false);
-      if (t.M.value < kRegionTarget * r.ratio)
-        lo = mid;
-      else
-        hi = mid;
-    }
-    if (lo > 0) {
-      r.region = region_at(m, s, lo, true);
-      r.region_found = r.margin() > 0;
-    }
-  }
-  r.holds = r.region_found && r.margin() > 0;
-  r.rigorous = r.region.M.kind == certify::BoundKind::rigorous;
+  exact_gain(s, o, best, r);
+  r.Q = uQ ? *uQ : exact_Q(best.Q, static_cast<unsigned>(n));
+  solve_P(s, r);
+  find_region(m, s, r);
   return r;
 }
 
@@ -863,20 +923,11 @@ std::vector<numeric> flat(const GiNaC::matrix& M) {
   return v;
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
-  const Model& m = a.model;
-  const Result& r = cached_design(m, o);
-  if (!r.split.not_applicable.empty() || !r.holds)
-    throw UserError(SourceLoc{m.file, 0, 0},
-                    "method 'thau' does not apply: " +
-                        fmt::format("{}", fmt::join(verdict_reasons(m, r), "; ")));
-  const Split& s = r.split;
+// xh' = A xh + B u + phi(xh, u) + L (h(xh) - y)  (seed 001 eq. 19).
+ExVec thau_rhs(const Model& m, const Split& s, const GiNaC::matrix& L,
+               const std::vector<GiNaC::symbol>& y) {
   const std::size_t n = m.n(), p = m.p();
-  // L as n x p: the chosen output's column, zeros elsewhere.
-  GiNaC::matrix L(static_cast<unsigned>(n), static_cast<unsigned>(p));
-  for (std::size_t i = 0; i < n; ++i) L(i, s.output) = r.L[i];
-  const auto y = output_symbols(m);
-  ExVec rhs, phi = s.phi;
+  ExVec rhs;
   for (std::size_t i = 0; i < n; ++i) {
     ex acc = 0;
     for (std::size_t j = 0; j < n; ++j) acc += s.A(i, j) * m.states[j];
@@ -885,15 +936,22 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
     for (std::size_t k = 0; k < p; ++k) acc += L(i, k) * (m.h[k] - y[k]);
     rhs.push_back(acc);
   }
+  return rhs;
+}
+
+// The spec without its texts: the estimate is the state, integrated by the rhs.
+ObserverSpec thau_skeleton(const Model& m, const Split& s, const GiNaC::matrix& L) {
+  const auto y = output_symbols(m);
+  const ExVec rhs = thau_rhs(m, s, L, y);
   ObserverSpec spec;
   spec.method = "thau";
   spec.class_suffix = "Thau";
-  spec.state_size = n;
+  spec.state_size = m.n();
   spec.params = runtime_params(m);
   spec.functions = model_functions(m);
   spec.functions.push_back(fn("phi",
                               "Nonlinear part phi(x, u) = f + g - A x - B u of the exact split.",
-                              {state_arg(m), input_arg(m)}, phi));
+                              {state_arg(m), input_arg(m)}, s.phi));
   spec.functions.push_back(fn("x_rhs",
                               "xh' = A xh + B u + phi(xh, u) + L (h(xh) - y)  (seed 001 eq. 19).",
                               {state_arg(m), input_arg(m), output_arg(y)}, rhs));
@@ -903,9 +961,12 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   spec.update = UpdateKind::ode;
   spec.roles.rhs = "x_rhs";
   spec.estimate = EstimateKind::identity;
+  return spec;
+}
 
-  const std::string W =
-      r.region.scale == 1 ? "the whole domain" : "W = " + box_text(m, r.region.box);
+// Title, description, class documentation and constants; W names the certified region.
+void describe_thau(ObserverSpec& spec, const Result& r, const GiNaC::matrix& L,
+                   const std::string& W) {
   spec.title = "Thau observer (Lipschitz nonlinearity, Lyapunov certificate)";
   spec.description = {
       "Observer: Thau (1973; seed 001 §4, eq. 18-26), x' = A x + B u + phi(x, u), y = C x",
@@ -917,9 +978,15 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
                     fmt::format("{}.", W)};
   spec.constants.push_back({"poles", r.poles, "eigenvalues of A + L C"});
   spec.constants.push_back({"L", flat(L), "output-injection gain, n x p row-major"});
-  spec.constants.push_back({"A", flat(s.A), "linear part dF/dx at x*, row-major"});
+  spec.constants.push_back({"A", flat(r.split.A), "linear part dF/dx at x*, row-major"});
   spec.constants.push_back({"Q", flat(r.Q), "Q of eq. (21), row-major"});
   spec.constants.push_back({"P", flat(r.P), "P of eq. (21), row-major"});
+}
+
+// The report rows and the summary.
+void report_thau(ObserverSpec& spec, const Result& r, const GiNaC::matrix& L,
+                 const std::string& W) {
+  const Split& s = r.split;
   spec.report = {
       {"split",
        fmt::format("A = {}, B = {}, C = {} (Jacobians at x* = ({}), u* = ({})); phi = [{}]",
@@ -955,6 +1022,24 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
       "(margin {:.6g}, M {})",
       numbers_text(r.poles), r.ratio, r.region.M.value, W, r.margin(),
       certify::bound_kind_name(r.region.M.kind));
+}
+
+ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+  const Model& m = a.model;
+  const Result& r = cached_design(m, o);
+  if (!r.split.not_applicable.empty() || !r.holds)
+    throw UserError(SourceLoc{m.file, 0, 0},
+                    "method 'thau' does not apply: " +
+                        fmt::format("{}", fmt::join(verdict_reasons(m, r), "; ")));
+  const std::size_t n = m.n(), p = m.p();
+  // L as n x p: the chosen output's column, zeros elsewhere.
+  GiNaC::matrix L(static_cast<unsigned>(n), static_cast<unsigned>(p));
+  for (std::size_t i = 0; i < n; ++i) L(i, r.split.output) = r.L[i];
+  ObserverSpec spec = thau_skeleton(m, r.split, L);
+  const std::string W =
+      r.region.scale == 1 ? "the whole domain" : "W = " + box_text(m, r.region.box);
+  describe_thau(spec, r, L, W);
+  report_thau(spec, r, L, W);
   return spec;
 }
 

@@ -714,9 +714,9 @@ bool guarded(const ObserverSpec& s) {
   return s.update == UpdateKind::ode && (s.correction || !s.symmetric_blocks.empty());
 }
 
-// The solvers, total_rhs and the guarded RK4 step.
-std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b,
-                              Precision precision) {
+// The helpers the guarded step needs: unpacking a symmetric block, the Cholesky or LU
+// solver, and the packed positive-definiteness test.
+std::string guarded_helpers(const ObserverSpec& s, CBuilder& b, Precision precision) {
   const bool single = precision == Precision::single;
   std::size_t max_dim = 1;
   for (const auto& q : s.symmetric_blocks) max_dim = std::max(max_dim, q.dim);
@@ -740,7 +740,11 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
   bool pd = false;
   for (const auto& q : s.symmetric_blocks) pd = pd || q.keep_positive_definite;
   if (pd) out += helper(kPackedPositiveDefinite, {"zero", "max_dim"});
-  const bool params = !prm.empty();
+  return out;
+}
+
+// total_rhs: the rhs plus, with a solve correction, M^-1 v added to its target rows.
+std::string total_rhs_text(const ObserverSpec& s, bool params, CBuilder& b) {
   std::string correction = "  return 1;\n", doc;
   if (s.correction) {
     const SolveCorrection& k = *s.correction;
@@ -770,12 +774,19 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
     doc = fmt::format(" plus M^-1 v in rows {}..{} ({} solve)", k.target_offset,
                       k.target_offset + k.dim - 1, chol ? "Cholesky" : "LU");
   }
-  out += render_template(
+  return render_template(
       kTotalRhs, {{"correction_doc", doc},
                   {"prm_decl", params ? fmt::format(", const {}_params* prm", b.prefix()) : ""},
                   {"rhs", b.fn(s.roles.rhs)},
                   {"prm", params ? ", prm" : ""},
                   {"correction", correction}});
+}
+
+// The solvers, total_rhs and the guarded RK4 step.
+std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b,
+                              Precision precision) {
+  std::string out = guarded_helpers(s, b, precision);
+  out += total_rhs_text(s, !prm.empty(), b);
   std::string checks, names;
   for (const auto& q : s.symmetric_blocks) {
     if (!q.keep_positive_definite) continue;
@@ -958,43 +969,19 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
   return out;
 }
 
-}  // namespace
-
-EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt) {
-  const Model& m = a.model;
-  CBuilder b(a, s, opt);
-  const std::string& P = b.prefix();
-  const bool exact = s.update == UpdateKind::linear_exact && !s.rk4_for_linear;
-  const bool jets = s.update == UpdateKind::jets;
-  const bool params = b.has_params();
-  const std::string prm = params ? ", &o->prm" : "";
-  EmittedHeader h;
-  h.namespace_name = cxx_identifier(m.name);
-  h.class_name = P + "_observer";
-  h.filename = P + ".h";
-  h.source_filename = P + ".c";
-  std::string prototypes, definitions;
-  for (const auto& f : s.functions) {
-    auto [decl, def] = b.function(f);
-    prototypes += decl;
-    definitions += def;
-  }
-  std::string fields, defaults, members;
-  for (const auto& p : s.params) {
-    fields += fmt::format("  {}_scalar {}; /* default: {} */\n", P, cxx_identifier(p.name),
-                          p.default_reason);
-    defaults += fmt::format("  prm->{} = {};\n", cxx_identifier(p.name),
-                            c_scalar_literal(p.default_value, opt.precision));
-  }
+// The observer struct's members beyond w: E and Gamma (exact discretisation), the parameters,
+// the jets' state and the delay line, as the spec needs them.
+std::string c_members(const ObserverSpec& s, const std::string& P, std::size_t inputs, bool exact,
+                      bool params) {
+  std::string members;
   if (exact)
     members += fmt::format(
         "  {0}_scalar E[{1}], Gamma[{1}]; /* e^(A_cl dt) - I and Gamma, row-major */\n"
         "  {0}_scalar dt;                  /* dt of E and Gamma (0: not yet computed) */\n",
         P, s.state_size * s.state_size);
   if (params) members += fmt::format("  {}_params prm;\n", P);
-  if (jets) members += jet_members(s, P, m.m());
-  const bool delay = s.update == UpdateKind::sampled_delay;
-  if (delay) {
+  if (s.update == UpdateKind::jets) members += jet_members(s, P, inputs);
+  if (s.update == UpdateKind::sampled_delay) {
     const SampledDelay& d = *s.sampled_delay;
     members += fmt::format(
         "  {0}_scalar ring[{1} * {2}]; /* delay line: z at the last D + 1 samples */\n"
@@ -1002,10 +989,18 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
         "  int head, filled, level;    /* newest slot, samples since reset, input level */\n",
         P, d.delay_steps + 1, d.filters);
   }
+  return members;
+}
+
+// The header's text: the parameter struct's fields, the members and the prototypes filled in.
+std::string c_header_text(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt,
+                          const std::string& P, bool params, const std::string& fields,
+                          const std::string& members, const std::string& prototypes) {
+  const Model& m = a.model;
   std::string guard = "OBSYNTH_GEN_" + P + "_H";
   for (auto& ch : guard) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
   const std::string scalar = precision_name(opt.precision);
-  h.text = render_template(
+  return render_template(
       kHeader,
       {{"version", OBSYNTH_VERSION},
        {"source", opt.source_name},
@@ -1022,6 +1017,84 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
        {"params_decl", params ? render_template(kParamsDecl, {{"fields", fields}, {"P", P}}) : ""},
        {"members", members},
        {"prototypes", prototypes}});
+}
+
+// reset, init and estimate, then the step (jets, guarded or plain), for every update kind but
+// the sampled delay.
+std::string c_lifecycle_and_step(const Model& m, const ObserverSpec& s, CBuilder& b,
+                                 const EmitOptions& opt, const std::string& prm, bool exact,
+                                 bool params) {
+  const bool jets = s.update == UpdateKind::jets;
+  std::string src;
+  std::string reset_body = s.init == InitKind::function
+                               ? fmt::format("  {}(xh0{}, o->w);\n", b.fn(s.roles.init), prm)
+                               : "  for (i = 0; i < N; ++i) o->w[i] = xh0[i];\n";
+  if (jets) reset_body += jet_reset_body(s, b, prm);
+  std::string init_body;
+  if (params) init_body += fmt::format("  {}_params_init(&o->prm);\n", b.prefix());
+  if (jets) init_body += jet_init_body(s, b, opt.precision);
+  if (exact) init_body += fmt::format("  o->dt = {};\n", b.lit(0));
+  std::vector<std::string> zeros(m.n(), b.lit(0));
+  if (jets) src += jets_support_text(s, b, opt.precision);
+  src += render_template(kLifecycle, {{"P", b.prefix()},
+                                      {"estimate_body", estimate_body(s, prm, b, opt.precision)},
+                                      {"reset_body", reset_body},
+                                      {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
+                                      {"init_body", init_body}});
+  if (jets)
+    src += jets_step_text(s, prm, b, m.m());
+  else
+    src += guarded(s) ? guarded_step_text(s, prm, b, opt.precision) : step_text(s, prm, b);
+  return src;
+}
+
+// The usage example shown in the documentation.
+std::string c_usage(const Model& m, const ObserverSpec& s, const EmitOptions& opt,
+                    const std::string& P, const std::string& header, bool params) {
+  std::string set_params;
+  if (params)
+    for (const auto& p : s.params)
+      set_params += fmt::format("  observer.prm.{} = ({}_scalar){}; /* run-time parameter */\n",
+                                cxx_identifier(p.name), P, p.default_value.to_double());
+  return render_template(kUsage, {{"P", P},
+                                  {"source", opt.source_name},
+                                  {"header", header},
+                                  {"m1", std::to_string(std::max<std::size_t>(m.m(), 1))},
+                                  {"m", std::to_string(m.m())},
+                                  {"p", std::to_string(m.p())},
+                                  {"n", std::to_string(m.n())},
+                                  {"set_params", set_params}});
+}
+
+}  // namespace
+
+EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt) {
+  const Model& m = a.model;
+  CBuilder b(a, s, opt);
+  const std::string& P = b.prefix();
+  const bool exact = s.update == UpdateKind::linear_exact && !s.rk4_for_linear;
+  const bool params = b.has_params();
+  const std::string prm = params ? ", &o->prm" : "";
+  EmittedHeader h;
+  h.namespace_name = cxx_identifier(m.name);
+  h.class_name = P + "_observer";
+  h.filename = P + ".h";
+  h.source_filename = P + ".c";
+  std::string prototypes, definitions;
+  for (const auto& f : s.functions) {
+    auto [decl, def] = b.function(f);
+    prototypes += decl;
+    definitions += def;
+  }
+  std::string fields, defaults;
+  for (const auto& p : s.params) {
+    fields += fmt::format("  {}_scalar {}; /* default: {} */\n", P, cxx_identifier(p.name),
+                          p.default_reason);
+    defaults += fmt::format("  prm->{} = {};\n", cxx_identifier(p.name),
+                            c_scalar_literal(p.default_value, opt.precision));
+  }
+  h.text = c_header_text(a, s, opt, P, params, fields, c_members(s, P, m.m(), exact, params),
+                         prototypes);
   std::string src = render_template(kSourceHead, {{"version", OBSYNTH_VERSION},
                                                   {"source", opt.source_name},
                                                   {"header", h.filename},
@@ -1038,7 +1111,7 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
                             {"half", b.lit(0.5)},
                             {"two", b.lit(2)},
                             {"fabs", opt.precision == Precision::single ? "fabsf" : "fabs"}});
-  if (delay) {
+  if (s.update == UpdateKind::sampled_delay) {
     const SampledDelay& d = *s.sampled_delay;
     // The header's enum gets the delay line's sizes (used by the step and for sizing).
     h.text =
@@ -1048,42 +1121,11 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
                                  P, s.state_size, d.filters, d.delay_steps, d.points(), d.levels));
     src += sampled_delay_text(s, b, m, opt.precision);
   } else {
-    std::string reset_body = s.init == InitKind::function
-                                 ? fmt::format("  {}(xh0{}, o->w);\n", b.fn(s.roles.init), prm)
-                                 : "  for (i = 0; i < N; ++i) o->w[i] = xh0[i];\n";
-    if (jets) reset_body += jet_reset_body(s, b, prm);
-    std::string init_body;
-    if (params) init_body += fmt::format("  {}_params_init(&o->prm);\n", P);
-    if (jets) init_body += jet_init_body(s, b, opt.precision);
-    if (exact) init_body += fmt::format("  o->dt = {};\n", b.lit(0));
-    std::vector<std::string> zeros(m.n(), b.lit(0));
-    if (jets) src += jets_support_text(s, b, opt.precision);
-    src += render_template(kLifecycle, {{"P", P},
-                                        {"estimate_body", estimate_body(s, prm, b, opt.precision)},
-                                        {"reset_body", reset_body},
-                                        {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
-                                        {"init_body", init_body}});
-    if (jets)
-      src += jets_step_text(s, prm, b, m.m());
-    else
-      src += guarded(s) ? guarded_step_text(s, prm, b, opt.precision) : step_text(s, prm, b);
+    src += c_lifecycle_and_step(m, s, b, opt, prm, exact, params);
   }
   h.source_text = src;
   h.operations = b.operations_;
-  std::string set_params;
-  if (params)
-    for (const auto& p : s.params)
-      set_params += fmt::format("  observer.prm.{} = ({}_scalar){}; /* run-time parameter */\n",
-                                cxx_identifier(p.name), P, p.default_value.to_double());
-  h.usage_example =
-      render_template(kUsage, {{"P", P},
-                               {"source", opt.source_name},
-                               {"header", h.filename},
-                               {"m1", std::to_string(std::max<std::size_t>(m.m(), 1))},
-                               {"m", std::to_string(m.m())},
-                               {"p", std::to_string(m.p())},
-                               {"n", std::to_string(m.n())},
-                               {"set_params", set_params}});
+  h.usage_example = c_usage(m, s, opt, P, h.filename, params);
   return h;
 }
 

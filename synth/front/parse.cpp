@@ -77,8 +77,7 @@ class Lexer {
 
   std::vector<Token> run() {
     std::vector<Token> out;
-    int depth = 0;
-    std::vector<Token> open;
+    std::vector<Token> open;  // the brackets not yet closed
     while (pos_ < src_.size()) {
       const char c = src_[pos_];
       if (c == '#') {
@@ -86,7 +85,8 @@ class Lexer {
         continue;
       }
       if (c == '\n') {
-        if (depth == 0 && !out.empty() && out.back().kind != Tok::newline)
+        // Newlines inside brackets continue the statement.
+        if (open.empty() && !out.empty() && out.back().kind != Tok::newline)
           out.push_back({Tok::newline, "\\n", line_, col_});
         advance();
         continue;
@@ -107,42 +107,12 @@ class Lexer {
       if (std::isdigit(static_cast<unsigned char>(c)) ||
           (c == '.' && pos_ + 1 < src_.size() &&
            std::isdigit(static_cast<unsigned char>(src_[pos_ + 1])))) {
-        std::string s;
-        while (pos_ < src_.size() &&
-               (std::isdigit(static_cast<unsigned char>(src_[pos_])) || src_[pos_] == '.'))
-          s += advance();
-        if (pos_ < src_.size() && (src_[pos_] == 'e' || src_[pos_] == 'E')) {
-          std::size_t q = pos_ + 1;
-          if (q < src_.size() && (src_[q] == '+' || src_[q] == '-')) ++q;
-          if (q < src_.size() && std::isdigit(static_cast<unsigned char>(src_[q]))) {
-            while (pos_ < q) s += advance();
-            while (pos_ < src_.size() && std::isdigit(static_cast<unsigned char>(src_[pos_])))
-              s += advance();
-          }
-        }
-        if (static_cast<int>(s.size()) > lim_.max_literal_length)
-          throw UserError({file_, l, k}, fmt::format("number literal longer than {} characters",
-                                                     lim_.max_literal_length));
-        out.push_back({Tok::number, s, l, k});
+        out.push_back(number(l, k));
         continue;
       }
       if (std::string_view("+-*/^()[],=").find(c) != std::string_view::npos) {
         advance();
-        if (c == '(' || c == '[') {
-          ++depth;
-          open.push_back({Tok::op, std::string(1, c), l, k});
-        } else if (c == ')' || c == ']') {
-          const char want = c == ')' ? '(' : '[';
-          if (open.empty())
-            throw UserError({file_, l, k},
-                            fmt::format("unbalanced '{}': no matching '{}'", c, want));
-          if (open.back().text[0] != want)
-            throw UserError({file_, l, k},
-                            fmt::format("'{}' closes the '{}' opened at {}:{}", c, open.back().text,
-                                        open.back().line, open.back().col));
-          open.pop_back();
-          --depth;
-        }
+        match_bracket(c, l, k, open);
         out.push_back({Tok::op, std::string(1, c), l, k});
         continue;
       }
@@ -161,6 +131,43 @@ class Lexer {
   }
 
  private:
+  // A number literal at (l, k): digits and dots, then an exponent if one follows.
+  Token number(int l, int k) {
+    std::string s;
+    while (pos_ < src_.size() &&
+           (std::isdigit(static_cast<unsigned char>(src_[pos_])) || src_[pos_] == '.'))
+      s += advance();
+    if (pos_ < src_.size() && (src_[pos_] == 'e' || src_[pos_] == 'E')) {
+      std::size_t q = pos_ + 1;
+      if (q < src_.size() && (src_[q] == '+' || src_[q] == '-')) ++q;
+      if (q < src_.size() && std::isdigit(static_cast<unsigned char>(src_[q]))) {
+        while (pos_ < q) s += advance();
+        while (pos_ < src_.size() && std::isdigit(static_cast<unsigned char>(src_[pos_])))
+          s += advance();
+      }
+    }
+    if (static_cast<int>(s.size()) > lim_.max_literal_length)
+      throw UserError({file_, l, k}, fmt::format("number literal longer than {} characters",
+                                                 lim_.max_literal_length));
+    return {Tok::number, s, l, k};
+  }
+
+  // Tracks brackets: an opening one is pushed on open, a closing one must match its top.
+  void match_bracket(char c, int l, int k, std::vector<Token>& open) const {
+    if (c == '(' || c == '[') {
+      open.push_back({Tok::op, std::string(1, c), l, k});
+    } else if (c == ')' || c == ']') {
+      const char want = c == ')' ? '(' : '[';
+      if (open.empty())
+        throw UserError({file_, l, k}, fmt::format("unbalanced '{}': no matching '{}'", c, want));
+      if (open.back().text[0] != want)
+        throw UserError({file_, l, k},
+                        fmt::format("'{}' closes the '{}' opened at {}:{}", c, open.back().text,
+                                    open.back().line, open.back().col));
+      open.pop_back();
+    }
+  }
+
   char advance() {
     const char c = src_[pos_++];
     if (c == '\n') {
@@ -966,7 +973,56 @@ class Parser {
     return it != model_.locations.end() ? it->second : SourceLoc{file_, 1, 1};
   }
 
-  Model finish() {
+  // e at an input point, or nullopt with why: substituting can throw (a pole such as 1/u,
+  // log(u) at 0), and that is the user's model, not a bug. GiNaC leaks the half-built term
+  // when a pole makes subs() throw (x2/u*x2 with u = 0), so look for vanishing denominators
+  // first, innermost first.
+  static std::optional<ex> value_at(const ex& e, const GiNaC::exmap& at, std::string& why) {
+    try {
+      std::optional<std::string> pole;
+      check_poles_at_zero(e, at, [&](const ex& base) {
+        if (!pole) pole = fmt::format("it divides by {}, which vanishes there", to_string(base));
+      });
+      if (pole) {
+        why = *pole;
+        return std::nullopt;
+      }
+      return e.subs(at);
+    } catch (const std::exception& err) {  // e.g. log(u)
+      why = err.what();
+      return std::nullopt;
+    }
+  }
+
+  std::string input_point_text(const std::vector<numeric>& v) const {
+    std::vector<std::string> parts;
+    for (std::size_t k = 0; k < model_.inputs.size(); ++k)
+      parts.push_back(fmt::format("{} = {}", model_.inputs[k].get_name(), to_string(v[k])));
+    return fmt::format("{}", fmt::join(parts, ", "));
+  }
+
+  GiNaC::exmap input_point(const std::vector<numeric>& v) const {
+    GiNaC::exmap at;
+    for (std::size_t k = 0; k < model_.inputs.size(); ++k) at[model_.inputs[k]] = v[k];
+    return at;
+  }
+
+  GiNaC::exmap input_zero() const {
+    GiNaC::exmap u_zero;
+    for (const auto& u : model_.inputs) u_zero[u] = 0;
+    return u_zero;
+  }
+
+  void check_len(const char* key, const ExVec& v) const {
+    const std::size_t n = model_.states.size();
+    if (v.size() != n)
+      throw UserError(where(key), fmt::format("'{}' has {} component{}, but there {} {} state{}",
+                                              key, v.size(), v.size() == 1 ? "" : "s",
+                                              n == 1 ? "is" : "are", n, n == 1 ? "" : "s"));
+  }
+
+  // The statements every model needs, and F or f (+ g) but not both.
+  void check_required() const {
     const Token& eof = toks_.back();
     const SourceLoc end{file_, eof.line, eof.col};
     if (model_.name.empty())
@@ -976,171 +1032,156 @@ class Parser {
       throw UserError(where("F"), "give either 'F = [...]' or 'f = [...]' (and 'g'), not both");
     if (!f_ && !F_) throw UserError(end, "missing 'f = [...]' (the drift vector field)");
     if (!h_) throw UserError(end, "missing 'h = [...]' (the output map)");
+  }
+
+  // The 'nominal' line's input values, each inside its domain.
+  std::vector<numeric> nominal_from_line() {
+    std::vector<numeric> u0(model_.inputs.size(), numeric(0));
+    for (const auto& nv : *nominal_) {
+      std::size_t k = 0;
+      while (!(model_.inputs[k] == nv.input)) ++k;
+      u0[k] = nv.value;
+      const auto box = model_.domain.find(nv.input.get_name());
+      if (box != model_.domain.end() && (nv.value < box->second.lo || nv.value > box->second.hi))
+        throw UserError(nv.loc, fmt::format("the nominal value {} of '{}' is outside its "
+                                            "domain [{}, {}]",
+                                            to_string(nv.value), nv.input.get_name(),
+                                            to_string(box->second.lo), to_string(box->second.hi)));
+    }
+    model_.nominal = u0;
+    model_.nominal_note =
+        fmt::format("F split at the nominal input {} (the 'nominal' line)", input_point_text(u0));
+    return u0;
+  }
+
+  // 0, else (F undefined at 0) the middle of the input box, stated in nominal_note; an error
+  // when F is undefined there too.
+  std::vector<numeric> nominal_fallback() {
     const std::size_t n = model_.states.size();
-    auto check_len = [&](const char* key, const ExVec& v) {
-      if (v.size() != n)
-        throw UserError(where(key), fmt::format("'{}' has {} component{}, but there {} {} state{}",
-                                                key, v.size(), v.size() == 1 ? "" : "s",
-                                                n == 1 ? "is" : "are", n, n == 1 ? "" : "s"));
-    };
-    GiNaC::exmap u_zero;
-    for (const auto& u : model_.inputs) u_zero[u] = 0;
-    // e at an input point, or nullopt with why: substituting can throw (a pole such as 1/u,
-    // log(u) at 0), and that is the user's model, not a bug. GiNaC leaks the half-built term
-    // when a pole makes subs() throw (x2/u*x2 with u = 0), so look for vanishing denominators
-    // first, innermost first.
-    auto value_at = [&](const ex& e, const GiNaC::exmap& at,
-                        std::string& why) -> std::optional<ex> {
-      try {
-        std::optional<std::string> pole;
-        check_poles_at_zero(e, at, [&](const ex& base) {
-          if (!pole) pole = fmt::format("it divides by {}, which vanishes there", to_string(base));
-        });
-        if (pole) {
-          why = *pole;
-          return std::nullopt;
-        }
-        return e.subs(at);
-      } catch (const std::exception& err) {  // e.g. log(u)
-        why = err.what();
-        return std::nullopt;
-      }
-    };
-    auto at_u_zero = [&](const ex& e, const char* field, std::size_t i) -> ex {
+    const GiNaC::exmap u_zero = input_zero();
+    for (std::size_t i = 0; i < n; ++i) {
       std::string why;
-      if (auto v = value_at(e, u_zero, why)) return *v;
-      throw UserError(where(fmt::format("{}[{}]", field, i)),
-                      fmt::format("{}[{}] is undefined at u = 0 ({}); the input part g(x,u) must "
-                                  "be defined and zero at u = 0",
-                                  field, i + 1, why));
-    };
-    auto point_text = [&](const std::vector<numeric>& v) {
-      std::vector<std::string> parts;
-      for (std::size_t k = 0; k < model_.inputs.size(); ++k)
-        parts.push_back(fmt::format("{} = {}", model_.inputs[k].get_name(), to_string(v[k])));
-      return fmt::format("{}", fmt::join(parts, ", "));
-    };
-    auto point_map = [&](const std::vector<numeric>& v) {
-      GiNaC::exmap at;
-      for (std::size_t k = 0; k < model_.inputs.size(); ++k) at[model_.inputs[k]] = v[k];
-      return at;
-    };
+      if (value_at((*F_)[i], u_zero, why)) continue;
+      std::vector<numeric> mid;
+      for (const auto& u : model_.inputs) {
+        const Interval b = model_.box(u);
+        mid.push_back((b.lo + b.hi) / 2);
+      }
+      bool defined = true;
+      std::string why_mid;
+      for (std::size_t j = 0; j < n && defined; ++j)
+        defined = value_at((*F_)[j], input_point(mid), why_mid).has_value();
+      if (!defined)
+        throw UserError(
+            where(fmt::format("F[{}]", i)),
+            fmt::format("F[{}] is undefined at u = 0 ({}) and F at the middle of the input "
+                        "box ({}: {}); add a line 'nominal {} = VALUE' with an input value "
+                        "where F is defined, to split F there",
+                        i + 1, why, input_point_text(mid), why_mid,
+                        model_.inputs.empty() ? "u" : model_.inputs[0].get_name()));
+      model_.nominal = mid;
+      model_.nominal_note = fmt::format(
+          "F split at the nominal input {} (the middle of the input box), because F[{}] is "
+          "undefined at u = 0 ({}); a 'nominal' line sets another value",
+          input_point_text(mid), i + 1, why);
+      return mid;
+    }
+    return std::vector<numeric>(model_.inputs.size(), numeric(0));
+  }
+
+  // F = [...]: split at the nominal input u0 into f = F(x, u0) and g = F - f.
+  void split_F() {
+    check_len("F", *F_);
+    // The nominal input u0: the 'nominal' line, else 0, else (F undefined at 0) the middle of
+    // the input box, stated in nominal_note; never a silent guess.
+    const std::vector<numeric> u0 = nominal_ ? nominal_from_line() : nominal_fallback();
+    const GiNaC::exmap at = input_point(u0);
+    for (std::size_t i = 0; i < model_.states.size(); ++i) {
+      const ex& c = (*F_)[i];
+      std::string why;
+      const auto c0 = value_at(c, at, why);
+      if (!c0)
+        throw UserError(where(fmt::format("F[{}]", i)),
+                        fmt::format("F[{}] is undefined at the nominal input {} ({})", i + 1,
+                                    input_point_text(u0), why));
+      model_.f.push_back(*c0);
+      model_.g.push_back(c - *c0);
+    }
+  }
+
+  // f = [...] (free of the inputs) and g = [...] (default 0).
+  void take_f_g() {
+    const std::size_t n = model_.states.size();
+    check_len("f", *f_);
+    model_.f = *f_;
+    for (std::size_t i = 0; i < n; ++i) {
+      const SourceLoc l = where(fmt::format("f[{}]", i));
+      for (const auto& u : model_.inputs)
+        if (model_.f[i].has(u))
+          throw UserError(l, fmt::format("f[{}] depends on the input '{}'; put input terms in 'g' "
+                                         "(or give the whole field as 'F')",
+                                         i + 1, u.get_name()));
+    }
+    if (g_) {
+      check_len("g", *g_);
+      model_.g = *g_;
+    } else {
+      model_.g.assign(n, ex(0));
+    }
+  }
+
+  // Outputs may depend on the inputs (direct feedthrough, y = h(x,u)); the drift analysis
+  // reads them at the nominal input, so they must be defined there.
+  void check_outputs_at_nominal() const {
+    std::vector<numeric> u0 = model_.nominal;
+    u0.resize(model_.inputs.size(), numeric(0));
+    for (std::size_t i = 0; i < model_.h.size(); ++i) {
+      if (!depends_on(model_.h[i], model_.inputs)) continue;
+      std::string why;
+      if (!value_at(model_.h[i], input_point(u0), why))
+        throw UserError(where(fmt::format("h[{}]", i)),
+                        fmt::format("h[{}] is undefined at the input {} ({}); the drift "
+                                    "analysis reads the outputs there",
+                                    i + 1, input_point_text(u0), why));
+    }
+  }
+
+  // A given g must be defined and zero at u = 0.
+  void check_g_zero_at_zero(const SampleBoxes& boxes) {
+    const GiNaC::exmap u_zero = input_zero();
+    for (std::size_t i = 0; i < model_.states.size(); ++i) {
+      std::string why;
+      const auto v = value_at(model_.g[i], u_zero, why);
+      if (!v)
+        throw UserError(where(fmt::format("{}[{}]", "g", i)),
+                        fmt::format("{}[{}] is undefined at u = 0 ({}); the input part g(x,u) must "
+                                    "be defined and zero at u = 0",
+                                    "g", i + 1, why));
+      const ex g0 = *v;
+      if (!real_somewhere(g0, boxes) || zero_test(g0, boxes) == ZeroVerdict::nonzero)
+        throw UserError(
+            where(fmt::format("g[{}]", i)),
+            fmt::format("g[{}] is not zero at u = 0 (it is {} there); move that part to 'f'", i + 1,
+                        to_string(g0)));
+    }
+  }
+
+  Model finish() {
+    check_required();
     if (nominal_ && !F_)
       throw UserError(nominal_loc_,
                       "'nominal' sets where a field given as 'F = [...]' is split (f = F(x,u0), "
                       "g = F - f); with 'f' and 'g' the split is already explicit");
-    if (F_) {
-      check_len("F", *F_);
-      // The nominal input u0: the 'nominal' line, else 0, else (F undefined at 0) the middle of
-      // the input box, stated in nominal_note; never a silent guess.
-      std::vector<numeric> u0(model_.inputs.size(), numeric(0));
-      if (nominal_) {
-        for (const auto& nv : *nominal_) {
-          std::size_t k = 0;
-          while (!(model_.inputs[k] == nv.input)) ++k;
-          u0[k] = nv.value;
-          const auto box = model_.domain.find(nv.input.get_name());
-          if (box != model_.domain.end() &&
-              (nv.value < box->second.lo || nv.value > box->second.hi))
-            throw UserError(nv.loc,
-                            fmt::format("the nominal value {} of '{}' is outside its "
-                                        "domain [{}, {}]",
-                                        to_string(nv.value), nv.input.get_name(),
-                                        to_string(box->second.lo), to_string(box->second.hi)));
-        }
-        model_.nominal = u0;
-        model_.nominal_note =
-            fmt::format("F split at the nominal input {} (the 'nominal' line)", point_text(u0));
-      } else {
-        for (std::size_t i = 0; i < n; ++i) {
-          std::string why;
-          if (value_at((*F_)[i], u_zero, why)) continue;
-          std::vector<numeric> mid;
-          for (const auto& u : model_.inputs) {
-            const Interval b = model_.box(u);
-            mid.push_back((b.lo + b.hi) / 2);
-          }
-          bool defined = true;
-          std::string why_mid;
-          for (std::size_t j = 0; j < n && defined; ++j)
-            defined = value_at((*F_)[j], point_map(mid), why_mid).has_value();
-          if (!defined)
-            throw UserError(
-                where(fmt::format("F[{}]", i)),
-                fmt::format("F[{}] is undefined at u = 0 ({}) and F at the middle of the input "
-                            "box ({}: {}); add a line 'nominal {} = VALUE' with an input value "
-                            "where F is defined, to split F there",
-                            i + 1, why, point_text(mid), why_mid,
-                            model_.inputs.empty() ? "u" : model_.inputs[0].get_name()));
-          u0 = mid;
-          model_.nominal = u0;
-          model_.nominal_note = fmt::format(
-              "F split at the nominal input {} (the middle of the input box), because F[{}] is "
-              "undefined at u = 0 ({}); a 'nominal' line sets another value",
-              point_text(u0), i + 1, why);
-          break;
-        }
-      }
-      const GiNaC::exmap at = point_map(u0);
-      for (std::size_t i = 0; i < n; ++i) {
-        const ex& c = (*F_)[i];
-        std::string why;
-        const auto c0 = value_at(c, at, why);
-        if (!c0)
-          throw UserError(where(fmt::format("F[{}]", i)),
-                          fmt::format("F[{}] is undefined at the nominal input {} ({})", i + 1,
-                                      point_text(u0), why));
-        model_.f.push_back(*c0);
-        model_.g.push_back(c - *c0);
-      }
-    } else {
-      check_len("f", *f_);
-      model_.f = *f_;
-      for (std::size_t i = 0; i < n; ++i) {
-        const SourceLoc l = where(fmt::format("f[{}]", i));
-        for (const auto& u : model_.inputs)
-          if (model_.f[i].has(u))
-            throw UserError(l,
-                            fmt::format("f[{}] depends on the input '{}'; put input terms in 'g' "
-                                        "(or give the whole field as 'F')",
-                                        i + 1, u.get_name()));
-      }
-      if (g_) {
-        check_len("g", *g_);
-        model_.g = *g_;
-      } else {
-        model_.g.assign(n, ex(0));
-      }
-    }
-    // Outputs may depend on the inputs (direct feedthrough, y = h(x,u)); the drift analysis
-    // reads them at the nominal input, so they must be defined there.
+    if (F_)
+      split_F();
+    else
+      take_f_g();
     model_.h = *h_;
-    {
-      std::vector<numeric> u0 = model_.nominal;
-      u0.resize(model_.inputs.size(), numeric(0));
-      for (std::size_t i = 0; i < model_.h.size(); ++i) {
-        if (!depends_on(model_.h[i], model_.inputs)) continue;
-        std::string why;
-        if (!value_at(model_.h[i], point_map(u0), why))
-          throw UserError(where(fmt::format("h[{}]", i)),
-                          fmt::format("h[{}] is undefined at the input {} ({}); the drift "
-                                      "analysis reads the outputs there",
-                                      i + 1, point_text(u0), why));
-      }
-    }
+    check_outputs_at_nominal();
     const SampleBoxes boxes = SampleBoxes::from_model(model_);
     check_exact_size(boxes);
     check_function_arguments(boxes);
-    if (g_) {
-      for (std::size_t i = 0; i < n; ++i) {
-        const ex g0 = at_u_zero(model_.g[i], "g", i);
-        if (!real_somewhere(g0, boxes) || zero_test(g0, boxes) == ZeroVerdict::nonzero)
-          throw UserError(
-              where(fmt::format("g[{}]", i)),
-              fmt::format("g[{}] is not zero at u = 0 (it is {} there); move that part to 'f'",
-                          i + 1, to_string(g0)));
-      }
-    }
+    if (g_) check_g_zero_at_zero(boxes);
     check_divisors(boxes);
     return model_;
   }

@@ -532,22 +532,10 @@ ex quadratic_power_integral(const ex& t, const ex& w2, long k) {
   return I;
 }
 
-// Rational functions with rational coefficients whose denominator factors over Q into linear
-// and irreducible quadratic factors: polynomial part + partial fractions (undetermined
-// coefficients, solved exactly) + log/atan/power terms. log|a y + b| is written
-// log((a y + b)^2)/2 to stay real.
-std::optional<ex> integrate_rational(const ex& e, const GiNaC::symbol& y) {
-  const ex nd = GiNaC::numer_denom(GiNaC::normal(e));
-  const ex P = GiNaC::expand(nd.op(0)), Q = GiNaC::expand(nd.op(1));
-  if (!numeric_poly(P, y) || !numeric_poly(Q, y) || Q.degree(y) == 0) return std::nullopt;
-  const ex poly = GiNaC::quo(P, Q, y), rem = GiNaC::rem(P, Q, y);
-  ex result = 0;
-  if (!poly.is_zero()) result += *integrate_polynomial(poly, y);
-  if (rem.is_zero()) return result;
-  // Factor Q: c * prod q_j^e_j.
-  const ex fq = GiNaC::factor(Q);
-  std::vector<std::pair<ex, long>> factors;
-  ex lead = 1;
+// The factored denominator fq = lead * prod q_j^e_j with monic q_j of degree 1 or 2 in y
+// (into factors, the constant into lead); false for a factor of higher degree.
+bool monic_factors(const ex& fq, const GiNaC::symbol& y, std::vector<std::pair<ex, long>>& factors,
+                   ex& lead) {
   auto take = [&](const ex& f) {
     ex base = f;
     long mult = 1;
@@ -567,16 +555,28 @@ std::optional<ex> integrate_rational(const ex& e, const GiNaC::symbol& y) {
     factors.push_back({GiNaC::expand(base / lc), mult});
     return true;
   };
-  if (is_a<GiNaC::mul>(fq)) {
-    for (std::size_t i = 0; i < fq.nops(); ++i)
-      if (!take(fq.op(i))) return std::nullopt;
-  } else if (!take(fq)) {
-    return std::nullopt;
-  }
+  if (!is_a<GiNaC::mul>(fq)) return take(fq);
+  for (std::size_t i = 0; i < fq.nops(); ++i)
+    if (!take(fq.op(i))) return false;
+  return true;
+}
+
+// One partial fraction (A y + B)/q^k, A = 0 for linear q.
+struct PartialFraction {
+  ex q;
+  long k;
+  ex A, B;
+};
+
+// rem / Q as partial fractions over the factors (undetermined coefficients, solved exactly);
+// nullopt when the linear system has no unique solution.
+std::optional<std::vector<PartialFraction>> partial_fractions(
+    const ex& rem, const ex& Q, const ex& lead, const std::vector<std::pair<ex, long>>& factors,
+    const GiNaC::symbol& y) {
   // Ansatz: sum over factors and powers of (A y + B)/q^k (A = 0 for linear q).
   GiNaC::lst unknowns;
   ex ansatz = 0;
-  std::vector<std::tuple<ex, long, ex, ex>> terms;  // q, k, A, B
+  std::vector<PartialFraction> terms;
   int counter = 0;
   for (const auto& [q, mult] : factors)
     for (long k = 1; k <= mult; ++k) {
@@ -594,27 +594,59 @@ std::optional<ex> integrate_rational(const ex& e, const GiNaC::symbol& y) {
   for (int k = 0; k <= diff.degree(y); ++k) eqs.append(diff.coeff(y, k) == 0);
   const ex sol = GiNaC::lsolve(eqs, unknowns);
   if (sol.nops() != unknowns.nops()) return std::nullopt;
-  for (const auto& [q, k, A0, B0] : terms) {
-    const ex A = A0.subs(sol), B = B0.subs(sol);
-    if (q.degree(y) == 1) {
-      const ex root = q - y;  // q = y + root
-      if (B.is_zero()) continue;
-      if (k == 1)
-        result += B * GiNaC::log(GiNaC::pow(y + root, 2)) / 2;
-      else
-        result += B * GiNaC::pow(y + root, 1 - k) / (1 - k);
-      continue;
-    }
-    const ex p = q.coeff(y, 1), s = q.coeff(y, 0);
-    const ex w2 = GiNaC::normal(s - p * p / 4);
-    if (!is_a<numeric>(w2) || !GiNaC::ex_to<numeric>(w2).is_positive())
-      return std::nullopt;  // reducible over R
-    // (A y + B)/q^k = (A/2)(2y + p)/q^k + (B - A p/2)/q^k
-    if (!A.is_zero())
-      result += k == 1 ? A / 2 * GiNaC::log(q) : A / 2 * GiNaC::pow(q, 1 - k) / (1 - k);
-    const ex c = GiNaC::normal(B - A * p / 2);
-    if (!c.is_zero()) result += c * quadratic_power_integral(y + p / 2, w2, k);
+  for (auto& t : terms) {
+    t.A = t.A.subs(sol);
+    t.B = t.B.subs(sol);
   }
+  return terms;
+}
+
+// Adds the integral of one partial fraction to result: log/power terms for a linear q, and
+// log/atan/reduction terms for a quadratic one; false when q is reducible over R.
+bool add_fraction_integral(const PartialFraction& t, const GiNaC::symbol& y, ex& result) {
+  const ex &q = t.q, &A = t.A, &B = t.B;
+  const long k = t.k;
+  if (q.degree(y) == 1) {
+    const ex root = q - y;  // q = y + root
+    if (B.is_zero()) return true;
+    if (k == 1)
+      result += B * GiNaC::log(GiNaC::pow(y + root, 2)) / 2;
+    else
+      result += B * GiNaC::pow(y + root, 1 - k) / (1 - k);
+    return true;
+  }
+  const ex p = q.coeff(y, 1), s = q.coeff(y, 0);
+  const ex w2 = GiNaC::normal(s - p * p / 4);
+  if (!is_a<numeric>(w2) || !GiNaC::ex_to<numeric>(w2).is_positive())
+    return false;  // reducible over R
+  // (A y + B)/q^k = (A/2)(2y + p)/q^k + (B - A p/2)/q^k
+  if (!A.is_zero())
+    result += k == 1 ? A / 2 * GiNaC::log(q) : A / 2 * GiNaC::pow(q, 1 - k) / (1 - k);
+  const ex c = GiNaC::normal(B - A * p / 2);
+  if (!c.is_zero()) result += c * quadratic_power_integral(y + p / 2, w2, k);
+  return true;
+}
+
+// Rational functions with rational coefficients whose denominator factors over Q into linear
+// and irreducible quadratic factors: polynomial part + partial fractions (undetermined
+// coefficients, solved exactly) + log/atan/power terms. log|a y + b| is written
+// log((a y + b)^2)/2 to stay real.
+std::optional<ex> integrate_rational(const ex& e, const GiNaC::symbol& y) {
+  const ex nd = GiNaC::numer_denom(GiNaC::normal(e));
+  const ex P = GiNaC::expand(nd.op(0)), Q = GiNaC::expand(nd.op(1));
+  if (!numeric_poly(P, y) || !numeric_poly(Q, y) || Q.degree(y) == 0) return std::nullopt;
+  const ex poly = GiNaC::quo(P, Q, y), rem = GiNaC::rem(P, Q, y);
+  ex result = 0;
+  if (!poly.is_zero()) result += *integrate_polynomial(poly, y);
+  if (rem.is_zero()) return result;
+  // Factor Q: c * prod q_j^e_j.
+  std::vector<std::pair<ex, long>> factors;
+  ex lead = 1;
+  if (!monic_factors(GiNaC::factor(Q), y, factors, lead)) return std::nullopt;
+  const auto terms = partial_fractions(rem, Q, lead, factors, y);
+  if (!terms) return std::nullopt;
+  for (const auto& t : *terms)
+    if (!add_fraction_integral(t, y, result)) return std::nullopt;
   return result;
 }
 
