@@ -1,6 +1,7 @@
 #include "designs/finite_time.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <chrono>
@@ -395,6 +396,24 @@ struct Tables {
   std::size_t tested = 0;
 };
 
+// Backward simulation from a grid point can leave the finite numbers (Van der Pol's limit
+// cycle repels in backward time): say where, instead of tabulating NaN.
+void require_finite(const Eigen::MatrixXd& q, const Eigen::MatrixXd& grid, double u,
+                    const Choices& c) {
+  for (Eigen::Index i = 0; i < q.rows(); ++i) {
+    if (q.row(i).allFinite()) continue;
+    std::vector<double> x;
+    for (Eigen::Index s = 0; s < grid.cols(); ++s) x.push_back(grid(i, s));
+    throw UserError(
+        SourceLoc{},
+        fmt::format("method 'finite-time': the backward simulation over the window T = {:g} from "
+                    "the grid point x = ({}) at u = {:g} leaves the finite numbers: the model "
+                    "escapes in backward time from the domain box (shrink the box or the window "
+                    "with --window)",
+                    c.dt * static_cast<double>(c.D), fmt::join(x, ", "), u));
+  }
+}
+
 // With --metric whiten, q is whitened by its covariance over the grid (W = D^-1/2 V^T,
 // eigenvalues floored at 1e-6 of the largest), so that directions in which q varies little (the
 // phase, seen only by the fast filters) count as much as the others; returns W (I otherwise).
@@ -523,8 +542,11 @@ Tables tabulate(const Model& m, Choices& c) {
   Tables t;
   t.grid.resize(N, static_cast<Eigen::Index>(n));
   for (std::size_t s = 0; s < n; ++s) t.grid.col(static_cast<Eigen::Index>(s)) = X[s].matrix();
-  for (std::size_t k = 0; k < c.levels; ++k)
-    t.q.push_back(tab.map(X, c.level_lo + c.level_step * static_cast<double>(k)));
+  for (std::size_t k = 0; k < c.levels; ++k) {
+    const double u = c.level_lo + c.level_step * static_cast<double>(k);
+    t.q.push_back(tab.map(X, u));
+    require_finite(t.q.back(), t.grid, u, c);
+  }
   // The kernel's metric: whitened (or not), then scaled by the median sensitivity.
   const Eigen::MatrixXd W = whiten(c, t);
   std::vector<double> nn = neighbour_ratios(c, t);

@@ -278,6 +278,16 @@ class Printer {
         return {"1/" + wrap(d, p_pow, style_), p_mul};
       }
     }
+    if (is_a<GiNaC::add>(base) && is_a<numeric>(expo) && ex_to<numeric>(expo).is_pos_integer()) {
+      // The sign normal form of sum factors (product()): (-a+b)^k prints as (a-b)^k, with the
+      // sign in front for odd k.
+      std::vector<Printed> terms = sum_terms(base);
+      const bool flip = !terms.empty() && terms[0].negative;
+      if (flip) terms = negated(std::move(terms));
+      const Printed p = integer_power(join_terms(terms), ex_to<numeric>(expo));
+      if (flip && ex_to<numeric>(expo).is_odd()) return {"-" + p.text, p_unary, true};
+      return p;
+    }
     const Printed b = print(base);
     const Printed x = print(expo);
     if (style_ == Style::latex)

@@ -136,6 +136,10 @@ check "main job memory stop writes nothing" test ! -e "$tmp/job_mem"
 check "main job time stop exits 1" test $? -eq 1
 check "main job time stop diagnostic" grep -q "stage 'frame' exceeded its time budget of 1 s" "$tmp/err"
 check "main job time stop writes nothing" test ! -e "$tmp/job_time"
+# finite-time on a model that escapes in backward time: a diagnostic, not an internal error.
+"$bin" "$src/models/vanderpol.sym" -o "$tmp/vdp_ft" --method finite-time >"$tmp/out" 2>"$tmp/err"
+check "finite-time backward escape exits 1" test $? -eq 1
+check "finite-time backward escape diagnostic" grep -q "backward simulation over the window T = 1 from the grid point x = (.*) at u = .* leaves the finite numbers" "$tmp/err"
 # check runs the certificate-search verdicts (thau, kou) only with --certify.
 "$bin" check "$src/models/pendulum.sym" >"$tmp/out" 2>"$tmp/err"
 check "check leaves the searches out" grep -q "^  thau  *not evaluated: its verdict is a certificate search" "$tmp/out"
@@ -222,6 +226,19 @@ for m in slawinski17 triangular4 cstr lorenz flexible_joint; do
   "$bin" check "$src/models/$m.sym" --format json --no-timings >"$tmp/b.json"
   check "deterministic JSON for $m" cmp -s "$tmp/a.json" "$tmp/b.json"
 done
+# ident_mm: GiNaC gives a squared sum either sign from run to run ((-a+b)^2 or (a-b)^2); the
+# report prints one (half of the runs differed before the printer normalised it).
+"$bin" check "$src/tests/models/ident_mm.sym" --no-timings >"$tmp/a.txt" 2>&1
+same=1
+for run in 1 2 3 4 5 6; do
+  "$bin" check "$src/tests/models/ident_mm.sym" --no-timings >"$tmp/b.txt" 2>&1
+  cmp -s "$tmp/a.txt" "$tmp/b.txt" || same=0
+done
+check "deterministic report for ident_mm (7 runs)" test $same -eq 1
+# The main job over every design, twice, on a model whose Riccati header once differed.
+"$bin" "$src/models/cstr.sym" -o "$tmp/cstr1" --method all >/dev/null 2>&1
+"$bin" "$src/models/cstr.sym" -o "$tmp/cstr2" --method all >/dev/null 2>&1
+check "deterministic main job for cstr" diff -r "$tmp/cstr1" "$tmp/cstr2"
 
 # simulate: a converging run writes a CSV with the documented header and a well-formed,
 # deterministic SVG.
