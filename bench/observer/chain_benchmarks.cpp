@@ -72,9 +72,42 @@ void OBSYNTH_CHAIN_REGISTER() {
 #undef OBSYNTH_REGISTER_FIXED
 }
 
+namespace {
+/// count_steps on the fixed-dt samples of the *_fixed_dt benchmarks: the generated step
+/// (name + "_fixed_dt") or the expert one (name + "_expert_fixed_dt"); false if neither.
+template <template <class> class Gen>
+bool count_fixed_dt(const std::string& model, const char* name, std::size_t steps, long* failures,
+                    double* checksum) {
+  using G = Gen<Scalar>;
+  if (model + "_fixed_dt" == name) {
+    static const SampleArrays<G> a(chain_samples_fixed_dt<Gen<double>>());
+    *failures = run_steps<G>(
+        a, [] { return G(); }, steps, checksum);
+    return true;
+  }
+  if constexpr (has_closed_form_z<typename G::F>::value) {
+    using E = ExpertCanonical<G>;
+    if (model + "_expert_fixed_dt" == name) {
+      static const SampleArrays<E> a(chain_samples_fixed_dt<Gen<double>>());
+      *failures = run_steps<E>(
+          a, [] { return E(); }, steps, checksum);
+      return true;
+    }
+  }
+  return false;
+}
+}  // namespace
+
 /// For count_steps: runs `steps` steps of the named chain observer (model name plus the set's
-/// suffix, e.g. chain5_newton_z); false if the name is unknown.
+/// suffix, e.g. chain5_newton_z; with "_fixed_dt" or "_expert_fixed_dt" appended, the steps of
+/// the *_fixed_dt benchmarks); false if the name is unknown.
 bool OBSYNTH_CHAIN_COUNT(const char* name, std::size_t steps, long* failures, double* checksum) {
+#define OBSYNTH_COUNT_FIXED(ns, cls)                                                        \
+  if (count_fixed_dt<obsynth_gen::ns::cls>(#ns OBSYNTH_CHAIN_SUFFIX, name, steps, failures, \
+                                           checksum))                                       \
+    return true;
+  OBSYNTH_CHAINS(OBSYNTH_COUNT_FIXED)
+#undef OBSYNTH_COUNT_FIXED
 #define OBSYNTH_COUNT_ONE(ns, cls)                                                           \
   if (std::strcmp(name, #ns OBSYNTH_CHAIN_SUFFIX) == 0) {                                    \
     *failures = run_steps<obsynth_gen::ns::cls<Scalar>>(                                     \

@@ -2,6 +2,10 @@
 //
 //   count_steps generated|handwritten|expert float|double N          (seed 003 observers)
 //   count_steps_chains chain<n>_stable|chain<n>_newton|chain<n>_newton_z float|double N
+//   count_steps[_chains] OBSERVER_fixed_dt float|double N   the same on the fixed-dt samples
+//                            (seed003: generated|handwritten|expert; chains: chain<n>_stable and
+//                            chain<n>_stable_expert, the expert step of expert_chain.hpp), as
+//                            in the *_fixed_dt benchmarks
 //
 // Setup (plant simulation, sample conversion) does not depend on N, so
 // (Ir(2N) - Ir(N)) / N is the cost of one step() (plus the loop's few instructions, the same
@@ -27,10 +31,11 @@ bool count_chain_steps_float_z(const char* name, std::size_t steps, long* failur
 #endif
 
 template <class Obs>
-long count_seed003(std::size_t steps, double* checksum) {
+long count_seed003(std::size_t steps, double* checksum, bool fixed_dt) {
   static const SampleArrays<Obs> a(seed003_samples<Generated003<double>>());
+  static const SampleArrays<Obs> af(seed003_samples_fixed_dt<Generated003<double>>());
   return run_steps<Obs>(
-      a, [] { return make_observer<Obs>(); }, steps, checksum);
+      fixed_dt ? af : a, [] { return make_observer<Obs>(); }, steps, checksum);
 }
 
 }  // namespace obsynth_bench
@@ -38,29 +43,34 @@ long count_seed003(std::size_t steps, double* checksum) {
 int main(int argc, char** argv) {
   using namespace obsynth_bench;
   if (argc != 4 || (std::strcmp(argv[2], "float") != 0 && std::strcmp(argv[2], "double") != 0)) {
-    std::fprintf(stderr, "usage: %s generated|handwritten|expert%s float|double N\n", argv[0],
+    std::fprintf(stderr, "usage: %s (generated|handwritten|expert%s)[_fixed_dt] float|double N\n",
+                 argv[0],
 #ifdef OBSYNTH_BENCH_CHAINS
-                 "|chain<n>_stable|chain<n>_newton|chain<n>_newton_z"
+                 "|chain<n>_stable|chain<n>_newton|chain<n>_newton_z|chain<n>_stable_expert"
 #else
                  ""
 #endif
     );
     return 2;
   }
-  const std::string which = argv[1];
+  std::string which = argv[1];
+  const std::string suffix = "_fixed_dt";
+  const bool fixed_dt = which.size() > suffix.size() &&
+                        which.compare(which.size() - suffix.size(), suffix.size(), suffix) == 0;
   const bool dbl = std::strcmp(argv[2], "double") == 0;
   const std::size_t steps = std::strtoull(argv[3], nullptr, 10);
   long failures = 0;
   double checksum = 0;
-  if (which == "generated") {
-    failures = dbl ? count_seed003<Generated003<double>>(steps, &checksum)
-                   : count_seed003<Generated003<float>>(steps, &checksum);
-  } else if (which == "handwritten") {
-    failures = dbl ? count_seed003<Handwritten003<double>>(steps, &checksum)
-                   : count_seed003<Handwritten003<float>>(steps, &checksum);
-  } else if (which == "expert") {
-    failures = dbl ? count_seed003<Expert003<double>>(steps, &checksum)
-                   : count_seed003<Expert003<float>>(steps, &checksum);
+  const std::string base = fixed_dt ? which.substr(0, which.size() - suffix.size()) : which;
+  if (base == "generated") {
+    failures = dbl ? count_seed003<Generated003<double>>(steps, &checksum, fixed_dt)
+                   : count_seed003<Generated003<float>>(steps, &checksum, fixed_dt);
+  } else if (base == "handwritten") {
+    failures = dbl ? count_seed003<Handwritten003<double>>(steps, &checksum, fixed_dt)
+                   : count_seed003<Handwritten003<float>>(steps, &checksum, fixed_dt);
+  } else if (base == "expert") {
+    failures = dbl ? count_seed003<Expert003<double>>(steps, &checksum, fixed_dt)
+                   : count_seed003<Expert003<float>>(steps, &checksum, fixed_dt);
   } else {
 #ifdef OBSYNTH_BENCH_CHAINS
     const char* w = which.c_str();

@@ -96,13 +96,23 @@ class ExactLinearStep {
     dt_ = dt;
     return true;
   }
-  /// w(t + dt) from w(t) and the held c.
+  /// w(t + dt) from w(t) and the held c: one pass over the columns, r += M_j w_j + Gamma_j c_j,
+  /// starting from w (increment form) or from the first column. Written out rather than as
+  /// M_ * w + Gamma_ * c: from N = 8 on, Eigen evaluates a fixed-size matrix-vector product by
+  /// a call into its general GEMV kernel (one call per product, with run-time sizes and
+  /// strides), while this loop has compile-time bounds, is unrolled and vectorised by the
+  /// compiler, and fuses both products and the increment into one accumulation.
   Vec apply(const Vec& w, const Vec& c) const noexcept {
+    Vec r;
+    int j0 = 0;
     if constexpr (kIncrement) {
-      return w + (M_ * w + Gamma_ * c);
+      r = w;
     } else {
-      return M_ * w + Gamma_ * c;
+      r = M_.col(0) * w(0) + Gamma_.col(0) * c(0);  // not 0 + ...: the compiler keeps a + 0.0
+      j0 = 1;
     }
+    for (int j = j0; j < N; ++j) r += M_.col(j) * w(j) + Gamma_.col(j) * c(j);
+    return r;
   }
 
  private:
