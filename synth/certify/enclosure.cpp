@@ -292,6 +292,20 @@ Eigen::VectorXd perron_vector(const Eigen::MatrixXd& G) {
   return v;
 }
 
+// s += sum_j b[j] v_j in balls (the doubles are exact; the products and sums are enclosed).
+void add_row_times(arb_ptr s, const double* b, const Eigen::VectorXd& v, std::size_t count) {
+  arb_t bj, vj;
+  arb_init(bj);
+  arb_init(vj);
+  for (std::size_t j = 0; j < count; ++j) {
+    arb_set_d(bj, b[j]);
+    arb_set_d(vj, v(static_cast<Eigen::Index>(j)));
+    arb_addmul(s, bj, vj, kPrec);
+  }
+  arb_clear(bj);
+  arb_clear(vj);
+}
+
 // max_i (B v)_i / v_i in balls, rounded up (B n x n, row stride c).
 double symmetric_ratio_bound(const std::vector<double>& B, const Eigen::VectorXd& v, std::size_t n,
                              std::size_t c) {
@@ -300,16 +314,7 @@ double symmetric_ratio_bound(const std::vector<double>& B, const Eigen::VectorXd
   double worst = 0;
   for (std::size_t i = 0; i < n; ++i) {
     arb_zero(s);
-    for (std::size_t j = 0; j < n; ++j) {
-      arb_t bij, vj;
-      arb_init(bij);
-      arb_init(vj);
-      arb_set_d(bij, B[i * c + j]);
-      arb_set_d(vj, v(static_cast<Eigen::Index>(j)));
-      arb_addmul(s, bij, vj, kPrec);
-      arb_clear(bij);
-      arb_clear(vj);
-    }
+    add_row_times(s, &B[i * c], v, n);
     arb_t vi;
     arb_init(vi);
     arb_set_d(vi, v(static_cast<Eigen::Index>(i)));
@@ -327,16 +332,7 @@ double gram_ratio_bound(const std::vector<double>& B, const Eigen::VectorXd& v, 
   double worst = 0;
   for (std::size_t i = 0; i < r; ++i) {  // t = B v
     arb_zero(t[i]);
-    for (std::size_t j = 0; j < c; ++j) {
-      arb_t bij, vj;
-      arb_init(bij);
-      arb_init(vj);
-      arb_set_d(bij, B[i * c + j]);
-      arb_set_d(vj, v(static_cast<Eigen::Index>(j)));
-      arb_addmul(t[i], bij, vj, kPrec);
-      arb_clear(bij);
-      arb_clear(vj);
-    }
+    add_row_times(t[i], &B[i * c], v, c);
   }
   for (std::size_t j = 0; j < c; ++j) {  // w = B' t, ratio
     arb_zero(w[j]);

@@ -41,6 +41,18 @@ inline std::string matrix_text(const GiNaC::matrix& M) {
 
 // A key for caching a design's search between applies() and build(): the model's maps, its
 // boxes, and its symbols' hashes (symbols compare by identity: a model loaded again has new ones).
+// The observability matrix of a linear pair (A, c), c one row: rows c, c A, ..., c A^(n-1).
+inline GiNaC::matrix linear_observability_matrix(const GiNaC::matrix& A, const GiNaC::matrix& c) {
+  const unsigned n = A.rows();
+  GiNaC::matrix O(n, n);
+  GiNaC::matrix row = c;
+  for (unsigned k = 0; k < n; ++k) {
+    for (unsigned j = 0; j < n; ++j) O(k, j) = row(0, j);
+    row = row.mul(A);
+  }
+  return O;
+}
+
 inline std::string design_cache_key(const Model& m) {
   std::string k = m.file + "|" + m.name + "|";
   for (const auto& e : m.field()) k += to_string(e) + ",";

@@ -302,18 +302,6 @@ bool at_equilibrium(const Model& m, const Problem& P, ExtendedLinearization& r) 
   return equilibrium;
 }
 
-// The observability matrix of (A, H), H one row: rows H, H A, ..., H A^(n-1).
-GiNaC::matrix observability_matrix(const GiNaC::matrix& A, const GiNaC::matrix& H) {
-  const unsigned n = A.rows();
-  GiNaC::matrix O(n, n);
-  GiNaC::matrix row = H;
-  for (unsigned k = 0; k < n; ++k) {
-    for (unsigned j = 0; j < n; ++j) O(k, j) = row(0, j);
-    row = row.mul(A);
-  }
-  return O;
-}
-
 // The failures of constraints (i)-(iii) into r.
 void constraint_failures(bool c1, bool c2, bool c3, double det_O0, ExtendedLinearization& r) {
   if (!c1)
@@ -343,7 +331,7 @@ bool check_constraints(const Model& m, const Problem& P, const GiNaC::exmap& par
     H0(0, i) = P.h.diff(m.states[i]).subs(P.base, GiNaC::subs_options::no_pattern);
   }
   r.det_A0 = value_at(A0.determinant(), params);
-  const double det_O0 = value_at(observability_matrix(A0, H0).determinant(), params);
+  const double det_O0 = value_at(linear_observability_matrix(A0, H0).determinant(), params);
   r.obs_rank = std::isfinite(det_O0) && std::fabs(det_O0) > kTiny ? n : n - 1;
   const std::string at_params =
       params.empty() ? std::string() : " (free parameters at the centre of their boxes)";
@@ -416,7 +404,7 @@ bool gain_schedule(const FamilyJacobians& J, int order, ExtendedLinearization& r
   const unsigned n = J.A.rows();
   GiNaC::matrix en(n, 1);
   en(n - 1, 0) = 1;
-  const GiNaC::matrix O = observability_matrix(J.A, J.H);
+  const GiNaC::matrix O = linear_observability_matrix(J.A, J.H);
   GiNaC::matrix v;
   try {
     v = O.inverse().mul(en);

@@ -82,12 +82,7 @@ std::optional<Eigen::VectorXd> place_poles(const Eigen::MatrixXd& A, const Eigen
 std::vector<numeric> place_poles_exact(const GiNaC::matrix& A, const GiNaC::matrix& c,
                                        const std::vector<numeric>& poles) {
   const unsigned n = A.rows();
-  GiNaC::matrix O(n, n);
-  GiNaC::matrix row = c;
-  for (unsigned k = 0; k < n; ++k) {
-    for (unsigned j = 0; j < n; ++j) O(k, j) = row(0, j);
-    row = row.mul(A);
-  }
+  const GiNaC::matrix O = linear_observability_matrix(A, c);
   if (O.determinant().is_zero()) return {};
   const GiNaC::matrix At = A.transpose();
   GiNaC::matrix pA = GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(n));
