@@ -114,6 +114,11 @@ TEST(FiniteTime, OptionDiagnostics) {
 // grid 0.0125 over [-1, 1]^2 (161 x 161 points), input levels 10, 11, ..., 20 (mu = 1),
 // eps = 0.05, x(0) = (1, 0), u ramping 10 -> 20 -> 10 over 10 s.
 TEST(FiniteTime, Seed004Example14) {
+#ifdef OBSYNTH_SANITIZED
+  // 161 x 161 x 11 backward simulations: 16 s in Release, over 5 minutes under ASan + UBSan.
+  // The same code runs under the sanitizers on the coarse grid (GeneratedCodeMatchesSimulator).
+  GTEST_SKIP() << "the paper-size tables run in the Release pass";
+#endif
   const Analysis a = garcia14();
   const ObserverSpec spec = build_design(a, "finite-time", paper_options("0.0125", "0.001"));
   ASSERT_EQ(spec.update, UpdateKind::sampled_delay);
