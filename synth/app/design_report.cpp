@@ -24,9 +24,9 @@ nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScop
     const auto& only = scope.only;
     if (!only.empty() && std::find(only.begin(), only.end(), d.name) == only.end()) {
       j.push_back(not_evaluated(
-          d.name, fmt::format("only {} was requested (`obsynth check --certify` evaluates every "
-                              "design)",
-                              scope.requested_by)));
+          d.name, fmt::format("only --method {} was requested (`obsynth check --certify` "
+                              "evaluates every design)",
+                              fmt::join(only, ","))));
       continue;
     }
     if (d.verdict_searches && !scope.searches) {

@@ -27,7 +27,6 @@ struct GeneratedObserver {
 struct VerdictScope {
   std::vector<std::string> only;  // empty: every design; else these methods only
   bool searches = true;           // run the verdicts that are certificate searches
-  std::string requested_by;       // for the row text, e.g. "--method high-gain"
 };
 
 nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScope& scope = {});

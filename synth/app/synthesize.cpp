@@ -153,10 +153,7 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   const bool every =
       auto_asked || std::find(opt.methods.begin(), opt.methods.end(), "all") != opt.methods.end();
   VerdictScope scope;
-  if (!every) {
-    scope.only = s.chosen;
-    scope.requested_by = fmt::format("--method {}", fmt::join(s.chosen, ","));
-  }
+  if (!every) scope.only = s.chosen;
   const auto verdicts = design_verdicts_json(a, scope);
   std::string md = render_check(a, ReportFormat::markdown, ro, verdicts);
   md += "\n## Generated observers\n\n";
