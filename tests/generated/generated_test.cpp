@@ -5,12 +5,20 @@
 // convergence in dt, zero allocations per step.
 // Built per model with OBSYNTH_NS, OBSYNTH_CLASS and the headers given as macros, under the
 // generated-code contract flags (-Werror -Wconversion -Wdouble-promotion -fno-exceptions ...).
+// The generated header is the first include: it must compile alone. Every member of its class
+// templates is instantiated for float and double below, not only those the tests call.
+#include OBSYNTH_CANONICAL_HEADER
+#include OBSYNTH_REFERENCE_HEADER
+
 #include <cmath>
 #include <cstdio>
 
-#include OBSYNTH_CANONICAL_HEADER
-#include OBSYNTH_REFERENCE_HEADER
 #include "alloc_counter.hpp"
+
+template class obsynth_gen::OBSYNTH_NS::OBSYNTH_CLASS<float>;
+template class obsynth_gen::OBSYNTH_NS::OBSYNTH_CLASS<double>;
+template struct obsynth_gen::OBSYNTH_NS::CanonicalFunctions<float>;
+template struct obsynth_gen::OBSYNTH_NS::CanonicalFunctions<double>;
 
 namespace gen = obsynth_gen::OBSYNTH_NS;
 

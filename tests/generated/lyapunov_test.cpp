@@ -6,12 +6,20 @@
 // with zero allocations.
 // Macros: OBSYNTH_HEADER, OBSYNTH_REFERENCE_HEADER, OBSYNTH_NS, OBSYNTH_CLASS, OBSYNTH_FUNCTIONS,
 // OBSYNTH_HAS_PARAMS, OBSYNTH_INPUT_AMPLITUDE, OBSYNTH_NAME.
+// The generated header is the first include: it must compile alone. Every member of its class
+// templates is instantiated for float and double below (compiled with EIGEN_NO_MALLOC).
+#include OBSYNTH_HEADER
+#include OBSYNTH_REFERENCE_HEADER
+
 #include <cmath>
 #include <cstdio>
 
-#include OBSYNTH_HEADER
-#include OBSYNTH_REFERENCE_HEADER
 #include "alloc_counter.hpp"
+
+template class obsynth_gen::OBSYNTH_NS::OBSYNTH_CLASS<float>;
+template class obsynth_gen::OBSYNTH_NS::OBSYNTH_CLASS<double>;
+template struct obsynth_gen::OBSYNTH_NS::OBSYNTH_FUNCTIONS<float>;
+template struct obsynth_gen::OBSYNTH_NS::OBSYNTH_FUNCTIONS<double>;
 
 namespace gen = obsynth_gen::OBSYNTH_NS;
 
