@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <limits>
+#include <optional>
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -224,6 +225,60 @@ std::string singular_set(const Model& m, const HighGainStructure& st) {
   return fmt::format("where {}", fmt::join(parts, "; "));
 }
 
+using NumericRows = std::vector<std::vector<numeric>>;
+
+// O at each sampled point, evaluated once at 40 digits; nothing where an entry does not evaluate.
+std::vector<std::optional<NumericRows>> sampled_O(const Model& m, const Observability& ob,
+                                                  const std::vector<GiNaC::exmap>& points) {
+  std::vector<std::optional<NumericRows>> values;
+  for (const auto& pt : points) {
+    NumericRows rows(ob.O.size());
+    bool ok = true;
+    for (std::size_t r = 0; r < ob.O.size() && ok; ++r)
+      for (std::size_t c = 0; c < m.n() && ok; ++c) {
+        numeric val;
+        ok = evaluate_real(ob.O[r][c], pt, 40, val);
+        rows[r].push_back(val);
+      }
+    values.push_back(ok ? std::optional<NumericRows>(std::move(rows)) : std::nullopt);
+  }
+  return values;
+}
+
+// Whether some phi_i = dL_f^{i-1} h . g (i < n) depends on z_{i+1}..z_n, i.e. rank [dz_1; ...;
+// dz_i; dphi_i] > i at a sampled point: the reason, or nothing when phi is triangular.
+std::optional<std::string> phi_not_triangular(const Model& m, const Observability& ob) {
+  const std::size_t n = m.n();
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const auto points = sample_points(m.all_symbols(), boxes, 3, 0x4a11);
+  const auto O_at = sampled_O(m, ob, points);
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    ex phi = 0;
+    for (std::size_t k = 0; k < n; ++k) phi += ob.O[i][k] * m.g[k];
+    if (phi.is_zero()) continue;
+    const ExVec grad = gradient(phi, m.states);
+    std::size_t rank = 0;
+    for (std::size_t p = 0; p < points.size(); ++p) {
+      if (!O_at[p]) continue;
+      NumericRows rows(O_at[p]->begin(), O_at[p]->begin() + static_cast<std::ptrdiff_t>(i) + 1);
+      rows.emplace_back();
+      bool ok = true;
+      for (std::size_t c = 0; c < n && ok; ++c) {
+        numeric val;
+        ok = evaluate_real(grad[c], points[p], 40, val);
+        rows.back().push_back(val);
+      }
+      if (ok) rank = std::max(rank, numeric_rank(rows, false));
+    }
+    if (rank > i + 1)
+      return fmt::format(
+          "not uniformly observable in the form z' = A z + phi(z, u) with phi triangular, z = "
+          "(h, L_f h, ...): phi_{} = L_g L_f^{} h = {} depends on z_{}..z_n",
+          i + 1, i, to_string(phi), i + 2);
+  }
+  return std::nullopt;
+}
+
 // Cheap decision for `check` and `--method auto` (the symbolic J is left to build()): the
 // analysis' O (rows dL_f^k h) must have generic rank n, and phi_i = dL_f^{i-1} h . g (i < n) must
 // depend on z_1..z_i only, i.e. rank [dz_1; ...; dz_i; dphi_i] = i, decided by the rank at
@@ -254,33 +309,9 @@ Verdict applies(const Analysis& a) {
   bool g_zero = true;
   for (const auto& e : m.g) g_zero = g_zero && e.is_zero();
   if (!g_zero) {
-    const SampleBoxes boxes = SampleBoxes::from_model(m);
-    const auto points = sample_points(m.all_symbols(), boxes, 3, 0x4a11);
-    for (std::size_t i = 0; i + 1 < n; ++i) {
-      ex phi = 0;
-      for (std::size_t k = 0; k < n; ++k) phi += ob.O[i][k] * m.g[k];
-      if (phi.is_zero()) continue;
-      const ExVec grad = gradient(phi, m.states);
-      std::size_t rank = 0;
-      for (const auto& pt : points) {
-        std::vector<std::vector<numeric>> rows;
-        bool ok = true;
-        for (std::size_t r = 0; r <= i + 1 && ok; ++r)
-          for (std::size_t c = 0; c < n && ok; ++c) {
-            if (c == 0) rows.emplace_back();
-            numeric val;
-            ok = evaluate_real(r <= i ? ob.O[r][c] : grad[c], pt, 40, val);
-            rows.back().push_back(val);
-          }
-        if (ok) rank = std::max(rank, numeric_rank(rows, false));
-      }
-      if (rank > i + 1) {
-        v.reasons.push_back(fmt::format(
-            "not uniformly observable in the form z' = A z + phi(z, u) with phi triangular, z = "
-            "(h, L_f h, ...): phi_{} = L_g L_f^{} h = {} depends on z_{}..z_n",
-            i + 1, i, to_string(phi), i + 2));
-        return v;
-      }
+    if (auto reason = phi_not_triangular(m, ob)) {
+      v.reasons.push_back(*reason);
+      return v;
     }
   }
   v.applies = true;
