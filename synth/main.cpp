@@ -2,8 +2,10 @@
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 
 #include "analysis/analysis.hpp"
 #include "analysis/persistence.hpp"
@@ -107,7 +109,13 @@ void print_stop(const std::string& stage, const std::string& reason) {
 // Runs a job, turning exceptions into diagnostics and exit codes, under the watchdog.
 // Every budget stop (time, size, memory; in the analysis, the worker or this process) ends in
 // "obsynth: error: stage 'X' <reason>" and exit 1, after the partial report a checkpoint left.
-int guarded(const CommonOptions& c, const std::function<int()>& job) {
+// When `stopped` is given, a time or memory stop of the worker fills it instead of printing the
+// diagnostic, so that the caller can decide what follows.
+struct JobStop {
+  std::string stage, reason;
+};
+int guarded(const CommonOptions& c, const std::function<int()>& job,
+            std::optional<JobStop>* stopped = nullptr) {
   auto body = [&]() -> int {
     try {
       return job();
@@ -138,6 +146,10 @@ int guarded(const CommonOptions& c, const std::function<int()>& job) {
                                    : memory_budget_reason(c.max_memory_bytes);
     std::fputs(fill_checkpoint(r.checkpoint, reason).c_str(), stdout);
     std::fflush(stdout);
+    if (stopped) {
+      *stopped = JobStop{r.stage, reason};
+      return 1;
+    }
     print_stop(r.stage, reason);
     return 1;
   }
@@ -388,6 +400,50 @@ int run_simulate(const SimulateCommand& c) {
   });
 }
 
+bool is_canonical_form_stage(const std::string& stage) {
+  return stage == "frame" || stage == "conditions" || stage == "diffeomorphism";
+}
+
+// auto and all may pick a design that does not need the canonical form (the stages after the
+// observability rank): a budget stop in those stages then skips them instead of ending the job.
+bool may_skip_canonical_form(const std::vector<std::string>& methods) {
+  return methods.empty() || std::find(methods.begin(), methods.end(), "auto") != methods.end() ||
+         std::find(methods.begin(), methods.end(), "all") != methods.end();
+}
+
+int main_job_body(const MainJob& c, const std::string& canonical_stop) {
+  SynthesisOptions so;
+  so.methods = split_list(c.methods);
+  so.design = given(c.design);
+  so.emit.precision = c.precision == "float" ? Precision::single : Precision::double_precision;
+  so.emit.source_name = c.model;
+  so.emit.language = c.language == "c" ? Language::c : Language::cpp;
+  const Model m = load_bound_model(c.model, c.params);
+  AnalysisOptions ao = analysis_options(c.common);
+  ao.canonical_form = need_canonical_form(so.methods) && canonical_stop.empty();
+  if (!canonical_stop.empty()) ao.canonical_skipped = canonical_stop;
+  Analysis a;
+  try {
+    a = analyse(m, ao);
+  } catch (const BudgetExceeded& e) {  // in-process stops (expression size)
+    if (!ao.canonical_form || !may_skip_canonical_form(so.methods) ||
+        !is_canonical_form_stage(e.stage()))
+      throw;
+    std::fprintf(stderr, "obsynth: note: stage '%s' %s; continuing without the canonical form\n",
+                 e.stage().c_str(), e.reason().c_str());
+    ao.canonical_form = false;
+    ao.canonical_skipped = fmt::format("stage '{}' {}", e.stage(), e.reason());
+    a = analyse(m, ao);
+  }
+  const Synthesis s = synthesize(a, so);
+  write_output_dir(c.out, s.files);
+  std::string dir = c.out;
+  while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
+  for (const auto& f : s.files) std::printf("wrote %s/%s\n", dir.c_str(), f.name.c_str());
+  if (!s.explanation.empty()) std::printf("%s\n", s.explanation.c_str());
+  return 0;
+}
+
 int run_main_job(const MainJob& c) {
   if (c.out.empty()) {
     std::fprintf(stderr,
@@ -395,25 +451,20 @@ int run_main_job(const MainJob& c) {
                  c.model.c_str());
     return 1;
   }
-  return guarded(c.common, [&] {
-    SynthesisOptions so;
-    so.methods = split_list(c.methods);
-    so.design = given(c.design);
-    so.emit.precision = c.precision == "float" ? Precision::single : Precision::double_precision;
-    so.emit.source_name = c.model;
-    so.emit.language = c.language == "c" ? Language::c : Language::cpp;
-    const Model m = load_bound_model(c.model, c.params);
-    AnalysisOptions ao = analysis_options(c.common);
-    ao.canonical_form = need_canonical_form(so.methods);
-    const Analysis a = analyse(m, ao);
-    const Synthesis s = synthesize(a, so);
-    write_output_dir(c.out, s.files);
-    std::string dir = c.out;
-    while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
-    for (const auto& f : s.files) std::printf("wrote %s/%s\n", dir.c_str(), f.name.c_str());
-    if (!s.explanation.empty()) std::printf("%s\n", s.explanation.c_str());
-    return 0;
-  });
+  std::optional<JobStop> stop;
+  const int code = guarded(
+      c.common, [&] { return main_job_body(c, ""); }, &stop);
+  if (!stop) return code;
+  // A time or memory stop killed the worker: once more without the canonical-form stages when
+  // auto/all may choose a design that does not need them.
+  if (!may_skip_canonical_form(split_list(c.methods)) || !is_canonical_form_stage(stop->stage)) {
+    print_stop(stop->stage, stop->reason);
+    return 1;
+  }
+  std::fprintf(stderr, "obsynth: note: stage '%s' %s; continuing without the canonical form\n",
+               stop->stage.c_str(), stop->reason.c_str());
+  const std::string why = fmt::format("stage '{}' {}", stop->stage, stop->reason);
+  return guarded(c.common, [&] { return main_job_body(c, why); });
 }
 
 }  // namespace

@@ -158,8 +158,7 @@ void run_stages(const Model& m, const AnalysisOptions& opt, Budget& budget, Anal
   a.under_inputs =
       analyse_observability_under_inputs(m, a.observability, opt.observability, opt.budget);
   if (!opt.canonical_form)
-    a.canonical.not_applicable =
-        "not analysed: the methods asked for do not need the canonical form";
+    a.canonical.not_applicable = "not analysed: " + opt.canonical_skipped;
   else if (feedthrough)
     a.canonical.not_applicable =
         "does not apply: the output depends on the input (direct feedthrough y = h(x,u)); the "

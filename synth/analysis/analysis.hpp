@@ -42,6 +42,9 @@ struct AnalysisOptions {
   // false: skip the canonical-form stages (frame, conditions, diffeomorphism: reported "not
   // needed"), for designs that need only the model and the observability rank.
   bool canonical_form = true;
+  // Why the canonical form was skipped, when canonical_form is false (default: the methods asked
+  // for do not need it).
+  std::string canonical_skipped = "the methods asked for do not need the canonical form";
   // Called as each stage begins with the results of the stages before it, the beginning stage
   // marked stopped with checkpoint_reason: what to report should the process die in it.
   std::function<void(const Analysis&)> on_checkpoint;

@@ -6,6 +6,7 @@
 
 #include "app/design_report.hpp"
 #include "app/report.hpp"
+#include "app/worker.hpp"
 #include "designs/registry.hpp"
 #include "emit/emit_c.hpp"
 
@@ -126,9 +127,12 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   with_model_options(a.model, opt.design);  // unknown option lines fail before any work
   const bool auto_asked =
       std::find(opt.methods.begin(), opt.methods.end(), "auto") != opt.methods.end();
+  // Each step under its own stage name, so that a budget stop names it (worker watchdog).
+  publish_stage("verdicts");
   s.chosen = resolve_methods(a, opt.methods, s.explanation);
   std::vector<GeneratedObserver> generated;
   for (const auto& method : s.chosen) {
+    publish_stage(method + " design");
     const ObserverSpec spec = build_design(a, method, opt.design);
     const bool c = opt.emit.language == Language::c;
     const EmittedHeader h = c ? emit_c_pair(a, spec, opt.emit) : emit_cxx_header(a, spec, opt.emit);
@@ -154,6 +158,7 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
       auto_asked || std::find(opt.methods.begin(), opt.methods.end(), "all") != opt.methods.end();
   VerdictScope scope;
   if (!every) scope.only = s.chosen;
+  publish_stage("report");
   const auto verdicts = design_verdicts_json(a, scope);
   std::string md = render_check(a, ReportFormat::markdown, ro, verdicts);
   md += "\n## Generated observers\n\n";
