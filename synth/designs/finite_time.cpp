@@ -745,10 +745,11 @@ void describe_finite_time(ObserverSpec& s, const Choices& c, const Tables& t, do
   s.class_doc = {"  z <- e^{A dt} z + A^-1 (e^{A dt} - I) b y,  eta = z - e^{A T} z(t - T),",
                  "  xh = sum_i x_i w_i / sum_i w_i,  w_i = (epsilon + |eta - q_k(x_i)|)^-power,"};
   if (c.interpolate && c.levels > 1) {
-    s.class_doc.push_back(fmt::format(
-        "with q_k interpolated linearly between the two input levels around the input's {}",
-        c.window_mean ? "mean over the window" : "value now"));
-    s.class_doc.push_back("(level() is the lower one). step() accepts only the design's sample");
+    s.class_doc.push_back(
+        "with q_k interpolated linearly between the input levels level() and level() + 1");
+    s.class_doc.push_back(
+        fmt::format("around the input's {}. step() accepts only the design's sample",
+                    c.window_mean ? "mean over the window" : "value now"));
   } else {
     s.class_doc.push_back(
         "with k the level of the input at this step. step() accepts only the design's sample");

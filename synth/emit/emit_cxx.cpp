@@ -1008,7 +1008,7 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const 
        {"q_next_advance", interpolate ? ", q1 += filters" : ""},
        {"q_entry",
         interpolate ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j]))" : "Scalar(q[j])"},
-       {"level_doc", interpolate ? " (interpolated towards level() + 1 by frac())" : ""},
+       {"level_doc", interpolate ? " (the lower table; frac() weights the next)" : ""},
        {"frac_member",
         interpolate ? "  Scalar frac_ = Scalar(0);  ///< weight of table level_ + 1\n" : ""},
        {"frac_accessor", interpolate ? "  /// The weight of table level() + 1 in the last step's "
