@@ -110,6 +110,8 @@ TEST(FiniteTime, OptionDiagnostics) {
   EXPECT_THROW(build({{"filter-poles", "-1,2"}}), UserError);
   EXPECT_THROW(build({{"filter-poles", "-1,-1"}}), UserError);
   EXPECT_THROW(build({{"weight-power", "0"}}), UserError);
+  EXPECT_THROW(build({{"input-rate", "-1"}}), UserError);
+  EXPECT_THROW(build({{"level-rule", "window-linear"}}), UserError);
   // A model without a domain box for its states does not qualify.
   const Model m = parse_model("model nobox\nstates x\nf = [ -x ]\nh = [ x ]\n", "nobox.sym");
   const Verdict v = find_design("finite-time")->applies(analyse(m));
