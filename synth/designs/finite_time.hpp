@@ -6,8 +6,8 @@
 //   Q_k(eta) = sum_i x_i w_i / sum_i w_i,  w_i = (eps + |q_k(x_i) - eta|)^-power,
 // over a regular grid x_i of the model's domain box. Between input levels the default rule
 // interpolates q linearly in the input's window mean (finite_time.cpp, choose_kernel).
-// Needs no derivative of f or h: it accepts
-// non-smooth outputs such as the half-wave rectifier of seed 004's example (14).
+// Needs no derivative of f or h: it accepts non-smooth outputs such as the half-wave rectifier
+// of seed 004's example (14).
 #pragma once
 
 #include "designs/registry.hpp"
