@@ -13,6 +13,13 @@
 //    oscillation than along its radius, so the design whitens q and scales it by its median
 //    sensitivity (report row "kernel metric").
 //  - "eps = 0." lost its digits: the accuracy asserted below is the design's own sampled bound.
+//  - The paper switches the inverse Q_k with the sampled input and reports peaks up to 0.2 at
+//    the switches. Switching to the level nearest the input's window mean, with mu = 1 and the
+//    ramp moving u by 1 per window, gives peaks of 0.29 here (the window's mean sits half a
+//    level from both tables at a switch). The design's default rule (window-interpolate, see
+//    finite_time.cpp choose_kernel) interpolates q_nu between the two neighbouring levels'
+//    tables at the window mean (eq. 6, 15; the paper's "refining the control mesh" without more
+//    tables): measured max error 0.116 after 0.55 s, no peaks.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -103,6 +110,8 @@ TEST(FiniteTime, OptionDiagnostics) {
   EXPECT_THROW(build({{"filter-poles", "-1,2"}}), UserError);
   EXPECT_THROW(build({{"filter-poles", "-1,-1"}}), UserError);
   EXPECT_THROW(build({{"weight-power", "0"}}), UserError);
+  EXPECT_THROW(build({{"input-rate", "-1"}}), UserError);
+  EXPECT_THROW(build({{"level-rule", "window-linear"}}), UserError);
   // A model without a domain box for its states does not qualify.
   const Model m = parse_model("model nobox\nstates x\nf = [ -x ]\nh = [ x ]\n", "nobox.sym");
   const Verdict v = find_design("finite-time")->applies(analyse(m));
@@ -112,7 +121,8 @@ TEST(FiniteTime, OptionDiagnostics) {
 
 // Seed 004, example (14), with the paper's parameters: T = 0.5, the ten listed eigenvalues,
 // grid 0.0125 over [-1, 1]^2 (161 x 161 points), input levels 10, 11, ..., 20 (mu = 1),
-// eps = 0.05, x(0) = (1, 0), u ramping 10 -> 20 -> 10 over 10 s.
+// eps = 0.05, x(0) = (1, 0), u ramping 10 -> 20 -> 10 over 10 s. The sampled bound is asked to
+// cover input ramps of slope 2 (--input-rate: this ramp's), as u moves over every window.
 TEST(FiniteTime, Seed004Example14) {
 #ifdef OBSYNTH_SANITIZED
   // 161 x 161 x 11 backward simulations: 16 s in Release, over 5 minutes under ASan + UBSan.
@@ -120,20 +130,24 @@ TEST(FiniteTime, Seed004Example14) {
   GTEST_SKIP() << "the paper-size tables run in the Release pass";
 #endif
   const Analysis a = garcia14();
-  const ObserverSpec spec = build_design(a, "finite-time", paper_options("0.0125", "0.001"));
+  DesignOptions design = paper_options("0.0125", "0.001");
+  design.values["input-rate"] = "2";
+  const ObserverSpec spec = build_design(a, "finite-time", design);
   ASSERT_EQ(spec.update, UpdateKind::sampled_delay);
   ASSERT_TRUE(spec.sampled_delay.has_value());
   EXPECT_EQ(spec.sampled_delay->points(), 161u * 161u);
   EXPECT_EQ(spec.sampled_delay->levels, 11u);
   EXPECT_EQ(spec.sampled_delay->delay_steps, 500u);
   EXPECT_EQ(spec.table("observation_map")->size(), 11u * 161u * 161u * 10u);
+  EXPECT_TRUE(spec.sampled_delay->level_interpolate);  // the default level rule
+  EXPECT_TRUE(spec.sampled_delay->level_window_mean);
   const double bound = report_number(spec, "error bound (sampled)");
   EXPECT_GT(bound, 0.05);
-  EXPECT_LT(bound, 0.4);
+  EXPECT_LT(bound, 0.2);
 
   SimulationOptions o;
   o.method = "finite-time";
-  o.design = paper_options("0.0125", "0.001");
+  o.design = design;
   o.u_text = "20 - 2*sqrt((t-5)^2)";
   o.x0 = {1, 0};
   o.xhat0 = {0, 0};
@@ -143,8 +157,9 @@ TEST(FiniteTime, Seed004Example14) {
   ASSERT_TRUE(r.diverged.empty()) << r.diverged;
   ASSERT_EQ(r.t.size(), 10001u);
 
-  // The level switches when the input's window mean (the design's level rule) crosses
-  // u_k + 1/2: on this ramp every 0.5 s. Computed here from u alone.
+  // A switching rule changes the level where the input's window mean crosses u_k + 1/2 (nearest)
+  // or u_k (the paper's floor on u(t_i), t_i on a mesh of norm T): on this ramp both happen
+  // every 0.5 s. Computed here from u alone; the peaks, if any, are there.
   std::vector<double> switches;
   for (int k = 1; k <= 20; ++k) switches.push_back(0.5 * k);
   auto near_switch = [&](double t, double w) {
@@ -152,7 +167,8 @@ TEST(FiniteTime, Seed004Example14) {
       if (std::fabs(t - s) <= w) return true;
     return false;
   };
-  double max_after = 0, max_away = 0, max_plant = 0;
+  std::vector<double> peak(switches.size(), 0.0);  // max error within 0.1 s of each switch
+  double max_after = 0, max_away = 0, max_plant = 0, max_e1 = 0, max_e2 = 0;
   for (std::size_t k = 0; k < r.t.size(); ++k) {
     const double t = r.t[k];
     // The simulator's plant against the exact rotation (an independent oracle).
@@ -165,19 +181,33 @@ TEST(FiniteTime, Seed004Example14) {
       EXPECT_EQ(r.xh[k][1], 0.0);
       continue;
     }
-    if (t >= 0.55) max_after = std::max(max_after, e);
-    if (t >= 0.55 && !near_switch(t, 0.1)) max_away = std::max(max_away, e);
+    if (t < 0.55) continue;
+    max_after = std::max(max_after, e);
+    max_e1 = std::max(max_e1, std::fabs(r.x[k][0] - r.xh[k][0]));
+    max_e2 = std::max(max_e2, std::fabs(r.x[k][1] - r.xh[k][1]));
+    if (!near_switch(t, 0.1)) max_away = std::max(max_away, e);
+    for (std::size_t s = 0; s < switches.size(); ++s)
+      if (std::fabs(t - switches[s]) <= 0.1) peak[s] = std::max(peak[s], e);
   }
   EXPECT_LT(max_plant, 1e-6);
-  // Enters the reported bound by about T = 0.5 s and stays in it, switching peaks included.
+  // Enters the reported bound by about T = 0.5 s and stays in it, at the switches too.
   EXPECT_LE(max_after, bound);
-  // Away from the switching instants (more than 0.1 s) the error is below 0.2, and the peaks
-  // at the switches stay below 0.3 (the paper reports 0.2; measured here 0.30 at most, from the
-  // input quantisation mu = 1 over a window in which the ramp moves u by 1).
+  // The paper's figures: within the specification from about t = 0.5 on, peaks at the input
+  // switches bounded by 0.2 (measured here: 0.116 after 0.55 s, 0.115 away from the switches).
   EXPECT_LT(max_away, 0.2);
-  EXPECT_LT(max_after, 0.3);
+  EXPECT_LE(max_after, 0.2);
+  std::string peaks;
+  for (std::size_t s = 0; s < switches.size(); ++s) {
+    EXPECT_LE(peak[s], 0.2) << "at the switch t = " << switches[s];
+    peaks += fmt::format("{}{:.3f}", s ? " " : "", peak[s]);
+  }
+  std::printf(
+      "seed 004 (14): max |x - xh| after 0.55 s %.4f (|e1| %.4f, |e2| %.4f), away from "
+      "the switches %.4f, sampled bound %.4f\n  peaks at t = 0.5, 1, ..., 10: %s\n",
+      max_after, max_e1, max_e2, max_away, bound, peaks.c_str());
   RecordProperty("max_error_after_0_55", std::to_string(max_after));
   RecordProperty("max_error_away_from_switches", std::to_string(max_away));
+  RecordProperty("peaks_at_switches", peaks);
   RecordProperty("sampled_bound", std::to_string(bound));
 }
 
@@ -257,10 +287,12 @@ std::vector<std::array<double, 2>> read_pairs(const std::string& text) {
 // A coarse variant (grid 0.125, 17 x 17 points; dt = 0.01, D = 50) small enough for a
 // microcontroller: the generated C++ (double, float) and C99 (double, float) steps against the
 // simulator's evaluation of the same tables, fed the simulator's own plant samples.
-TEST(FiniteTime, GeneratedCodeMatchesSimulator) {
+// rule: the design's --level-rule; all_cases: float and C too (else C++ and C in double).
+void generated_matches_simulator(const std::string& rule, bool all_cases) {
   const Analysis a = garcia14();
   DesignOptions d = paper_options("0.125", "0.01");
   d.values["kernel-epsilon"] = "0.3";
+  d.values["level-rule"] = rule;
   SimulationOptions o;
   o.method = "finite-time";
   o.design = d;
@@ -271,7 +303,8 @@ TEST(FiniteTime, GeneratedCodeMatchesSimulator) {
   o.dt = 0.01;
   const SimulationResult r = simulate(a, o);
   ASSERT_TRUE(r.diverged.empty()) << r.diverged;
-  const fs::path dir = fs::temp_directory_path() / ("obsynth_ft_" + std::to_string(::getpid()));
+  const fs::path dir =
+      fs::temp_directory_path() / ("obsynth_ft_" + rule + "_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   { std::ofstream(dir / "sim.csv") << r.csv; }
   const ObserverSpec spec = build_design(a, "finite-time", d);
@@ -288,7 +321,8 @@ TEST(FiniteTime, GeneratedCodeMatchesSimulator) {
                         Case{"cxx_float", Precision::single, false, 5e-3},
                         Case{"c_double", Precision::double_precision, true, 1e-9},
                         Case{"c_float", Precision::single, true, 5e-3}}) {
-    SCOPED_TRACE(k.name);
+    if (!all_cases && k.p == Precision::single) continue;
+    SCOPED_TRACE(rule + " " + k.name);
     EmitOptions eo;
     eo.precision = k.p;
     eo.source_name = "models/garcia14.sym";
@@ -335,12 +369,63 @@ TEST(FiniteTime, GeneratedCodeMatchesSimulator) {
     }
     std::sort(diffs.begin(), diffs.end());
     const double p99 = diffs[diffs.size() * 99 / 100];
-    std::printf("%s: 99th percentile %.3g\n", k.name.c_str(), p99);
+    std::printf("%s %s: 99th percentile %.3g\n", rule.c_str(), k.name.c_str(), p99);
     EXPECT_LE(worst, k.tol);
-    RecordProperty(k.name + "_max_difference", std::to_string(worst));
-    std::printf("%s: max |xh - xh_simulator| = %.3g\n", k.name.c_str(), worst);
+    ::testing::Test::RecordProperty(rule + "_" + k.name + "_max_difference", std::to_string(worst));
+    std::printf("%s %s: max |xh - xh_simulator| = %.3g\n", rule.c_str(), k.name.c_str(), worst);
   }
   fs::remove_all(dir);
+}
+
+// The default rule (the table interpolated between input levels) in C++ and C, float and double.
+TEST(FiniteTime, GeneratedCodeMatchesSimulator) {
+  generated_matches_simulator("window-interpolate", true);
+}
+
+// A switching rule (one level's table per step) still emits and matches, in double.
+TEST(FiniteTime, GeneratedSwitchingRuleMatchesSimulator) {
+  generated_matches_simulator("window-nearest", false);
+}
+
+// The interpolating rule against the switching one, coarse grid and coarse input levels (10, 15,
+// 20: the level mismatch dominates the kernel's error), u constant: at a level (u = 15,
+// interpolation weight exactly 0) both use table 15 alone and agree bit for bit; half way
+// between two levels (u = 12.5) the interpolated table is closer to q_12.5 than either
+// neighbour's, and the estimate is better (measured 0.36 against 0.58).
+TEST(FiniteTime, InterpolationBetweenInputLevels) {
+  const Analysis a = garcia14();
+  auto run_rule = [&](const std::string& rule, const std::string& u) {
+    SimulationOptions o;
+    o.method = "finite-time";
+    o.design = paper_options("0.125", "0.01");
+    o.design.values["kernel-epsilon"] = "0.3";
+    o.design.values["level-rule"] = rule;
+    o.design.values["input-step"] = "5";
+    o.u_text = u;
+    o.x0 = {0.8, 0};
+    o.xhat0 = {0, 0};
+    o.t_end = 3;
+    o.dt = 0.01;
+    return simulate(a, o);
+  };
+  auto max_error = [](const SimulationResult& r) {
+    double m = 0;
+    for (std::size_t k = 0; k < r.t.size(); ++k)
+      if (r.t[k] >= 0.55)
+        m = std::max(m, std::hypot(r.x[k][0] - r.xh[k][0], r.x[k][1] - r.xh[k][1]));
+    return m;
+  };
+  const SimulationResult i15 = run_rule("window-interpolate", "15"),
+                         n15 = run_rule("window-nearest", "15");
+  ASSERT_EQ(i15.xh.size(), n15.xh.size());
+  for (std::size_t k = 0; k < i15.xh.size(); ++k) {
+    EXPECT_EQ(i15.xh[k][0], n15.xh[k][0]);
+    EXPECT_EQ(i15.xh[k][1], n15.xh[k][1]);
+  }
+  const double ei = max_error(run_rule("window-interpolate", "12.5")),
+               en = max_error(run_rule("window-nearest", "12.5"));
+  std::printf("u = 12.5: max error interpolated %.4f, nearest level %.4f\n", ei, en);
+  EXPECT_LT(ei, 0.75 * en);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -365,6 +366,7 @@ class SampledDelayObserver {
     if (filled_ < d_.delay_steps) return true;
     const std::size_t old = (head_ + 1) % slots;  // D steps ago
     std::size_t level = 0;
+    double frac = 0;  // level_interpolate: the weight of table level + 1
     if (d_.levels > 1) {
       double v = u[d_.input_index];
       if (d_.level_window_mean) {
@@ -373,10 +375,17 @@ class SampledDelayObserver {
           if (k != old) acc += u_ring_[k];
         v = acc / static_cast<double>(d_.delay_steps);
       }
-      v = std::floor((v - d_.level_lo) / d_.level_step + (d_.level_nearest ? 0.5 : 0.0));
-      level = v <= 0                                    ? 0
-              : v >= static_cast<double>(d_.levels - 1) ? d_.levels - 1
-                                                        : static_cast<std::size_t>(v);
+      if (d_.level_interpolate) {
+        const double top = static_cast<double>(d_.levels - 1);
+        const double r = std::clamp((v - d_.level_lo) / d_.level_step, 0.0, top);
+        level = std::min(static_cast<std::size_t>(std::floor(r)), d_.levels - 2);
+        frac = r - static_cast<double>(level);
+      } else {
+        v = std::floor((v - d_.level_lo) / d_.level_step + (d_.level_nearest ? 0.5 : 0.0));
+        level = v <= 0                                    ? 0
+                : v >= static_cast<double>(d_.levels - 1) ? d_.levels - 1
+                                                          : static_cast<std::size_t>(v);
+      }
     }
     Vec raw(pz), eta(pz, 0.0);
     for (std::size_t j = 0; j < pz; ++j)
@@ -388,9 +397,14 @@ class SampledDelayObserver {
     Vec sx(n, 0.0);
     double sw = 0;
     const double* q = map_.data() + level * N * pz;
-    for (std::size_t i = 0; i < N; ++i, q += pz) {
+    // The next level's table (read only when interpolating, then level + 1 < levels).
+    const double* q1 = d_.level_interpolate && d_.levels > 1 ? q + N * pz : q;
+    for (std::size_t i = 0; i < N; ++i, q += pz, q1 += pz) {
       double d2 = 0;
-      for (std::size_t j = 0; j < pz; ++j) d2 += (q[j] - eta[j]) * (q[j] - eta[j]);
+      for (std::size_t j = 0; j < pz; ++j) {
+        const double e = q[j] + frac * (q1[j] - q[j]) - eta[j];
+        d2 += e * e;
+      }
       const double b = 1 / (d_.epsilon + std::sqrt(d2));
       double w = b;
       for (int k = 1; k < d_.weight_power; ++k) w *= b;

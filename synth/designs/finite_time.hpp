@@ -4,8 +4,10 @@
 // approximate inverse of the observation map q, tabulated per input level (eq. 12-13, 15):
 //   q_k(xi) = int_0^T e^{A s} b h(x(-s; xi, u_k)) ds  (backward simulation, u frozen at u_k),
 //   Q_k(eta) = sum_i x_i w_i / sum_i w_i,  w_i = (eps + |q_k(x_i) - eta|)^-power,
-// over a regular grid x_i of the model's domain box. Needs no derivative of f or h: it accepts
-// non-smooth outputs such as the half-wave rectifier of seed 004's example (14).
+// over a regular grid x_i of the model's domain box. Between input levels the default rule
+// interpolates q linearly in the input's window mean (finite_time.cpp, choose_kernel).
+// Needs no derivative of f or h: it accepts non-smooth outputs such as the half-wave rectifier
+// of seed 004's example (14).
 #pragma once
 
 #include "designs/registry.hpp"

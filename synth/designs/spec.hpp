@@ -116,6 +116,10 @@ struct ConstTable {
 //      eta = z - delay .* z(D steps ago), e = metric * eta (a filters x filters matrix), and
 //        xh = sum_i x_i w_i / sum_i w_i,  w_i = (epsilon + |e - q[level][i]|_2)^-weight_power
 //      over the regular state grid x_i; before that, xh stays the reset estimate.
+//      With level_interpolate (and levels > 1) the table is interpolated linearly in v instead:
+//      r = clamp((v - level_lo) / level_step, 0, levels - 1), level = min(floor(r), levels - 2),
+//      a = r - level, and q[level][i] above is replaced by
+//      q[level][i] + a * (q[level + 1][i] - q[level][i]) (level_nearest is then ignored).
 // The grid enumerates states row-major: the last state varies fastest; x_i(s) = grid_lo[s] +
 // grid_step[s] * index_s. Table shapes: decay, gain, delay [filters]; map [levels][points]
 // [filters], metric [filters][filters] row-major (names in ObserverSpec::tables).
@@ -129,7 +133,7 @@ struct SampledDelay {
   std::size_t input_index = 0;
   double level_lo = 0, level_step = 1;
   std::size_t levels = 1;
-  bool level_nearest = false, level_window_mean = false;
+  bool level_nearest = false, level_window_mean = false, level_interpolate = false;
   double epsilon = 0.05;
   int weight_power = 1;
   std::size_t points() const;

@@ -519,7 +519,7 @@ static const int grid_count[{{P}}_n] = { {{grid_count}} };
   o->head = 0;
   o->filled = 0;
   o->level = 0;
-  return o->status = all_finite(o->xh, {{P}}_n) ? {{P}}_ok : {{P}}_non_finite;
+{{frac_reset}}  return o->status = all_finite(o->xh, {{P}}_n) ? {{P}}_ok : {{P}}_non_finite;
 }
 
 void {{P}}_init({{P}}_observer* o) {
@@ -534,7 +534,7 @@ void {{P}}_init({{P}}_observer* o) {
   int idx[{{P}}_n];
   int i, j, s, k, next, old;
   const Scalar* q;
-  if (!({{fabs}}(dt - {{dt}}) <= {{tol}} * {{dt}}) || !all_finite(u, {{m}}) || !all_finite(y, 1))
+{{q_next_decl}}  if (!({{fabs}}(dt - {{dt}}) <= {{tol}} * {{dt}}) || !all_finite(u, {{m}}) || !all_finite(y, 1))
     return o->status = {{P}}_non_finite;
   next = o->head == {{P}}_delay_steps ? 0 : o->head + 1;
   for (j = 0; j < {{P}}_filters; ++j)
@@ -557,10 +557,10 @@ void {{P}}_init({{P}}_observer* o) {
   }
   /* Q_k(eta) = sum_i x_i w_i / sum_i w_i, w_i = (epsilon + |eta - q_k(x_i)|)^-{{power}} */
   q = {{map}} + (long)o->level * {{P}}_grid_points * {{P}}_filters;
-  for (i = 0; i < {{P}}_grid_points; ++i, q += {{P}}_filters) {
+{{q_next}}  for (i = 0; i < {{P}}_grid_points; ++i, q += {{P}}_filters{{q_next_advance}}) {
     Scalar d2 = {{zero}}, b, w;
     for (j = 0; j < {{P}}_filters; ++j) {
-      const Scalar e = q[j] - eta[j];
+      const Scalar e = {{q_entry}} - eta[j];
       d2 += e * e;
     }
     b = {{one}} / ({{epsilon}} + {{sqrt}}(d2));
@@ -584,6 +584,17 @@ const char* kLevelSelectC = R"(  {
     Scalar v = u[{{input}}];
 {{window_mean}}    v = {{floor}}((v - {{level_lo}}) / {{level_step}}{{nearest}});
     o->level = v <= {{zero}} ? 0 : v >= (Scalar)({{levels}} - 1) ? {{levels}} - 1 : (int)v;
+  }
+)";
+
+/* level_interpolate: the table interpolated linearly between o->level and o->level + 1. */
+const char* kLevelInterpolateC = R"(  {
+    Scalar v = u[{{input}}];
+{{window_mean}}    v = (v - {{level_lo}}) / {{level_step}};
+    v = v <= {{zero}} ? {{zero}} : v >= (Scalar)({{levels}} - 1) ? (Scalar)({{levels}} - 1) : v;
+    o->level = (int){{floor}}(v);
+    if (o->level > {{levels}} - 2) o->level = {{levels}} - 2;
+    o->frac = v - (Scalar)o->level;
   }
 )";
 
@@ -898,6 +909,13 @@ std::string c_table_literal(double v, Precision p) {
   return p == Precision::single ? t + "f" : t;
 }
 
+// The level selection's template values; the interpolating template has no rounding term.
+std::map<std::string, std::string> level_values(bool interpolate,
+                                                std::map<std::string, std::string> v) {
+  if (interpolate) v.erase("nearest");
+  return v;
+}
+
 // The tables (static const: flash) and the sampled-delay lifecycle and step.
 std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& m, Precision p) {
   const SampledDelay& d = *s.sampled_delay;
@@ -923,49 +941,61 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
     for (double x : v) o.push_back(c_table_literal(x, p));
     return fmt::format("{}", fmt::join(o, ", "));
   };
+  const bool interpolate = d.level_interpolate && d.levels > 1;
   const std::string level =
       d.levels > 1
           ? render_template(
-                kLevelSelectC,
-                {{"floor", single ? "floorf" : "floor"},
-                 {"input", std::to_string(d.input_index)},
-                 {"window_mean", d.level_window_mean
-                                     ? fmt::format("    Scalar acc = {0}; /* mean of the last D "
-                                                   "samples */\n"
-                                                   "    for (k = 0; k <= {1}_delay_steps; ++k)\n"
-                                                   "      if (k != old) acc += o->u_ring[k];\n"
-                                                   "    v = acc / (Scalar){1}_delay_steps;\n",
-                                                   b.lit(0), b.prefix())
-                                     : ""},
-                 {"nearest", d.level_nearest ? " + " + b.lit(0.5) : ""},
-                 {"level_lo", c_table_literal(d.level_lo, p)},
-                 {"level_step", c_table_literal(d.level_step, p)},
-                 {"zero", b.lit(0)},
-                 {"levels", std::to_string(d.levels)}})
+                interpolate ? kLevelInterpolateC : kLevelSelectC,
+                level_values(interpolate,
+                             {{"floor", single ? "floorf" : "floor"},
+                              {"input", std::to_string(d.input_index)},
+                              {"window_mean",
+                               d.level_window_mean
+                                   ? fmt::format("    Scalar acc = {0}; /* mean of the last D "
+                                                 "samples */\n"
+                                                 "    for (k = 0; k <= {1}_delay_steps; ++k)\n"
+                                                 "      if (k != old) acc += o->u_ring[k];\n"
+                                                 "    v = acc / (Scalar){1}_delay_steps;\n",
+                                                 b.lit(0), b.prefix())
+                                   : ""},
+                              {"nearest", d.level_nearest ? " + " + b.lit(0.5) : ""},
+                              {"level_lo", c_table_literal(d.level_lo, p)},
+                              {"level_step", c_table_literal(d.level_step, p)},
+                              {"zero", b.lit(0)},
+                              {"levels", std::to_string(d.levels)}}))
           : "  (void)u;\n";
   std::vector<std::string> zeros(m.n(), b.lit(0));
-  out += render_template(kSampledDelayC,
-                         {{"P", b.prefix()},
-                          {"grid_lo", lits(d.grid_lo)},
-                          {"grid_step", lits(d.grid_step)},
-                          {"grid_count", fmt::format("{}", fmt::join(d.grid_count, ", "))},
-                          {"zero", b.lit(0)},
-                          {"one", b.lit(1)},
-                          {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
-                          {"dt", c_table_literal(d.sample_period, p)},
-                          {"fabs", single ? "fabsf" : "fabs"},
-                          {"sqrt", single ? "sqrtf" : "sqrt"},
-                          {"tol", single ? "1e-6f" : "1e-6"},
-                          {"m", std::to_string(std::max<std::size_t>(m.m(), 1))},
-                          {"u_now", d.levels > 1 ? fmt::format("u[{}]", d.input_index) : b.lit(0)},
-                          {"level", level},
-                          {"decay", d.decay_table},
-                          {"gain", d.gain_table},
-                          {"delay", d.delay_table},
-                          {"metric", d.metric_table},
-                          {"map", d.map_table},
-                          {"power", std::to_string(d.weight_power)},
-                          {"epsilon", c_table_literal(d.epsilon, p)}});
+  out += render_template(
+      kSampledDelayC,
+      {{"P", b.prefix()},
+       {"grid_lo", lits(d.grid_lo)},
+       {"grid_step", lits(d.grid_step)},
+       {"grid_count", fmt::format("{}", fmt::join(d.grid_count, ", "))},
+       {"zero", b.lit(0)},
+       {"one", b.lit(1)},
+       {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
+       {"dt", c_table_literal(d.sample_period, p)},
+       {"fabs", single ? "fabsf" : "fabs"},
+       {"sqrt", single ? "sqrtf" : "sqrt"},
+       {"tol", single ? "1e-6f" : "1e-6"},
+       {"m", std::to_string(std::max<std::size_t>(m.m(), 1))},
+       {"u_now", d.levels > 1 ? fmt::format("u[{}]", d.input_index) : b.lit(0)},
+       {"level", level},
+       {"q_next_decl", interpolate ? "  const Scalar* q1;\n" : ""},
+       {"q_next", interpolate ? fmt::format("  q1 = q + {}_grid_points * {}_filters; "
+                                            "/* level + 1 */\n",
+                                            b.prefix(), b.prefix())
+                              : ""},
+       {"q_next_advance", interpolate ? fmt::format(", q1 += {}_filters", b.prefix()) : ""},
+       {"q_entry", interpolate ? "q[j] + o->frac * (q1[j] - q[j])" : "q[j]"},
+       {"frac_reset", interpolate ? "  o->frac = " + b.lit(0) + ";\n" : ""},
+       {"decay", d.decay_table},
+       {"gain", d.gain_table},
+       {"delay", d.delay_table},
+       {"metric", d.metric_table},
+       {"map", d.map_table},
+       {"power", std::to_string(d.weight_power)},
+       {"epsilon", c_table_literal(d.epsilon, p)}});
   return out;
 }
 
@@ -988,6 +1018,9 @@ std::string c_members(const ObserverSpec& s, const std::string& P, std::size_t i
         "  {0}_scalar u_ring[{1}];     /* the input selecting the level, same samples */\n"
         "  int head, filled, level;    /* newest slot, samples since reset, input level */\n",
         P, d.delay_steps + 1, d.filters);
+    if (d.level_interpolate && d.levels > 1)
+      members +=
+          fmt::format("  {}_scalar frac; /* weight of table level + 1 (interpolated) */\n", P);
   }
   return members;
 }

@@ -349,7 +349,7 @@ const char* kSampledDelayClass = R"({{class_comment}}{{preamble}}  using Tables 
     head_ = 0;
     filled_ = 0;
     level_ = 0;
-    status_ = obsynth::all_finite(xh_) ? obsynth::Status::ok : obsynth::Status::non_finite;
+{{frac_reset}}    status_ = obsynth::all_finite(xh_) ? obsynth::Status::ok : obsynth::Status::non_finite;
   }
 
   /// One sample: u and y measured now, dt == sample_period (else Status::non_finite, state
@@ -381,10 +381,10 @@ const char* kSampledDelayClass = R"({{class_comment}}{{preamble}}  using Tables 
     State sx = State::Zero();
     Scalar sw = Scalar(0);
     const {{table_scalar}}* q = Tables::{{map}} + static_cast<long>(level_) * grid_points * filters;
-    for (int i = 0; i < grid_points; ++i, q += filters) {
+{{q_next}}    for (int i = 0; i < grid_points; ++i, q += filters{{q_next_advance}}) {
       Scalar d2 = Scalar(0);
       for (int j = 0; j < filters; ++j) {
-        const Scalar e = Scalar(q[j]) - eta[j];
+        const Scalar e = {{q_entry}} - eta[j];
         d2 += e * e;
       }
       const Scalar b = Scalar(1) / ({{epsilon}} + sqrt(d2));
@@ -405,9 +405,9 @@ const char* kSampledDelayClass = R"({{class_comment}}{{preamble}}  using Tables 
 
   const State& estimate() const noexcept { return xh_; }
   obsynth::Status status() const noexcept { return status_; }
-  /// The input level (index of the inverse table) of the last step.
+  /// The input level (index of the inverse table) of the last step{{level_doc}}.
   int level() const noexcept { return level_; }
-
+{{frac_accessor}}
  private:
   static Scalar grid_lo(int s) noexcept {
     constexpr {{table_scalar}} v[n] = { {{grid_lo}} };
@@ -424,7 +424,7 @@ const char* kSampledDelayClass = R"({{class_comment}}{{preamble}}  using Tables 
   Scalar ring_[delay_steps + 1][filters];  ///< the delay line: z at the last D + 1 samples
   Scalar u_ring_[delay_steps + 1];         ///< the input selecting the level, same samples
   int head_ = 0, filled_ = 0, level_ = 0;
-  State xh_;
+{{frac_member}}  State xh_;
 {{members}}  obsynth::Status status_ = obsynth::Status::ok;
 };
 )";
@@ -433,6 +433,17 @@ const char* kLevelSelect = R"(    {
       Scalar v = u({{input}});
 {{window_mean}}      v = floor((v - {{level_lo}}) / {{level_step}}{{nearest}});
       level_ = v <= Scalar(0) ? 0 : v >= Scalar(levels - 1) ? levels - 1 : static_cast<int>(v);
+    }
+)";
+
+// level_interpolate: the table interpolated linearly between level_ and level_ + 1.
+const char* kLevelInterpolate = R"(    {
+      Scalar v = u({{input}});
+{{window_mean}}      v = (v - {{level_lo}}) / {{level_step}};
+      v = v <= Scalar(0) ? Scalar(0) : v >= Scalar(levels - 1) ? Scalar(levels - 1) : v;
+      level_ = static_cast<int>(floor(v));
+      if (level_ > levels - 2) level_ = levels - 2;
+      frac_ = v - Scalar(level_);
     }
 )";
 
@@ -941,6 +952,13 @@ std::string tables_text(const ObserverSpec& s, const EmitOptions& opt, const std
                                    {"tables", body}});
 }
 
+// The level selection's template values; the interpolating template has no rounding term.
+std::map<std::string, std::string> level_values(bool interpolate,
+                                                std::map<std::string, std::string> v) {
+  if (interpolate) v.erase("nearest");
+  return v;
+}
+
 std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt,
                                 const ClassContext& c, const std::string& tables_name) {
   const SampledDelay& d = *s.sampled_delay;
@@ -950,20 +968,24 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const 
     for (double x : v) out.push_back(table_literal(x, p));
     return fmt::format("{}", fmt::join(out, ", "));
   };
+  const bool interpolate = d.level_interpolate && d.levels > 1;
   const std::string level =
       d.levels > 1
-          ? render_template(kLevelSelect,
-                            {{"input", std::to_string(d.input_index)},
-                             {"window_mean",
-                              d.level_window_mean
-                                  ? "      Scalar acc = Scalar(0);  // mean of the last D samples\n"
-                                    "      for (int k = 0; k <= delay_steps; ++k)\n"
-                                    "        if (k != old) acc += u_ring_[k];\n"
-                                    "      v = acc / Scalar(delay_steps);\n"
-                                  : ""},
-                             {"nearest", d.level_nearest ? " + Scalar(0.5)" : ""},
-                             {"level_lo", scalar_literal(GiNaC::numeric(d.level_lo), p)},
-                             {"level_step", scalar_literal(GiNaC::numeric(d.level_step), p)}})
+          ? render_template(
+                interpolate ? kLevelInterpolate : kLevelSelect,
+                level_values(
+                    interpolate,
+                    {{"input", std::to_string(d.input_index)},
+                     {"window_mean",
+                      d.level_window_mean
+                          ? "      Scalar acc = Scalar(0);  // mean of the last D samples\n"
+                            "      for (int k = 0; k <= delay_steps; ++k)\n"
+                            "        if (k != old) acc += u_ring_[k];\n"
+                            "      v = acc / Scalar(delay_steps);\n"
+                          : ""},
+                     {"nearest", d.level_nearest ? " + Scalar(0.5)" : ""},
+                     {"level_lo", scalar_literal(GiNaC::numeric(d.level_lo), p)},
+                     {"level_step", scalar_literal(GiNaC::numeric(d.level_step), p)}}))
           : "    static_cast<void>(u);\n";
   (void)a;
   return render_template(
@@ -979,6 +1001,21 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const 
        {"class_name", c.common.at("class_name")},
        {"u_now", d.levels > 1 ? fmt::format("u({})", d.input_index) : std::string("Scalar(0)")},
        {"level", level},
+       {"q_next", interpolate ? fmt::format("    const {}* q1 = q + grid_points * filters;  "
+                                            "// level_ + 1\n",
+                                            precision_name(p))
+                              : ""},
+       {"q_next_advance", interpolate ? ", q1 += filters" : ""},
+       {"q_entry",
+        interpolate ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j]))" : "Scalar(q[j])"},
+       {"level_doc", interpolate ? " (the lower table; frac() weights the next)" : ""},
+       {"frac_member",
+        interpolate ? "  Scalar frac_ = Scalar(0);  ///< weight of table level_ + 1\n" : ""},
+       {"frac_accessor", interpolate ? "  /// The weight of table level() + 1 in the last step's "
+                                       "inverse, in [0, 1].\n"
+                                       "  Scalar frac() const noexcept { return frac_; }\n"
+                                     : ""},
+       {"frac_reset", interpolate ? "    frac_ = Scalar(0);\n" : ""},
        {"decay", d.decay_table},
        {"gain", d.gain_table},
        {"delay", d.delay_table},
