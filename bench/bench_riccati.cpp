@@ -7,16 +7,21 @@
 //   seed003/textbook/<S>    textbook Eigen: m and Q as Vector2 / Matrix2, every stage builds A,
 //                           H, K = Q H^T R^-1 and dQ = A Q + Q A^T - Q H^T R^-1 H Q + N N^T
 //                           with dense products; RK4 over (m, Q); LLT check after the step
-//   chain<n>/generated/double, chain<n>/textbook/double   n = 2, 3, 4, 6, 8: the observer of
-//                           x_i' = -x_i + sin(x_{i+1}) (i < n), x_n' = -(1 + x1/4) x_n + u,
-//                           y = x1 (generated at build time; the textbook one is generic in n)
+//   chain<n>/{generated,expert}/{double,float}, chain<n>/textbook/double   n = 2, 3, 4, 6, 8:
+//                           the observer of x_i' = -x_i + sin(x_{i+1}) (i < n),
+//                           x_n' = -(1 + x1/4) x_n + u, y = x1 (generated at build time; the
+//                           expert (scalar, structure written in) and textbook ones are
+//                           generic in n): how the cost grows with n
+//                           (n + n(n+1)/2 observer states)
 // All of one kind see the same samples (plant simulated in double, fixed dt = 0.01, u held).
-// Before timing, the three seed 003 observers run side by side and must agree (1e-12 double).
+// Before timing, the three seed 003 observers run side by side and must agree (1e-12 double),
+// and so must each generated chain observer and the expert one.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <string>
 #include <vector>
 
 #include "obsynth/eigen.hpp"
@@ -185,6 +190,97 @@ class TextbookChain {
   Mat Q_ = Mat::Identity();
 };
 
+// Hand-written expert observer of the chain family (any n, float or double): scalar code on
+// the packed state w = (m, Q upper triangle row by row), the structure written in by hand:
+// A = D_x F has A(i, i) = -1, A(i, i+1) = cos(m_{i+1}) (i < n), A(n, n) = -(1 + m1/4),
+// A(n, 1) = -m_n/4, and H = e1, so Q H^T H Q = q_1 q_1^T (q_1 the first column of Q) and
+// (A Q)_ij takes two entries of Q. Only the upper triangle of Q' is formed. RK4 on plain arrays;
+// the step is rejected when w is not finite or Q has no Cholesky factor (pivots > 0).
+template <int N, class Scalar_>
+class ExpertChain {
+ public:
+  using Scalar = Scalar_;
+  using State = Eigen::Matrix<Scalar, N, 1>;
+  using Input = Eigen::Matrix<Scalar, 1, 1>;
+  using Output = Eigen::Matrix<Scalar, 1, 1>;
+  static constexpr int NW = N + N * (N + 1) / 2;
+  void reset(const State& x) noexcept {
+    for (int i = 0; i < NW; ++i) w_[i] = 0;
+    for (int i = 0; i < N; ++i) w_[i] = x(i), w_[at(i, i)] = 1;
+    xh_ = x;
+  }
+  obsynth::Status step(Scalar dt, const Input& uin, const Output& yin) noexcept {
+    const Scalar u = uin(0), y = yin(0);
+    Scalar k[NW], acc[NW], s[NW];
+    const Scalar h2 = dt / 2;
+    rhs(w_, u, y, k);
+#pragma GCC unroll 64
+    for (int i = 0; i < NW; ++i) acc[i] = k[i], s[i] = w_[i] + h2 * k[i];
+    rhs(s, u, y, k);
+#pragma GCC unroll 64
+    for (int i = 0; i < NW; ++i) acc[i] += Scalar(2) * k[i], s[i] = w_[i] + h2 * k[i];
+    rhs(s, u, y, k);
+#pragma GCC unroll 64
+    for (int i = 0; i < NW; ++i) acc[i] += Scalar(2) * k[i], s[i] = w_[i] + dt * k[i];
+    rhs(s, u, y, k);
+    const Scalar h6 = dt / Scalar(6);
+#pragma GCC unroll 64
+    for (int i = 0; i < NW; ++i) s[i] = w_[i] + h6 * (acc[i] + k[i]);
+    for (int i = 0; i < NW; ++i)
+      if (!obsynth::is_finite(s[i])) return obsynth::Status::non_finite;
+    // Cholesky pivots of Q (upper triangle, row by row): Q = U^T U.
+    Scalar U[N][N];
+    for (int i = 0; i < N; ++i) {
+      for (int j = i; j < N; ++j) {
+        Scalar v = s[at(i, j)];
+        for (int k2 = 0; k2 < i; ++k2) v -= U[k2][i] * U[k2][j];
+        if (j == i) {
+          if (!(v > Scalar(0))) return obsynth::Status::singular;
+          U[i][i] = std::sqrt(v);
+        } else {
+          U[i][j] = v / U[i][i];
+        }
+      }
+    }
+    for (int i = 0; i < NW; ++i) w_[i] = s[i];
+    for (int i = 0; i < N; ++i) xh_(i) = w_[i];
+    return obsynth::Status::ok;
+  }
+  const State& estimate() const noexcept {
+    return xh_;
+  }
+
+ private:
+  static constexpr int at(int r, int c) noexcept {
+    return N + r * N - r * (r - 1) / 2 + (c - r);
+  }
+  static Scalar q(const Scalar* w, int i, int j) noexcept {
+    return i <= j ? w[at(i, j)] : w[at(j, i)];
+  }
+  static void rhs(const Scalar* w, Scalar u, Scalar y, Scalar* d) noexcept {
+    Scalar c[N];
+    const Scalar e = y - w[0];
+    const Scalar a = -(Scalar(1) + w[0] / Scalar(4)), b = -w[N - 1] / Scalar(4);
+#pragma GCC unroll 16
+    for (int i = 0; i + 1 < N; ++i) {
+      c[i] = std::cos(w[i + 1]);
+      d[i] = -w[i] + std::sin(w[i + 1]) + q(w, 0, i) * e;
+    }
+    d[N - 1] = a * w[N - 1] + u + q(w, 0, N - 1) * e;
+    auto AQ = [&](int i, int j) noexcept {
+      return i + 1 < N ? -q(w, i, j) + c[i] * q(w, i + 1, j) : a * q(w, i, j) + b * q(w, 0, j);
+    };
+#pragma GCC unroll 16
+    for (int i = 0; i < N; ++i) {
+#pragma GCC unroll 16
+      for (int j = i; j < N; ++j)
+        d[at(i, j)] = AQ(i, j) + AQ(j, i) - q(w, i, 0) * q(w, j, 0) + Scalar(i == j ? 1 : 0);
+    }
+  }
+  Scalar w_[NW] = {};
+  State xh_ = State::Zero();
+};
+
 // ---- samples ---------------------------------------------------------------------------------
 
 struct Samples {
@@ -300,14 +396,44 @@ bool seed003_agree() {
   return diff <= 1e-12 && failures == 0;
 }
 
-template <int N, class Gen>
+// The generated chain observer and the agreement check against the expert one (double).
+template <int N, template <class> class Gen>
+bool chain_agree(const char* name) {
+  const Samples& s = chain_samples<N>();
+  const Arrays<Gen<double>> a(s);
+  Gen<double> g;
+  ExpertChain<N, double> e;
+  g.reset(a.xh0), e.reset(a.xh0);
+  double diff = 0;
+  int failures = 0;
+  for (std::size_t k = 0; k < kSamples; ++k) {
+    failures += g.step(kDt, a.u[k], a.y[k]) != obsynth::Status::ok;
+    failures += e.step(kDt, a.u[k], a.y[k]) != obsynth::Status::ok;
+    diff = std::fmax(diff, (g.estimate() - e.estimate()).cwiseAbs().maxCoeff());
+  }
+  std::printf("%s agreement: max |xh_generated - xh_expert| = %.3g, failures %d\n", name, diff,
+              failures);
+  return diff <= 1e-12 && failures == 0;
+}
+
+template <int N, template <class> class Gen>
 void register_chain(const char* name) {
-  benchmark::RegisterBenchmark(
-      (std::string(name) + "/generated/double").c_str(),
-      [](benchmark::State& st) { step_benchmark<Gen>(st, chain_samples<N>()); });
-  benchmark::RegisterBenchmark(
-      (std::string(name) + "/textbook/double").c_str(),
-      [](benchmark::State& st) { step_benchmark<TextbookChain<N>>(st, chain_samples<N>()); });
+  const std::string p(name);
+  benchmark::RegisterBenchmark((p + "/generated/double").c_str(), [](benchmark::State& st) {
+    step_benchmark<Gen<double>>(st, chain_samples<N>());
+  });
+  benchmark::RegisterBenchmark((p + "/expert/double").c_str(), [](benchmark::State& st) {
+    step_benchmark<ExpertChain<N, double>>(st, chain_samples<N>());
+  });
+  benchmark::RegisterBenchmark((p + "/textbook/double").c_str(), [](benchmark::State& st) {
+    step_benchmark<TextbookChain<N>>(st, chain_samples<N>());
+  });
+  benchmark::RegisterBenchmark((p + "/generated/float").c_str(), [](benchmark::State& st) {
+    step_benchmark<Gen<float>>(st, chain_samples<N>());
+  });
+  benchmark::RegisterBenchmark((p + "/expert/float").c_str(), [](benchmark::State& st) {
+    step_benchmark<ExpertChain<N, float>>(st, chain_samples<N>());
+  });
 }
 
 }  // namespace
@@ -332,8 +458,12 @@ int main(int argc, char** argv) {
   benchmark::RegisterBenchmark("seed003/textbook/float", [](benchmark::State& st) {
     step_benchmark<Textbook003<float>>(st, seed003_samples());
   });
-#define OBSYNTH_REGISTER_CHAIN(N, NS, CLASS) \
-  register_chain<N, obsynth_gen::NS::CLASS<double>>("chain" #N);
+  bool agree = true;
+#define OBSYNTH_CHAIN_AGREE(N, NS, CLASS) \
+  agree = chain_agree<N, obsynth_gen::NS::CLASS>("chain" #N) && agree;
+  OBSYNTH_RICCATI_CHAINS(OBSYNTH_CHAIN_AGREE)
+  if (!agree) return 1;
+#define OBSYNTH_REGISTER_CHAIN(N, NS, CLASS) register_chain<N, obsynth_gen::NS::CLASS>("chain" #N);
   OBSYNTH_RICCATI_CHAINS(OBSYNTH_REGISTER_CHAIN)
   benchmark::Initialize(&argc, argv);
   benchmark::RunSpecifiedBenchmarks();
