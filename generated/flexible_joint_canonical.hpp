@@ -54,6 +54,7 @@ struct CanonicalFunctions {
   using Input = Eigen::Matrix<Scalar, m, 1>;
   using Output = Eigen::Matrix<Scalar, p, 1>;
   using Frame = Eigen::Matrix<Scalar, n, n>;
+  using Basis = Eigen::Matrix<Scalar, 3, 1>;  ///< b of c = B b
 
   /// Drift f(x).
   static void f(const State& x, State& out) noexcept {
@@ -144,6 +145,15 @@ struct CanonicalFunctions {
     out(2) = -(Scalar(44.75) * zh4) + c3 + zh2;
     out(3) = -(zh4 * Scalar(11)) + zh3 + c4;
   }
+
+  /// b with c = l(u, y) + K (y - y0) = B b (B: the class's input map).
+  static void step_basis(const Input& u, const Output& y, Basis& out) noexcept {
+    const Scalar u_ = u(0);
+    const Scalar y_ = y(0);
+    out(0) = std::sin(y_);
+    out(1) = u_;
+    out(2) = y_;
+  }
 };
 
 /// Canonical-form Luenberger observer, realised in z coordinates:
@@ -172,12 +182,13 @@ class FlexibleJointCanonical {
 
   /// One step of length dt with u and y held over it (zero-order hold), exact for the
   /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
-  /// Phi and Gamma recomputed only when dt changes.
+  /// with c = B b for a constant B: w <- Phi w + (Gamma B) b, Phi and Gamma B recomputed only
+  /// when dt changes.
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
     if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
-    State c;
-    F::step_constant(u, y, c);  // constant over the step
-    const State w = exact_.apply(zh_, c);
+    typename F::Basis b;
+    F::step_basis(u, y, b);  // constant over the step
+    const State w = exact_.apply(zh_, b);
     if (!obsynth::all_finite(w)) return status_ = obsynth::Status::non_finite;
     zh_ = w;
     return status_ = update_estimate();
@@ -210,20 +221,22 @@ class FlexibleJointCanonical {
     return obsynth::Status::ok;
   }
 
-  /// Phi = e^{A_cl dt}, Gamma = int_0^dt e^{A_cl s} ds for the closed loop A_cl (cold: once
-  /// per sample period).
+  /// Phi = e^{A_cl dt} and Gamma B, Gamma = int_0^dt e^{A_cl s} ds, for the closed loop A_cl
+  /// and the input map B of c = B b (cold: once per sample period).
 #if defined(__GNUC__)
   __attribute__((noinline, cold))
 #endif
   bool discretise(Scalar dt) noexcept {
     Eigen::Matrix<Scalar, n, n> A;
     A << Scalar(0), Scalar(0), Scalar(0), Scalar(-52.5), Scalar(1), Scalar(0), Scalar(0), Scalar(-79.75), Scalar(0), Scalar(1), Scalar(0), Scalar(-44.75), Scalar(0), Scalar(0), Scalar(1), Scalar(-11);
-    return exact_.prepare(A, dt);
+    Eigen::Matrix<Scalar, n, 3> B;
+    B << Scalar(-2), Scalar(1), Scalar(52.5), Scalar(0), Scalar(0), Scalar(79.75), Scalar(-2), Scalar(0), Scalar(42.75), Scalar(0), Scalar(0), Scalar(11);
+    return exact_.prepare(A, B, dt);
   }
 
   State zh_;
   State xh_;
-  obsynth::ExactLinearStep<Scalar, n> exact_;  ///< Phi(dt), Gamma(dt) of the last dt
+  obsynth::ExactLinearStep<Scalar, n, 3> exact_;  ///< Phi(dt), Gamma(dt) B of the last dt
   obsynth::Status status_ = obsynth::Status::ok;
 };
 

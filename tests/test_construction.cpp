@@ -8,6 +8,7 @@
 
 #include "analysis/analysis.hpp"
 #include "app/report.hpp"
+#include "designs/registry.hpp"
 #include "front/parse.hpp"
 #include "support/construct.hpp"
 #include "support/expect.hpp"
@@ -378,6 +379,58 @@ TEST(RankDrop, ProductOutputDropsOnTheAxes) {
   EXPECT_TRUE(same(a.observability.det, 2 * x1 * x1 + 2 * x2 * x2));
   ASSERT_EQ(a.observability.rank_drop.size(), 1u);
   EXPECT_TRUE(same(a.observability.rank_drop[0], x1 * x1 + x2 * x2));
+}
+
+}  // namespace
+
+namespace {
+
+// The exact step's input map: c = l(u, y) + K (y - y0) of the constructed stable chains is a
+// rational combination of a few terms (y, sin y, u cos y and the pieces of y^2/(4 (1 + y^2)));
+// the design splits it as c = B b when b has no more varying entries than there are states.
+// Oracle: B b against the step constant the design emits unsplit, by GiNaC's normal().
+TEST(InputMap, ChainStepConstantIsBTimesBasis) {
+  const Design* d = find_design("canonical");
+  ASSERT_NE(d, nullptr);
+  for (std::size_t n : {3, 4, 5, 8}) {
+    const Constructed c = linearizable_chain(n, Flavor::stable);
+    const Analysis a = analyse(c.model);
+    const ObserverSpec s = d->build(a, DesignOptions{});
+    const GeneratedFunction *basis = nullptr, *sc = nullptr;
+    for (const auto& f : s.functions) {
+      if (f.name == "step_basis") basis = &f;
+      if (f.name == "step_constant") sc = &f;
+    }
+    ASSERT_NE(sc, nullptr);
+    if (n == 3) {  // 4 varying terms for 3 states: c itself
+      EXPECT_TRUE(s.input_map.empty()) << "n = " << n;
+      EXPECT_EQ(basis, nullptr);
+      continue;
+    }
+    ASSERT_NE(basis, nullptr) << "n = " << n;
+    EXPECT_EQ(s.roles.step_basis, "step_basis");
+    const std::size_t k = basis->outputs.size();
+    std::size_t varying = 0;  // entries other than the constant 1
+    for (const ex& b : basis->outputs) varying += GiNaC::is_a<GiNaC::numeric>(b) ? 0 : 1;
+    EXPECT_LE(varying, n);
+    ASSERT_EQ(s.input_map.size(), n);
+    for (std::size_t i = 0; i < n; ++i) {
+      ASSERT_EQ(s.input_map[i].size(), k);
+      ex Bb = 0;
+      for (std::size_t j = 0; j < k; ++j) Bb += s.input_map[i][j] * basis->outputs[j];
+      EXPECT_TRUE(GiNaC::normal(Bb - sc->outputs[i]).is_zero())
+          << "n = " << n << ", row " << i << ": " << Bb << " vs " << sc->outputs[i];
+    }
+    // no entry of b is a constant multiple of another (else B could be smaller)
+    for (std::size_t i = 0; i < k; ++i)
+      for (std::size_t j = i + 1; j < k; ++j)
+        EXPECT_FALSE(
+            GiNaC::is_a<GiNaC::numeric>(GiNaC::normal(basis->outputs[i] / basis->outputs[j])));
+    // RK4 keeps c itself
+    DesignOptions rk4;
+    rk4.values["integrator"] = "rk4";
+    EXPECT_TRUE(d->build(a, rk4).input_map.empty());
+  }
 }
 
 }  // namespace

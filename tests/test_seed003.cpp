@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "analysis/analysis.hpp"
+#include "designs/registry.hpp"
 #include "front/parse.hpp"
 #include "support/expect.hpp"
 
@@ -91,6 +92,26 @@ TEST_F(Seed003, CanonicalFormInjection) {
     EXPECT_FALSE(li.has(x1));
     EXPECT_FALSE(li.has(x2));
   }
+}
+
+TEST_F(Seed003, ExactStepKeepsStepConstant) {
+  // With the default poles -2, -5/2 (K = [5, 9/2]) and y0 = 0, by hand from eq. 28:
+  //   c = l + K y = [-u + y u + y^2 u + 5 y, -y^2/2 + y u + 9/2 y + u],
+  // five distinct varying terms u, y, y u, y^2, y^2 u for two states: c = B b would cost more
+  // per step than c itself, so the exact step applies Gamma to c (no input map).
+  const Design* d = find_design("canonical");
+  ASSERT_NE(d, nullptr);
+  const ObserverSpec s = d->build(a, DesignOptions{});
+  EXPECT_TRUE(s.input_map.empty());
+  EXPECT_TRUE(s.roles.step_basis.empty());
+  const GiNaC::ex y = a.canonical.y;
+  const ExVec c{-u + y * u + y * y * u + 5 * y, -y * y / 2 + y * u + GiNaC::numeric(9, 2) * y + u};
+  const GeneratedFunction* sc = nullptr;
+  for (const auto& f : s.functions)
+    if (f.name == s.roles.step_constant) sc = &f;
+  ASSERT_NE(sc, nullptr);
+  for (std::size_t i = 0; i < 2; ++i)
+    EXPECT_TRUE(GiNaC::normal(sc->outputs[i] - c[i]).is_zero()) << sc->outputs[i];
 }
 
 TEST_F(Seed003, PerfectObserverFromJets) {

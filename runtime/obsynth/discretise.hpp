@@ -74,11 +74,16 @@ namespace obsynth {
 /// it keeps E = Phi - I and steps by increments, w <- w + (E w + Gamma c) (see above: Phi's
 /// entries would round to 1 + O(eps)); in double the rounding of Phi is negligible
 /// (eps / ||A dt|| ~ 1e-13 at dt = 1e-3) and the direct w <- Phi w + Gamma c saves n additions.
-template <class Scalar, int N>
+/// With K != N (or a matrix B given to prepare), the held input is c = B b for a constant
+/// N x K matrix B and a K-vector b: the step then applies Gamma B, folded once per dt, to b,
+/// which costs N K instead of N^2 multiply-adds plus the N entries of c.
+template <class Scalar, int N, int K = N>
 class ExactLinearStep {
  public:
   using Mat = Eigen::Matrix<Scalar, N, N>;
+  using InputMap = Eigen::Matrix<Scalar, N, K>;
   using Vec = Eigen::Matrix<Scalar, N, 1>;
+  using In = Eigen::Matrix<Scalar, K, 1>;
   static constexpr bool kIncrement = sizeof(Scalar) < sizeof(double);
 
   /// Whether E and Gamma are ready for this dt.
@@ -90,19 +95,36 @@ class ExactLinearStep {
 #endif
   bool
   prepare(const Mat& A, Scalar dt) noexcept {
+    static_assert(K == N, "prepare(A, dt) is for c itself as the input; give B otherwise");
     dt_ = Scalar(0);
     if (!discretise_linear<Scalar, N>(A, dt, M_, Gamma_)) return false;
     if (!kIncrement) M_ += Mat::Identity();
     dt_ = dt;
     return true;
   }
-  /// w(t + dt) from w(t) and the held c: one pass over the columns, r += M_j w_j + Gamma_j c_j,
-  /// starting from w (increment form) or from the first column. Written out rather than as
-  /// M_ * w + Gamma_ * c: from N = 8 on, Eigen evaluates a fixed-size matrix-vector product by
-  /// a call into its general GEMV kernel (one call per product, with run-time sizes and
-  /// strides), while this loop has compile-time bounds, is unrolled and vectorised by the
-  /// compiler, and fuses both products and the increment into one accumulation.
-  Vec apply(const Vec& w, const Vec& c) const noexcept {
+  /// The same for c = B b: keeps Gamma B.
+#if defined(__GNUC__)
+  __attribute__((noinline, cold))
+#endif
+  bool
+  prepare(const Mat& A, const InputMap& B, Scalar dt) noexcept {
+    dt_ = Scalar(0);
+    Mat Gamma;
+    if (!discretise_linear<Scalar, N>(A, dt, M_, Gamma)) return false;
+    if (!kIncrement) M_ += Mat::Identity();
+    Gamma_.noalias() = Gamma * B;
+    if (!all_finite(Gamma_)) return false;
+    dt_ = dt;
+    return true;
+  }
+  /// w(t + dt) from w(t) and the held input: one pass over the columns,
+  /// r += M_j w_j + G_j c_j (G = Gamma or Gamma B), starting from w (increment form) or from
+  /// the first column. Written out rather than as M_ * w + Gamma_ * c: from N = 8 on, Eigen
+  /// evaluates a fixed-size matrix-vector product by a call into its general GEMV kernel (one
+  /// call per product, with run-time sizes and strides), while these loops have compile-time
+  /// bounds, are unrolled and vectorised by the compiler, and fuse both products and the
+  /// increment into one accumulation.
+  Vec apply(const Vec& w, const In& c) const noexcept {
     Vec r;
     int j0 = 0;
     if constexpr (kIncrement) {
@@ -111,14 +133,17 @@ class ExactLinearStep {
       r = M_.col(0) * w(0) + Gamma_.col(0) * c(0);  // not 0 + ...: the compiler keeps a + 0.0
       j0 = 1;
     }
-    for (int j = j0; j < N; ++j) r += M_.col(j) * w(j) + Gamma_.col(j) * c(j);
+    constexpr int common = N < K ? N : K;
+    for (int j = j0; j < common; ++j) r += M_.col(j) * w(j) + Gamma_.col(j) * c(j);
+    for (int j = common; j < N; ++j) r += M_.col(j) * w(j);
+    for (int j = common; j < K; ++j) r += Gamma_.col(j) * c(j);
     return r;
   }
 
  private:
-  Mat M_ = Mat::Zero();  ///< Phi - I (single precision) or Phi
-  Mat Gamma_ = Mat::Zero();
-  Scalar dt_ = Scalar(0);  ///< 0: not prepared
+  Mat M_ = Mat::Zero();                ///< Phi - I (single precision) or Phi
+  InputMap Gamma_ = InputMap::Zero();  ///< Gamma, or Gamma B
+  Scalar dt_ = Scalar(0);              ///< 0: not prepared
 };
 
 }  // namespace obsynth

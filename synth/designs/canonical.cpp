@@ -2,6 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <map>
+#include <optional>
+
 #include "designs/options.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
@@ -155,6 +158,106 @@ void add_canonical_maps(const Analysis& a, const Choices& c, ObserverSpec& s) {
                              {x}, frame_column_major(cf), cf.frame.size(), "Frame"));
 }
 
+// c = B b: b the distinct non-constant factors of the terms of the expanded c (ordered by their
+// printed text; a constant term gets the entry 1), B their rational coefficients. Used when
+// it costs fewer multiply-adds per step than c itself, n k < n^2 + nnz(B): the exact step then
+// applies Gamma B (folded once per dt) to b, instead of computing the n entries of c and Gamma c.
+struct InputSplit {
+  ExVec basis;
+  std::vector<std::vector<numeric>> B;  // rows
+};
+
+ExVec terms_of(const ex& e) {
+  const ex x = GiNaC::expand(e);
+  return GiNaC::is_a<GiNaC::add>(x) ? ExVec(x.begin(), x.end()) : ExVec{x};
+}
+
+// A rational term P/Q in one of `vars` with deg P >= deg Q > 0 is split by polynomial division,
+// P/Q = quo + rem/Q (e.g. y^3/(1+y^2) = y - y/(1+y^2)), so that its pieces are shared with the
+// other terms; nullopt when there is nothing to divide.
+std::optional<ExVec> divided(const ex& t, const std::vector<GiNaC::symbol>& vars) {
+  const ex nd = t.numer_denom();
+  const ex num = nd.op(0), den = nd.op(1);
+  if (GiNaC::is_a<numeric>(den)) return std::nullopt;
+  for (const auto& v : vars) {
+    if (!den.has(v) || !num.is_polynomial(v) || !den.is_polynomial(v)) continue;
+    if (num.degree(v) < den.degree(v) || den.degree(v) <= 0) continue;
+    const ex q = GiNaC::quo(num, den, v), r = GiNaC::rem(num, den, v);
+    ExVec out = terms_of(q);
+    if (!r.is_zero())
+      for (const ex& piece : terms_of(r)) out.push_back(piece / den);
+    return out;
+  }
+  return std::nullopt;
+}
+
+std::optional<InputSplit> split_step_constant(const ExVec& c,
+                                              const std::vector<GiNaC::symbol>& vars) {
+  const std::size_t n = c.size();
+  std::map<std::string, ex> basis;                       // printed text -> term
+  std::vector<std::map<std::string, numeric>> coeff(n);  // row -> basis text -> coefficient
+  for (std::size_t i = 0; i < n; ++i) {
+    ExVec work = terms_of(c[i]);
+    for (std::size_t w = 0; w < work.size(); ++w) {
+      const ex t = work[w];
+      if (t.is_zero()) continue;
+      numeric k = 1;
+      ex rest = 1;
+      if (GiNaC::is_a<numeric>(t)) {
+        k = GiNaC::ex_to<numeric>(t);
+      } else if (GiNaC::is_a<GiNaC::mul>(t)) {
+        for (const ex& f : t)
+          if (GiNaC::is_a<numeric>(f))
+            k *= GiNaC::ex_to<numeric>(f);
+          else
+            rest *= f;
+      } else {
+        rest = t;
+      }
+      if (!k.is_rational()) return std::nullopt;
+      if (work.size() < 64 * n)  // a bound on the work, never reached by a sensible model
+        if (const auto pieces = divided(rest, vars)) {
+          for (const ex& piece : *pieces) work.push_back(k * piece);
+          continue;
+        }
+      const std::string key = to_string(rest);
+      basis.emplace(key, rest);
+      auto [it, fresh] = coeff[i].emplace(key, k);
+      if (!fresh) it->second += k;
+    }
+  }
+  InputSplit out;
+  std::size_t nnz = 0;
+  std::vector<std::string> keys;
+  for (const auto& [key, term] : basis) {
+    bool used = false;
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto it = coeff[i].find(key);
+      used = used || (it != coeff[i].end() && !it->second.is_zero());
+    }
+    if (!used) continue;
+    keys.push_back(key);
+    out.basis.push_back(term);
+  }
+  out.B.assign(n, std::vector<numeric>(keys.size(), 0));
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < keys.size(); ++j) {
+      const auto it = coeff[i].find(keys[j]);
+      if (it == coeff[i].end() || it->second.is_zero()) continue;
+      out.B[i][j] = it->second;
+      ++nnz;
+    }
+  // Worth it when b has no more varying entries than c (a constant entry 1 costs no multiply)
+  // and fewer multiply-adds: measured on the constructed chains, b with more entries than c
+  // (n = 3: 4 varying + 1 against 3) makes the vectorised step slower despite fewer scalar
+  // operations in c.
+  const std::size_t k = keys.size();
+  std::size_t varying = 0;
+  for (const ex& b : out.basis) varying += GiNaC::is_a<numeric>(b) ? 0 : 1;
+  if (k == 0 || varying > n || n * k >= n * n + nnz) return std::nullopt;
+  return out;
+}
+
 void build_z_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
   const Model& m = a.model;
   const CanonicalForm& cf = a.canonical;
@@ -180,6 +283,17 @@ void build_z_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
   s.rk4_for_linear = !c.exact;
   s.roles.step_constant = "step_constant";
   s.roles.rhs = "z_rhs";
+  if (c.exact) {
+    std::vector<GiNaC::symbol> vars(m.inputs.begin(), m.inputs.end());
+    vars.push_back(cf.y);
+    if (auto split = split_step_constant(step_constant, vars)) {
+      s.functions.push_back(fn("step_basis",
+                               "b with c = l(u, y) + K (y - y0) = B b (B: the class's input map).",
+                               {input_arg(m), output_arg({cf.y})}, split->basis, 1, "Basis"));
+      s.roles.step_basis = "step_basis";
+      s.input_map = std::move(split->B);
+    }
+  }
   s.closed_loop.assign(n, std::vector<numeric>(n, 0));
   for (std::size_t i = 0; i < n; ++i) {
     if (i > 0) s.closed_loop[i][i - 1] = 1;

@@ -208,6 +208,7 @@ struct ObserverSpec {
     std::string init;                     // InitKind::function: w = init(x)
     std::string rhs;                      // ode: rhs(w, u, y); linear_exact: rhs(w, c)
     std::string step_constant;            // linear_exact: c = step_constant(u, y)
+    std::string step_basis;               // linear_exact with input_map: b = step_basis(u, y)
     std::string estimate;                 // EstimateKind::function: x = estimate(w)
     std::string newton_map;               // EstimateKind::newton: T(x) = w
     std::string newton_inverse_jacobian;  // EstimateKind::newton: (dT/dx)^-1 at x
@@ -221,6 +222,10 @@ struct ObserverSpec {
   // linear_exact: the closed-loop matrix of w' = A_cl w + c (rows of exact rationals).
   std::vector<std::vector<GiNaC::numeric>> closed_loop;
   bool rk4_for_linear = false;  // linear_exact realised by RK4 on the same ODE instead
+  // linear_exact (optional, exact step only): c = input_map b with b = step_basis(u, y) (k
+  // entries) and a constant rational n x k matrix (rows): the exact step applies Gamma(dt)
+  // input_map, folded once per dt, to b. Empty: the step applies Gamma to c itself.
+  std::vector<std::vector<GiNaC::numeric>> input_map;
 
   // jets: orders of the differentiators (highest derivative estimated) and of what is used.
   std::size_t y_jet_order = 0, u_jet_order = 0;

@@ -95,7 +95,7 @@ const char* kDiscretise = R"(
  * Taylor series (runtime/obsynth/discretise.hpp in C). */
 static int discretise({{P}}_observer* o, Scalar dt) {
   static const Scalar A[N * N] = { {{closed_loop}} }; /* row-major */
-  Scalar Ah[N * N], term[N * N], tmp[N * N], E2[N * N], G2[N * N], norm = {{zero}}, h = dt;
+{{input_map}}  Scalar Ah[N * N], term[N * N], tmp[N * N], E2[N * N], G2[N * N], norm = {{zero}}, h = dt;
   int i, j, k, s, squarings = 0;
   if (!isfinite(dt) || !(dt > {{zero}})) return 0;
   for (j = 0; j < N; ++j) {
@@ -113,7 +113,7 @@ static int discretise({{P}}_observer* o, Scalar dt) {
     Ah[i] = A[i] * h;
     term[i] = Ah[i];
     o->E[i] = Ah[i];
-    o->Gamma[i] = Ah[i] * (h / {{two}}) + (i % (N + 1) == 0 ? h : {{zero}});
+    {{G}}[i] = Ah[i] * (h / {{two}}) + (i % (N + 1) == 0 ? h : {{zero}});
   }
   for (k = 2; k <= 30; ++k) {
     int changed = 0;
@@ -125,11 +125,11 @@ static int discretise({{P}}_observer* o, Scalar dt) {
       }
     for (i = 0; i < N * N; ++i) {
       const Scalar e = o->E[i] + tmp[i];
-      const Scalar g = o->Gamma[i] + tmp[i] * (h / (Scalar)(k + 1));
-      if (e != o->E[i] || g != o->Gamma[i]) changed = 1;
+      const Scalar g = {{G}}[i] + tmp[i] * (h / (Scalar)(k + 1));
+      if (e != o->E[i] || g != {{G}}[i]) changed = 1;
       term[i] = tmp[i];
       o->E[i] = e;
-      o->Gamma[i] = g;
+      {{G}}[i] = g;
     }
     if (!changed) break;
   }
@@ -138,18 +138,18 @@ static int discretise({{P}}_observer* o, Scalar dt) {
       for (j = 0; j < N; ++j) {
         Scalar eg = {{zero}}, ee = {{zero}};
         for (s = 0; s < N; ++s) {
-          eg += o->E[i * N + s] * o->Gamma[s * N + j];
+          eg += o->E[i * N + s] * {{G}}[s * N + j];
           ee += o->E[i * N + s] * o->E[s * N + j];
         }
-        G2[i * N + j] = o->Gamma[i * N + j] + o->Gamma[i * N + j] + eg;
+        G2[i * N + j] = {{G}}[i * N + j] + {{G}}[i * N + j] + eg;
         E2[i * N + j] = ee + o->E[i * N + j] + o->E[i * N + j];
       }
     for (i = 0; i < N * N; ++i) {
       o->E[i] = E2[i];
-      o->Gamma[i] = G2[i];
+      {{G}}[i] = G2[i];
     }
   }
-  if (!all_finite(o->E, N * N) || !all_finite(o->Gamma, N * N)) {
+{{fold}}  if (!all_finite(o->E, N * N) || !all_finite(o->Gamma, {{gamma_size}})) {
     o->dt = {{zero}};
     return 0;
   }
@@ -173,6 +173,33 @@ const char* kStepExact = R"(
   for (i = 0; i < N; ++i) o->w[i] = w[i];
   return o->status = update_estimate(o);
 }
+)";
+
+const char* kStepExactBasis = R"(
+{{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
+  Scalar b[K], w[N];
+  int i, j;
+  if (!(dt == o->dt) && !discretise(o, dt)) return o->status = {{P}}_non_finite;
+  {{step_basis}}(u, y{{PRM}}, b); /* constant over the step; c = B b */
+  for (i = 0; i < N; ++i) {
+    Scalar acc = o->w[i];
+    for (j = 0; j < N; ++j) acc += o->E[i * N + j] * o->w[j];
+    for (j = 0; j < K; ++j) acc += o->Gamma[i * K + j] * b[j];
+    w[i] = acc;
+  }
+  if (!all_finite(w, N)) return o->status = {{P}}_non_finite;
+  for (i = 0; i < N; ++i) o->w[i] = w[i];
+  return o->status = update_estimate(o);
+}
+)";
+
+// The discretisation's extra text when c = B b: B, and Gamma B into o->Gamma.
+const char* kFoldInputMap = R"(  for (i = 0; i < N; ++i)
+    for (j = 0; j < K; ++j) {
+      Scalar acc = {{zero}};
+      for (s = 0; s < N; ++s) acc += Gamma[i * N + s] * B[s * K + j];
+      o->Gamma[i * K + j] = acc;
+    }
 )";
 
 const char* kStepRk4 = R"(
@@ -820,6 +847,10 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
 
 std::string step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b) {
   const bool exact = s.update == UpdateKind::linear_exact && !s.rk4_for_linear;
+  if (exact && !s.input_map.empty())
+    return render_template(
+        kStepExactBasis,
+        {{"P", b.prefix()}, {"step_basis", b.fn(s.roles.step_basis)}, {"PRM", prm}});
   if (exact)
     return render_template(
         kStepExact,
@@ -898,6 +929,13 @@ std::string jets_step_text(const ObserverSpec& s, const std::string& prm, CBuild
 std::string closed_loop(const ObserverSpec& s, Precision p) {
   std::vector<std::string> v;
   for (const auto& row : s.closed_loop)
+    for (const auto& q : row) v.push_back(c_scalar_literal(q, p));
+  return fmt::format("{}", fmt::join(v, ", "));
+}
+
+std::string input_map(const ObserverSpec& s, Precision p) {
+  std::vector<std::string> v;
+  for (const auto& row : s.input_map)
     for (const auto& q : row) v.push_back(c_scalar_literal(q, p));
   return fmt::format("{}", fmt::join(v, ", "));
 }
@@ -1004,7 +1042,12 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
 std::string c_members(const ObserverSpec& s, const std::string& P, std::size_t inputs, bool exact,
                       bool params) {
   std::string members;
-  if (exact)
+  if (exact && !s.input_map.empty())
+    members += fmt::format(
+        "  {0}_scalar E[{1}], Gamma[{2}]; /* e^(A_cl dt) - I and Gamma B, row-major */\n"
+        "  {0}_scalar dt;                  /* dt of E and Gamma B (0: not yet computed) */\n",
+        P, s.state_size * s.state_size, s.state_size * s.input_map.front().size());
+  else if (exact)
     members += fmt::format(
         "  {0}_scalar E[{1}], Gamma[{1}]; /* e^(A_cl dt) - I and Gamma, row-major */\n"
         "  {0}_scalar dt;                  /* dt of E and Gamma (0: not yet computed) */\n",
@@ -1133,17 +1176,27 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
                                                   {"header", h.filename},
                                                   {"P", P}});
   src += fmt::format("\n#define N {}\n", s.state_size);
+  const bool basis = exact && !s.input_map.empty();
+  if (basis) src += fmt::format("#define K {}\n", s.input_map.front().size());
   src += definitions;
   if (params)
     src += fmt::format("\nvoid {0}_params_init({0}_params* prm) {{\n{1}}}\n", P, defaults);
   if (exact)
-    src += render_template(kDiscretise,
-                           {{"P", P},
-                            {"closed_loop", closed_loop(s, opt.precision)},
-                            {"zero", b.lit(0)},
-                            {"half", b.lit(0.5)},
-                            {"two", b.lit(2)},
-                            {"fabs", opt.precision == Precision::single ? "fabsf" : "fabs"}});
+    src += render_template(
+        kDiscretise,
+        {{"P", P},
+         {"closed_loop", closed_loop(s, opt.precision)},
+         {"G", basis ? "Gamma" : "o->Gamma"},
+         {"input_map", basis ? fmt::format("  static const Scalar B[N * K] = {{ {} }}; /* "
+                                           "row-major */\n  Scalar Gamma[N * N];\n",
+                                           input_map(s, opt.precision))
+                             : ""},
+         {"fold", basis ? render_template(kFoldInputMap, {{"zero", b.lit(0)}}) : ""},
+         {"gamma_size", basis ? "N * K" : "N * N"},
+         {"zero", b.lit(0)},
+         {"half", b.lit(0.5)},
+         {"two", b.lit(2)},
+         {"fabs", opt.precision == Precision::single ? "fabsf" : "fabs"}});
   if (s.update == UpdateKind::sampled_delay) {
     const SampledDelay& d = *s.sampled_delay;
     // The header's enum gets the delay line's sizes (used by the step and for sizing).

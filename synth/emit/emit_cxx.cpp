@@ -220,6 +220,37 @@ const char* kStepLinearExact =
   }
 )";
 
+const char* kStepLinearExactBasis =
+    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
+  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
+  /// with c = B b for a constant B: w <- Phi w + (Gamma B) b, Phi and Gamma B recomputed only
+  /// when dt changes.
+  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
+    if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
+    typename F::Basis b;
+    F::{{step_basis}}(u, y{{P}}, b);  // constant over the step
+    const State w = exact_.apply({{w}}_, b);
+    if (!obsynth::all_finite(w)) return status_ = obsynth::Status::non_finite;
+    {{w}}_ = w;
+    return status_ = update_estimate();
+  }
+)";
+
+const char* kDiscretiseBasis = R"(
+  /// Phi = e^{A_cl dt} and Gamma B, Gamma = int_0^dt e^{A_cl s} ds, for the closed loop A_cl
+  /// and the input map B of c = B b (cold: once per sample period).
+#if defined(__GNUC__)
+  __attribute__((noinline, cold))
+#endif
+  bool discretise(Scalar dt) noexcept {
+    Eigen::Matrix<Scalar, n, n> A;
+    A << {{closed_loop}};
+    Eigen::Matrix<Scalar, n, {{k}}> B;
+    B << {{input_map}};
+    return exact_.prepare(A, B, dt);
+  }
+)";
+
 const char* kDiscretise = R"(
   /// Phi = e^{A_cl dt}, Gamma = int_0^dt e^{A_cl s} ds for the closed loop A_cl (cold: once
   /// per sample period).
@@ -671,6 +702,13 @@ std::string closed_loop_literals(const ObserverSpec& s, Precision p) {
   return fmt::format("{}", fmt::join(v, ", "));
 }
 
+std::string input_map_literals(const ObserverSpec& s, Precision p) {
+  std::vector<std::string> v;
+  for (const auto& row : s.input_map)
+    for (const auto& q : row) v.push_back(scalar_literal(q, p));
+  return fmt::format("{}", fmt::join(v, ", "));
+}
+
 std::string guarded_step(const ObserverSpec& s, const ClassContext& c) {
   std::string checks, names;
   for (const auto& b : s.symmetric_blocks) {
@@ -731,7 +769,8 @@ std::string step_text(const ObserverSpec& s, const ClassContext& c) {
                                                 {"P", c.P},
                                                 {"capture", c.capture.empty() ? "" : "this, "},
                                                 {"rhs", s.roles.rhs},
-                                                {"step_constant", s.roles.step_constant}};
+                                                {"step_constant", s.roles.step_constant},
+                                                {"step_basis", s.roles.step_basis}};
   auto pick = [&](const char* t, std::initializer_list<const char*> keys) {
     std::map<std::string, std::string> used;
     for (const char* k : keys) used[k] = v.at(k);
@@ -740,6 +779,7 @@ std::string step_text(const ObserverSpec& s, const ClassContext& c) {
   if (s.update == UpdateKind::ode && guarded(s)) return guarded_step(s, c);
   if (s.update == UpdateKind::ode) return pick(kStepOde, {"w", "P", "capture", "rhs"});
   if (s.rk4_for_linear) return pick(kStepLinearRk4, {"w", "P", "capture", "rhs", "step_constant"});
+  if (!s.input_map.empty()) return pick(kStepLinearExactBasis, {"w", "P", "step_basis"});
   return pick(kStepLinearExact, {"w", "P", "step_constant"});
 }
 
@@ -781,14 +821,25 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOpti
   const std::string wstate = own_state_type(s) ? "ObserverState" : "State";
   if (own_state) members += fmt::format("  {} {}_;\n", wstate, s.state_name);
   members += "  State xh_;\n";
-  if (exact)
+  const bool basis = exact && !s.input_map.empty();
+  if (basis)
+    members += fmt::format(
+        "  obsynth::ExactLinearStep<Scalar, n, {}> exact_;  ///< Phi(dt), Gamma(dt) B of the last "
+        "dt\n",
+        s.input_map.front().size());
+  else if (exact)
     members +=
         "  obsynth::ExactLinearStep<Scalar, n> exact_;  ///< Phi(dt), Gamma(dt) of the last dt\n";
   members += c.params_member;
-  std::string private_functions =
-      exact
-          ? render_template(kDiscretise, {{"closed_loop", closed_loop_literals(s, opt.precision)}})
-          : "";
+  std::string private_functions;
+  if (basis)
+    private_functions =
+        render_template(kDiscretiseBasis, {{"closed_loop", closed_loop_literals(s, opt.precision)},
+                                           {"k", std::to_string(s.input_map.front().size())},
+                                           {"input_map", input_map_literals(s, opt.precision)}});
+  else if (exact)
+    private_functions =
+        render_template(kDiscretise, {{"closed_loop", closed_loop_literals(s, opt.precision)}});
   if (s.update == UpdateKind::ode && guarded(s)) private_functions += total_rhs_function(s, c);
   auto v = c.common;
   v.erase("scalar");
@@ -875,6 +926,13 @@ std::string guarded_types(const ObserverSpec& s) {
         "  using GainVector = Eigen::Matrix<Scalar, {0}, 1>;\n",
         s.correction->dim);
   return out;
+}
+
+// The type of b in c = B b (linear_exact with an input map).
+std::string basis_type(const ObserverSpec& s) {
+  if (s.input_map.empty()) return "";
+  return fmt::format("  using Basis = Eigen::Matrix<Scalar, {}, 1>;  ///< b of c = B b\n",
+                     s.input_map.front().size());
 }
 
 std::string jet_types(const ObserverSpec& s) {
@@ -1041,7 +1099,7 @@ EmittedHeader emit_cxx_header(const Analysis& a, const ObserverSpec& s, const Em
   h.class_name = pascal_case(h.namespace_name) + s.class_suffix;
   h.filename = h.namespace_name + "_" + s.method + ".hpp";
   const std::string functions_name = s.class_suffix + "Functions";
-  std::string functions = jet_types(s) + guarded_types(s);
+  std::string functions = jet_types(s) + guarded_types(s) + basis_type(s);
   for (const auto& f : s.functions) functions += b.function(f);
   std::string description = describe_model(m);
   for (const auto& line : s.description) description += "// " + line + "\n";
