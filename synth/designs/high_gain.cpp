@@ -15,6 +15,7 @@
 #include "designs/options.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/lie.hpp"
+#include "symbolic/poly.hpp"
 #include "symbolic/symbolic.hpp"
 #include "symbolic/zero_test.hpp"
 
@@ -227,22 +228,81 @@ std::string singular_set(const Model& m, const HighGainStructure& st) {
 
 using NumericRows = std::vector<std::vector<numeric>>;
 
-// O at each sampled point, evaluated once at 40 digits; nothing where an entry does not evaluate.
-std::vector<std::optional<NumericRows>> sampled_O(const Model& m, const Observability& ob,
-                                                  const std::vector<GiNaC::exmap>& points) {
-  std::vector<std::optional<NumericRows>> values;
-  for (const auto& pt : points) {
-    NumericRows rows(ob.O.size());
-    bool ok = true;
-    for (std::size_t r = 0; r < ob.O.size() && ok; ++r)
-      for (std::size_t c = 0; c < m.n() && ok; ++c) {
-        numeric val;
-        ok = evaluate_real(ob.O[r][c], pt, 40, val);
-        rows[r].push_back(val);
-      }
-    values.push_back(ok ? std::optional<NumericRows>(std::move(rows)) : std::nullopt);
+// At one sampled point: O, and the gradient of each phi_i = dL_f^{i-1} h . g, i < n (an empty
+// row where phi_i is zero). Nothing where some entry does not evaluate.
+struct PhiAtPoint {
+  NumericRows O, dphi;
+};
+
+ex phi_expression(const Model& m, const Observability& ob, std::size_t i) {
+  ex phi = 0;
+  for (std::size_t k = 0; k < m.n(); ++k) phi += ob.O[i][k] * m.g[k];
+  return phi;
+}
+
+// GiNaC: gradients of the expressions, evaluated at 40 digits.
+std::vector<std::optional<PhiAtPoint>> sample_phi_ginac(const Model& m, const Observability& ob,
+                                                        const std::vector<GiNaC::exmap>& points) {
+  const std::size_t n = m.n();
+  std::vector<ExVec> grads(n - 1);
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    const ex phi = phi_expression(m, ob, i);
+    if (!phi.is_zero()) grads[i] = gradient(phi, m.states);
   }
-  return values;
+  std::vector<std::optional<PhiAtPoint>> out;
+  for (const auto& pt : points) {
+    PhiAtPoint v{NumericRows(n), NumericRows(n - 1)};
+    bool ok = true;
+    auto eval = [&](const ex& e, std::vector<numeric>& row) {
+      numeric val;
+      ok = ok && evaluate_real(e, pt, 40, val);
+      row.push_back(val);
+    };
+    for (std::size_t r = 0; r < n; ++r)
+      for (std::size_t c = 0; c < n; ++c) eval(ob.O[r][c], v.O[r]);
+    for (std::size_t i = 0; i + 1 < n; ++i)
+      for (const auto& e : grads[i]) eval(e, v.dphi[i]);
+    out.push_back(ok ? std::optional<PhiAtPoint>(std::move(v)) : std::nullopt);
+  }
+  return out;
+}
+
+// The same in the polynomial ring when O and g live in it: no GiNaC gradients of large trees
+// (nested family at n = 16: most of `check`'s time).
+std::optional<std::vector<std::optional<PhiAtPoint>>> sample_phi_ring(
+    const Model& m, const Observability& ob, const std::vector<GiNaC::exmap>& points) {
+  const std::size_t n = m.n();
+  std::vector<ex> all(m.g.begin(), m.g.end());
+  for (const auto& row : ob.O) all.insert(all.end(), row.begin(), row.end());
+  const auto ring = PolyRing::for_expressions(all, m.states);
+  if (!ring) return std::nullopt;
+  std::vector<std::vector<Poly>> O(n);
+  std::vector<Poly> g;
+  for (const auto& e : m.g) g.push_back(*ring->from_ex(e));
+  for (std::size_t r = 0; r < n; ++r)
+    for (const auto& e : ob.O[r]) O[r].push_back(*ring->from_ex(e));
+  std::vector<std::vector<Poly>> grads(n - 1);
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    const Poly phi = PolyRing::dot(O[i], g);
+    if (!phi.is_zero())
+      for (std::size_t j = 0; j < n; ++j) grads[i].push_back(ring->derivative(phi, j));
+  }
+  std::vector<std::optional<PhiAtPoint>> out;
+  for (const auto& pt : points) {
+    const auto values = ring->values_at(pt, 40);
+    if (!values) {
+      out.push_back(std::nullopt);
+      continue;
+    }
+    DigitsGuard guard(40);
+    PhiAtPoint v{NumericRows(n), NumericRows(n - 1)};
+    for (std::size_t r = 0; r < n; ++r)
+      for (const auto& p : O[r]) v.O[r].push_back(PolyRing::evaluate(p, *values));
+    for (std::size_t i = 0; i + 1 < n; ++i)
+      for (const auto& p : grads[i]) v.dphi[i].push_back(PolyRing::evaluate(p, *values));
+    out.push_back(std::move(v));
+  }
+  return out;
 }
 
 // Whether some phi_i = dL_f^{i-1} h . g (i < n) depends on z_{i+1}..z_n, i.e. rank [dz_1; ...;
@@ -251,30 +311,21 @@ std::optional<std::string> phi_not_triangular(const Model& m, const Observabilit
   const std::size_t n = m.n();
   const SampleBoxes boxes = SampleBoxes::from_model(m);
   const auto points = sample_points(m.all_symbols(), boxes, 3, 0x4a11);
-  const auto O_at = sampled_O(m, ob, points);
+  auto sampled = sample_phi_ring(m, ob, points);
+  if (!sampled) sampled = sample_phi_ginac(m, ob, points);
   for (std::size_t i = 0; i + 1 < n; ++i) {
-    ex phi = 0;
-    for (std::size_t k = 0; k < n; ++k) phi += ob.O[i][k] * m.g[k];
-    if (phi.is_zero()) continue;
-    const ExVec grad = gradient(phi, m.states);
     std::size_t rank = 0;
-    for (std::size_t p = 0; p < points.size(); ++p) {
-      if (!O_at[p]) continue;
-      NumericRows rows(O_at[p]->begin(), O_at[p]->begin() + static_cast<std::ptrdiff_t>(i) + 1);
-      rows.emplace_back();
-      bool ok = true;
-      for (std::size_t c = 0; c < n && ok; ++c) {
-        numeric val;
-        ok = evaluate_real(grad[c], points[p], 40, val);
-        rows.back().push_back(val);
-      }
-      if (ok) rank = std::max(rank, numeric_rank(rows, false));
+    for (const auto& at : *sampled) {
+      if (!at || at->dphi[i].empty()) continue;
+      NumericRows rows(at->O.begin(), at->O.begin() + static_cast<std::ptrdiff_t>(i) + 1);
+      rows.push_back(at->dphi[i]);
+      rank = std::max(rank, numeric_rank(rows, false));
     }
     if (rank > i + 1)
       return fmt::format(
           "not uniformly observable in the form z' = A z + phi(z, u) with phi triangular, z = "
           "(h, L_f h, ...): phi_{} = L_g L_f^{} h = {} depends on z_{}..z_n",
-          i + 1, i, to_string(phi), i + 2);
+          i + 1, i, to_string(phi_expression(m, ob, i)), i + 2);
   }
   return std::nullopt;
 }
