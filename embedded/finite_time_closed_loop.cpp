@@ -9,8 +9,8 @@
 // scripts/regenerate.sh: window T = 0.5 = 50 samples of dt = 0.01, the paper's ten filter
 // eigenvalues, a 17 x 17 grid over [-1, 1]^2, 11 input levels 10, 11, ..., 20 (the table
 // interpolated between the two levels around the input's window mean), epsilon 0.3, weight
-// power 4, sampled bound covering input ramps of slope 2; its tables (255360 bytes of double)
-// are const arrays in flash.
+// power 4, sampled bound covering input ramps of slope 2; its tables (127680 bytes of float,
+// --precision float) are const arrays in flash.
 //
 // Plant (written here by hand from models/garcia14.sym, an oracle sharing no code with the
 // observer): x1' = x2 u, x2' = -x1 u, y = max(x1, 0) (the half-wave rectifier); x(0) = (1, 0).
