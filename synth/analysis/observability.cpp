@@ -1,4 +1,5 @@
 #include "analysis/observability.hpp"
+#include "analysis/observability_ring.hpp"
 
 #include <fmt/format.h>
 
@@ -214,11 +215,16 @@ struct RingRows {
 
 // lie_chain_with_gradients in the polynomial ring, when f and h live in it: the same
 // (expanded) results, the products in FLINT (flint_mpoly.hpp) when no Laurent exponent occurs.
+// expressions false: only the ring rows (lie and grads stay empty).
 bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
-                       std::vector<ExMatrix>& grads, RingRows& rows) {
+                       std::vector<ExMatrix>& grads, RingRows& rows, bool expressions = true) {
   ExVec all(m.f);
   all.insert(all.end(), m.h.begin(), m.h.end());
-  rows.ring = PolyRing::for_expressions(all, m.states);
+  // With g's variables too when g lives in the ring (later stages reuse the ring with g).
+  ExVec with_g(all);
+  with_g.insert(with_g.end(), m.g.begin(), m.g.end());
+  rows.ring = PolyRing::for_expressions(with_g, m.states);
+  if (!rows.ring) rows.ring = PolyRing::for_expressions(all, m.states);
   if (!rows.ring) return false;
   const PolyRing& ring = *rows.ring;
   try {
@@ -237,24 +243,25 @@ bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
     rows.grads.assign(m.p(), {});
     for (std::size_t i = 0; i < m.p(); ++i) {
       Poly phi = outputs[i];
-      ExVec chain{ring.to_ex(phi)};
+      ExVec chain;
+      if (expressions) chain.push_back(ring.to_ex(phi));
       for (std::size_t k = 0; k < n; ++k) {
         std::vector<Poly> grad;
         ExVec row;
         for (std::size_t j = 0; j < n; ++j) {
           grad.push_back(ring.derivative(phi, j));
-          row.push_back(ring.to_ex(grad.back()));
+          if (expressions) row.push_back(ring.to_ex(grad.back()));
         }
-        grads[i].push_back(std::move(row));
+        if (expressions) grads[i].push_back(std::move(row));
         if (k + 1 < n) {
           phi = rows.ctx ? lie_derivative_flint(ring, *rows.ctx, phi, flint_field)
                          : PolyRing::dot(grad, field);
           budget.check(phi.node_estimate());
-          chain.push_back(ring.to_ex(phi));
+          if (expressions) chain.push_back(ring.to_ex(phi));
         }
         rows.grads[i].push_back(std::move(grad));
       }
-      lie.push_back(std::move(chain));
+      if (expressions) lie.push_back(std::move(chain));
     }
   } catch (const PolyOverflow&) {
     rows = RingRows{};
@@ -391,14 +398,14 @@ bool ginac_chain_completes(const Model& m, double seconds) {
 // automatic mode its own budget is a share of the stage's, so that the jets can take over; the
 // GiNaC chain is first tried in a child process with that deadline.
 void lie_chain(const Model& m, Budget& budget, const ObservabilityOptions& opt, Observability& ob,
-               std::vector<ExMatrix>& grads, RingRows& ring_rows) {
+               std::vector<ExMatrix>& grads, RingRows& ring_rows, bool expressions) {
   StageScope stage(budget, "lie");
   BudgetLimits share = budget.limits();
   const bool automatic = opt.rank_method == RankMethod::automatic;
   if (automatic) share.stage_seconds *= opt.symbolic_share;
   Budget own(share);
   own.begin("lie");
-  if (lie_chain_in_ring(m, own, ob.lie, grads, ring_rows)) return;
+  if (lie_chain_in_ring(m, own, ob.lie, grads, ring_rows, expressions)) return;
   if (automatic && !ginac_chain_completes(m, share.stage_seconds))
     throw UserError(SourceLoc{}, fmt::format("not complete within {:g} s", share.stage_seconds));
   ginac_lie_chain(m, &own, ob.lie, grads);
@@ -409,10 +416,10 @@ void lie_chain(const Model& m, Budget& budget, const ObservabilityOptions& opt, 
 // instead (nullopt: it completed).
 std::optional<std::string> lie_chain_or_fallback(const Model& m, Budget& budget,
                                                  const ObservabilityOptions& opt, Observability& ob,
-                                                 std::vector<ExMatrix>& grads,
-                                                 RingRows& ring_rows) {
+                                                 std::vector<ExMatrix>& grads, RingRows& ring_rows,
+                                                 bool expressions) {
   try {
-    lie_chain(m, budget, opt, ob, grads, ring_rows);
+    lie_chain(m, budget, opt, ob, grads, ring_rows, expressions);
   } catch (const UserError& e) {  // the time or size budget of the symbolic chain
     if (opt.rank_method != RankMethod::automatic) throw;
     const std::string why = e.diagnostics().empty() ? e.what() : e.diagnostics()[0].message;
@@ -424,33 +431,43 @@ std::optional<std::string> lie_chain_or_fallback(const Model& m, Budget& budget,
   return std::nullopt;
 }
 
+// The rank, det and adj(O) e_n of a triangular O from its diagonal entries (O[k][cols[k]]):
+// false when some entry is generically zero.
+bool triangular_rank_from_diagonal(Observability& ob, const std::vector<std::size_t>& cols,
+                                   const ExVec& diagonal, const SampleBoxes& boxes,
+                                   const Symbols& x) {
+  bool exact = true, regular = true;
+  for (std::size_t k = 0; k < ob.n && regular; ++k)
+    regular = generically_nonzero(diagonal[k], boxes, exact);
+  if (!regular) return false;
+  ob.triangular = true;
+  ob.diag_columns = cols;
+  ob.rank_exact = exact;
+  ob.generic_rank = ob.n;
+  ob.indices = {ob.n};
+  for (std::size_t k = 0; k < ob.n; ++k) ob.selected.push_back(k);
+  // det = sign(perm) prod_k O[k][c_k]; adj(O) e_n = det O^-1 e_n = det e_{c_n} / O[n][c_n].
+  ex det = permutation_sign(cols), head = det;
+  for (std::size_t k = 0; k < ob.n; ++k) {
+    det *= diagonal[k];
+    if (k + 1 < ob.n) head *= diagonal[k];
+  }
+  ob.det = combine_exponentials(det);  // exp(a)*exp(b) as exp(a+b), still factored
+  ob.last_row_cofactors.assign(ob.n, 0);
+  ob.last_row_cofactors[cols.back()] = head;
+  finish_determinant(ob, x);
+  return true;
+}
+
 // One output whose O is triangular up to a column permutation with a generically nonzero
 // diagonal: rank n, and det (and adj(O) e_n) as products, without sampling. False otherwise.
 bool triangular_rank(Observability& ob, const SampleBoxes& boxes, const Symbols& x) {
   if (ob.p != 1) return false;
   const auto cols = triangular_columns(ob.O);
   if (!cols) return false;
-  bool exact = true, regular = true;
-  for (std::size_t k = 0; k < ob.n && regular; ++k)
-    regular = generically_nonzero(ob.O[k][(*cols)[k]], boxes, exact);
-  if (!regular) return false;
-  ob.triangular = true;
-  ob.diag_columns = *cols;
-  ob.rank_exact = exact;
-  ob.generic_rank = ob.n;
-  ob.indices = {ob.n};
-  for (std::size_t k = 0; k < ob.n; ++k) ob.selected.push_back(k);
-  // det = sign(perm) prod_k O[k][c_k]; adj(O) e_n = det O^-1 e_n = det e_{c_n} / O[n][c_n].
-  ex det = permutation_sign(*cols), head = det;
-  for (std::size_t k = 0; k < ob.n; ++k) {
-    det *= ob.O[k][(*cols)[k]];
-    if (k + 1 < ob.n) head *= ob.O[k][(*cols)[k]];
-  }
-  ob.det = combine_exponentials(det);  // exp(a)*exp(b) as exp(a+b), still factored
-  ob.last_row_cofactors.assign(ob.n, 0);
-  ob.last_row_cofactors[cols->back()] = head;
-  finish_determinant(ob, x);
-  return true;
+  ExVec diagonal;
+  for (std::size_t k = 0; k < ob.n; ++k) diagonal.push_back(ob.O[k][(*cols)[k]]);
+  return triangular_rank_from_diagonal(ob, *cols, diagonal, boxes, x);
 }
 
 // The generic rank of O from its values at sample points of the states and free parameters
@@ -528,31 +545,62 @@ void cofactor_determinant(const Symbols& x, Budget& budget, Observability& ob) {
   finish_determinant(ob, x);
 }
 
+// Moves the ring and O's rows in it into ob (rows in O's order); returns ob.
+Observability& keep_ring(Observability& ob, RingRows& rows) {
+  if (!rows.ring) return ob;
+  auto kept = std::make_shared<RingO>(RingO{std::move(*rows.ring), {}});
+  for (const RowId& id : ob.rows) kept->rows.push_back(std::move(rows.grads[id.output][id.order]));
+  rows = RingRows{};
+  ob.ring = std::move(kept);
+  return ob;
+}
+
 }  // namespace
 
-Observability analyse_observability(const Model& m, Budget& budget, const ObservabilityOptions& opt,
-                                    Observability* progress) {
-  Observability local;
-  Observability& ob = progress ? *progress : local;  // partial results survive a budget stop
-  if (opt.rank_method == RankMethod::jets)
-    return ob = observability_from_jets(m, budget, opt,
-                                        "the jets rank was requested (--rank-method jets)");
-  ob.n = m.n();
-  ob.p = m.p();
-  const Symbols& x = m.states;
-  std::vector<ExMatrix> grads(ob.p);
-  RingRows ring_rows;
-  if (const auto why = lie_chain_or_fallback(m, budget, opt, ob, grads, ring_rows))
-    return ob = observability_from_jets(m, budget, opt, *why);
+namespace {
+
+// Rank-only analysis (expressions false, lie_chain_in_ring kept only the ring rows): O
+// triangular in the rows' zero pattern decides rank and det from the diagonal alone; true when
+// it did. Otherwise O's entries are converted for the general path (false).
+bool triangular_rank_of_rows(const Model& m, Observability& ob, std::vector<ExMatrix>& grads,
+                             RingRows& rows) {
+  if (ob.p != 1 || !rows.ring || !grads[0].empty()) return false;
+  const auto& O = rows.grads[0];
+  ExMatrix pattern(ob.n, ExVec(ob.n));  // 1 where O's entry is a nonzero polynomial
+  for (std::size_t k = 0; k < ob.n; ++k)
+    for (std::size_t c = 0; c < ob.n; ++c) pattern[k][c] = O[k][c].is_zero() ? 0 : 1;
+  if (const auto cols = triangular_columns(pattern)) {
+    ExVec diagonal;
+    for (std::size_t k = 0; k < ob.n; ++k) diagonal.push_back(rows.ring->to_ex(O[k][(*cols)[k]]));
+    for (std::size_t k = 0; k < ob.n; ++k) ob.rows.push_back({0, k});
+    if (triangular_rank_from_diagonal(ob, *cols, diagonal, SampleBoxes::from_model(m), m.states))
+      return true;
+    ob.rows.clear();
+  }
+  for (const auto& row : O) {
+    ExVec e;
+    for (const auto& p : row) e.push_back(rows.ring->to_ex(p));
+    grads[0].push_back(std::move(e));
+  }
+  return false;
+}
+
+// analyse_observability after the Lie chain: O, its rank, indices and det.
+Observability& rank_and_determinant(const Model& m, Budget& budget, const ObservabilityOptions& opt,
+                                    Observability& ob, std::vector<ExMatrix>& grads,
+                                    RingRows& ring_rows) {
   StageScope stage(budget, "observability");
+  if (triangular_rank_of_rows(m, ob, grads, ring_rows)) return ob;
+  const Symbols& x = m.states;
   for (std::size_t k = 0; k < ob.n; ++k)
     for (std::size_t i = 0; i < ob.p; ++i) {
       ob.O.push_back(std::move(grads[i][k]));
       ob.rows.push_back({i, k});
     }
   const SampleBoxes boxes = SampleBoxes::from_model(m);
-  ob.undefined = denominators(ob.O, x);
-  if (triangular_rank(ob, boxes, x)) return ob;
+  // Ring polynomials (Laurent only in exp bases) have no denominators.
+  if (!ring_rows.ring) ob.undefined = denominators(ob.O, x);
+  if (triangular_rank(ob, boxes, x)) return keep_ring(ob, ring_rows);
 
   bool exact = true;
   for (const auto& row : ob.O)
@@ -568,6 +616,55 @@ Observability analyse_observability(const Model& m, Budget& budget, const Observ
     finish_determinant(ob, x, factored);
   else if (full)
     cofactor_determinant(x, budget, ob);
+  return keep_ring(ob, ring_rows);
+}
+
+Observability& observability_into(const Model& m, Budget& budget, const ObservabilityOptions& opt,
+                                  Observability& ob, bool expressions) {
+  if (opt.rank_method == RankMethod::jets)
+    return ob = observability_from_jets(m, budget, opt,
+                                        "the jets rank was requested (--rank-method jets)");
+  ob.n = m.n();
+  ob.p = m.p();
+  std::vector<ExMatrix> grads(ob.p);
+  RingRows ring_rows;
+  if (const auto why = lie_chain_or_fallback(m, budget, opt, ob, grads, ring_rows, expressions)) {
+    ob = Observability{};  // progress reports during the jets see no half-built chain
+    return ob = observability_from_jets(m, budget, opt, *why);
+  }
+  return rank_and_determinant(m, budget, opt, ob, grads, ring_rows);
+}
+
+}  // namespace
+
+Observability analyse_observability(const Model& m, Budget& budget, const ObservabilityOptions& opt,
+                                    Observability* progress) {
+  Observability local;
+  Observability& ob = progress ? *progress : local;  // partial results survive a budget stop
+  return observability_into(m, budget, opt, ob, true);
+}
+
+Observability observability_rank(const Model& m, Budget& budget, const ObservabilityOptions& opt) {
+  Observability ob;
+  return observability_into(m, budget, opt, ob, false);
+}
+
+std::optional<Observability> observability_of_triangular_form(const Model& frozen,
+                                                              const TriangularForm& t) {
+  if (t.coordinates != TriangularForm::Coordinates::states || frozen.p() != 1) return std::nullopt;
+  Observability ob;
+  ob.n = frozen.n();
+  ob.p = 1;
+  ExVec diagonal;
+  ex product = 1;
+  for (std::size_t k = 0; k < ob.n; ++k) {
+    if (k > 0) product *= t.a[k - 1];
+    diagonal.push_back(simplify(product));
+    ob.rows.push_back({0, k});
+  }
+  if (!triangular_rank_from_diagonal(ob, t.order, diagonal, SampleBoxes::from_model(frozen),
+                                     frozen.states))
+    return std::nullopt;
   return ob;
 }
 

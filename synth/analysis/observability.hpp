@@ -5,6 +5,7 @@
 
 #include <ginac/ginac.h>
 
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -12,6 +13,7 @@
 #include "analysis/jets_rank.hpp"
 #include "front/model.hpp"
 #include "symbolic/lie.hpp"
+#include "symbolic/poly.hpp"
 
 namespace obsynth {
 
@@ -34,6 +36,14 @@ struct ObservabilityOptions {
 struct RowId {
   std::size_t output;  // 0-based output index
   std::size_t order;   // k in dL_f^k h_output
+};
+
+// O's rows in the polynomial ring the Lie chain was computed in (same row order as O), so
+// that later stages evaluate or differentiate them without converting O back from GiNaC.
+// The ring also holds g's variables (inputs, atoms) when g lives in it.
+struct RingO {
+  PolyRing ring;
+  std::vector<std::vector<Poly>> rows;
 };
 
 struct Observability {
@@ -63,6 +73,7 @@ struct Observability {
   // empty, and symbolic_skipped says why (requested, or the symbolic chain's budget stop).
   std::optional<JetsRank> jets;
   std::string symbolic_skipped;
+  std::shared_ptr<const RingO> ring;  // set when the Lie chain was computed in the ring
 };
 
 // progress, when given, receives the results as they are found (so a caller that catches a

@@ -4,6 +4,7 @@
 
 #include <new>
 
+#include "analysis/observability_ring.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
 #include "symbolic/zero_test.hpp"
@@ -330,9 +331,17 @@ ObservabilityUnderInputs analyse_observability_under_inputs(const Model& m,
     // wanted), so does this one, and the symbolic parts below are skipped.
     ObservabilityOptions fopt = opt;
     if (drift.jets) fopt.rank_method = RankMethod::jets;
-    const Observability& ob =
-        r.same_as_drift ? drift
-                        : (frozen = analyse_observability(frozen_input_model(m), budget, fopt));
+    const ExVec* lie = !drift.jets && drift.lie.size() == 1 ? &drift.lie[0] : nullptr;
+    r.triangular = triangular_form(m, &r.triangular_note, lie, !drift.jets);
+    if (!r.same_as_drift) {
+      // Only rank and det are needed: from the triangular form when it is in the states, else
+      // observability_rank, which leaves out the expressions it can.
+      const Model fm = frozen_input_model(m);
+      std::optional<Observability> direct;
+      if (r.triangular && !drift.jets) direct = observability_of_triangular_form(fm, *r.triangular);
+      frozen = direct ? std::move(*direct) : observability_rank(fm, budget, fopt);
+    }
+    const Observability& ob = r.same_as_drift ? drift : frozen;
     r.generic_rank = ob.generic_rank;
     r.rank_method = rank_method_name(ob);
     if (!ob.jets && ob.generic_rank == r.n && ob.selected.size() == r.n) {
@@ -346,8 +355,6 @@ ObservabilityUnderInputs analyse_observability_under_inputs(const Model& m,
       r.observation_space_rank = r.generic_rank;
     else if (!drift.jets)
       r.observation_space_rank = observation_space_rank(m, budget, opt);
-    const ExVec* lie = !drift.jets && drift.lie.size() == 1 ? &drift.lie[0] : nullptr;
-    r.triangular = triangular_form(m, &r.triangular_note, lie, !drift.jets);
     r.computed = true;
     decide(m, drift, r);
   } catch (const BudgetExceeded& e) {

@@ -455,7 +455,7 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
   const Observability& ob = a.observability;
   ordered_json j;
   add_model_json(a, j);
-  if (ob.jets) {
+  if (ob.jets || ob.lie.empty()) {  // empty: a progress report before the chain completed
     j["lie_derivatives"] = nullptr;
   } else if (ob.p == 1) {
     j["lie_derivatives"] = expr_list(ob.lie[0]);

@@ -267,26 +267,47 @@ std::vector<std::optional<PhiAtPoint>> sample_phi_ginac(const Model& m, const Ob
   return out;
 }
 
+const numeric kCancelled = numeric(1, 1000000) * numeric(10).power(-24);  // 1e-30
+
 // The same in the polynomial ring when O and g live in it: no GiNaC gradients of large trees
 // (nested family at n = 16: most of `check`'s time).
 std::optional<std::vector<std::optional<PhiAtPoint>>> sample_phi_ring(
     const Model& m, const Observability& ob, const std::vector<GiNaC::exmap>& points) {
   const std::size_t n = m.n();
-  std::vector<ex> all(m.g.begin(), m.g.end());
-  for (const auto& row : ob.O) all.insert(all.end(), row.begin(), row.end());
-  const auto ring = PolyRing::for_expressions(all, m.states);
-  if (!ring) return std::nullopt;
+  std::optional<PolyRing> own;
+  const PolyRing* ring = nullptr;
   std::vector<std::vector<Poly>> O(n);
   std::vector<Poly> g;
-  for (const auto& e : m.g) g.push_back(*ring->from_ex(e));
-  for (std::size_t r = 0; r < n; ++r)
-    for (const auto& e : ob.O[r]) O[r].push_back(*ring->from_ex(e));
-  std::vector<std::vector<Poly>> grads(n - 1);
-  for (std::size_t i = 0; i + 1 < n; ++i) {
-    const Poly phi = PolyRing::dot(O[i], g);
-    if (!phi.is_zero())
-      for (std::size_t j = 0; j < n; ++j) grads[i].push_back(ring->derivative(phi, j));
+  if (ob.ring) {  // the ring of the Lie chain, with O's rows already in it
+    ring = &ob.ring->ring;
+    for (const auto& e : m.g)
+      if (auto p = ring->from_ex(e)) g.push_back(std::move(*p));
+    if (g.size() == m.g.size()) O = ob.ring->rows;
   }
+  if (g.size() != m.g.size()) {
+    std::vector<ex> all(m.g.begin(), m.g.end());
+    for (const auto& row : ob.O) all.insert(all.end(), row.begin(), row.end());
+    own = PolyRing::for_expressions(all, m.states);
+    if (!own) return std::nullopt;
+    ring = &*own;
+    g.clear();
+    for (const auto& e : m.g) g.push_back(*ring->from_ex(e));
+    for (std::size_t r = 0; r < n; ++r)
+      for (const auto& e : ob.O[r]) O[r].push_back(*ring->from_ex(e));
+  }
+  // d phi_i / dx_k = sum_j (dO_ij/dx_k g_j + O_ij dg_j/dx_k), with dO_ij/dx_k = dO_ik/dx_j (a
+  // Hessian of L_f^i h): values at the points, never the product polynomials O_ij g_j (which
+  // swell on dense models).
+  std::vector<std::vector<std::vector<Poly>>> dO(n - 1, std::vector<std::vector<Poly>>(n));
+  for (std::size_t i = 0; i + 1 < n; ++i)
+    for (std::size_t j = 0; j < n; ++j)
+      for (std::size_t k = j; k < n; ++k) dO[i][j].push_back(ring->derivative(O[i][j], k));
+  std::vector<std::vector<Poly>> dg(n);
+  for (std::size_t j = 0; j < n; ++j)
+    for (std::size_t k = 0; k < n; ++k) dg[j].push_back(ring->derivative(g[j], k));
+  const auto hessian = [&](std::size_t i, std::size_t j, std::size_t k) -> const Poly& {
+    return j <= k ? dO[i][j][k - j] : dO[i][k][j - k];
+  };
   std::vector<std::optional<PhiAtPoint>> out;
   for (const auto& pt : points) {
     const auto values = ring->values_at(pt, 40);
@@ -295,11 +316,24 @@ std::optional<std::vector<std::optional<PhiAtPoint>>> sample_phi_ring(
       continue;
     }
     DigitsGuard guard(40);
+    const auto at = [&](const Poly& p) { return PolyRing::evaluate(p, *values); };
     PhiAtPoint v{NumericRows(n), NumericRows(n - 1)};
     for (std::size_t r = 0; r < n; ++r)
-      for (const auto& p : O[r]) v.O[r].push_back(PolyRing::evaluate(p, *values));
+      for (const auto& p : O[r]) v.O[r].push_back(at(p));
+    std::vector<numeric> g_at;
+    for (const auto& p : g) g_at.push_back(at(p));
     for (std::size_t i = 0; i + 1 < n; ++i)
-      for (const auto& p : grads[i]) v.dphi[i].push_back(PolyRing::evaluate(p, *values));
+      for (std::size_t k = 0; k < n; ++k) {
+        numeric d = 0, size = 0;
+        for (std::size_t j = 0; j < n; ++j) {
+          const numeric a = at(hessian(i, j, k)) * g_at[j], b = v.O[i][j] * at(dg[j][k]);
+          d += a + b;
+          size += GiNaC::abs(a) + GiNaC::abs(b);
+        }
+        // A sum that cancels to 40-digit rounding is zero (phi_i = 0 identically, say): the
+        // rank test scales rows to unit norm, so a rounding residue must not survive.
+        v.dphi[i].push_back(GiNaC::abs(d) <= size * kCancelled ? numeric(0) : d);
+      }
     out.push_back(std::move(v));
   }
   return out;

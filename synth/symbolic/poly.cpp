@@ -448,14 +448,18 @@ std::optional<std::vector<GiNaC::numeric>> PolyRing::values_at(const GiNaC::exma
 }
 
 GiNaC::numeric PolyRing::evaluate(const Poly& p, const std::vector<GiNaC::numeric>& values) {
-  GiNaC::numeric acc = 0;
+  // In CLN directly: GiNaC's numeric wraps every intermediate in a heap object.
+  std::vector<cln::cl_N> v;
+  v.reserve(values.size());
+  for (const auto& x : values) v.push_back(x.to_cl_N());
+  cln::cl_N acc = 0;
   for (const auto& [m, c] : p.terms) {
-    GiNaC::numeric t = GiNaC::numeric(cln::cl_N(c));
-    for (std::size_t v = 0; v < values.size(); ++v)
-      if (m.e[v] != 0) t *= m.e[v] == 1 ? values[v] : values[v].power(m.e[v]);
-    acc += t;
+    cln::cl_N t = c;
+    for (std::size_t k = 0; k < v.size(); ++k)
+      if (m.e[k] != 0) t = t * (m.e[k] == 1 ? v[k] : cln::expt(v[k], static_cast<long>(m.e[k])));
+    acc = acc + t;
   }
-  return acc;
+  return GiNaC::numeric(acc);
 }
 
 Poly PolyRing::derivative(const Poly& p, std::size_t state) const {
