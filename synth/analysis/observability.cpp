@@ -564,24 +564,29 @@ namespace {
 // it did. Otherwise O's entries are converted for the general path (false).
 bool triangular_rank_of_rows(const Model& m, Observability& ob, std::vector<ExMatrix>& grads,
                              RingRows& rows) {
-  if (ob.p != 1 || !rows.ring || !grads[0].empty()) return false;
-  const auto& O = rows.grads[0];
-  ExMatrix pattern(ob.n, ExVec(ob.n));  // 1 where O's entry is a nonzero polynomial
-  for (std::size_t k = 0; k < ob.n; ++k)
-    for (std::size_t c = 0; c < ob.n; ++c) pattern[k][c] = O[k][c].is_zero() ? 0 : 1;
-  if (const auto cols = triangular_columns(pattern)) {
-    ExVec diagonal;
-    for (std::size_t k = 0; k < ob.n; ++k) diagonal.push_back(rows.ring->to_ex(O[k][(*cols)[k]]));
-    for (std::size_t k = 0; k < ob.n; ++k) ob.rows.push_back({0, k});
-    if (triangular_rank_from_diagonal(ob, *cols, diagonal, SampleBoxes::from_model(m), m.states))
-      return true;
-    ob.rows.clear();
+  if (!rows.ring || !grads[0].empty()) return false;  // the expressions are there
+  if (ob.p == 1) {
+    const auto& O = rows.grads[0];
+    ExMatrix pattern(ob.n, ExVec(ob.n));  // 1 where O's entry is a nonzero polynomial
+    for (std::size_t k = 0; k < ob.n; ++k)
+      for (std::size_t c = 0; c < ob.n; ++c) pattern[k][c] = O[k][c].is_zero() ? 0 : 1;
+    if (const auto cols = triangular_columns(pattern)) {
+      ExVec diagonal;
+      for (std::size_t k = 0; k < ob.n; ++k) {
+        diagonal.push_back(rows.ring->to_ex(O[k][(*cols)[k]]));
+        ob.rows.push_back({0, k});
+      }
+      if (triangular_rank_from_diagonal(ob, *cols, diagonal, SampleBoxes::from_model(m), m.states))
+        return true;
+      ob.rows.clear();
+    }
   }
-  for (const auto& row : O) {
-    ExVec e;
-    for (const auto& p : row) e.push_back(rows.ring->to_ex(p));
-    grads[0].push_back(std::move(e));
-  }
+  for (std::size_t i = 0; i < ob.p; ++i)
+    for (const auto& row : rows.grads[i]) {
+      ExVec e;
+      for (const auto& p : row) e.push_back(rows.ring->to_ex(p));
+      grads[i].push_back(std::move(e));
+    }
   return false;
 }
 
