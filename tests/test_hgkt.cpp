@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "analysis/analysis.hpp"
@@ -300,6 +301,46 @@ TEST(HighGain, SingularObservabilityMatrixStops) {
   for (const auto& row : s.report)
     if (row.key == "O singular" && row.value.find("x2 = 0") != std::string::npos) said = true;
   EXPECT_TRUE(said);
+}
+
+// The same O on a plant that reaches the singular set along its trajectory, from an estimate
+// that starts off it: x1' = x2^3, x2' = -x2, y = x1, x2 = e^-t -> 0. The LU solve rejects a
+// pivot <= d eps times the largest (runtime/obsynth/linear_solve.hpp, the simulator the same;
+// d = 2). With O = [[1, 0], [0, 3 xh2^2]] the pivots are 1 and 3 xh2^2, so the solve fails
+// once xh2 <= sqrt(2 eps / 3) = 1.2166e-8. Plant and observer run as one ODE (continuous
+// sampling): xh has converged to x long before (error ~1e-20 at t = 18), so the step from t is
+// rejected when its last RK4 stage, at x2(t + dt) = e^-(t + dt), is inside:
+// t = ln(1 / sqrt(2 eps / 3)) - dt = 18.2235, i.e. the step that starts at t = 18.224.
+// The run stops there with the solve's message: no NaN, and the last estimate is still right.
+const char* kCubicDecay = R"(model cubic_decay
+states x1 x2
+f = [ x2^3, -x2 ]
+h = [ x1 ]
+domain x1 in [-2, 2], x2 in [-2, 2]
+)";
+
+TEST(HighGain, SingularSetReachedAlongTheTrajectory) {
+  const Model m = parse_model(kCubicDecay, "cubic_decay.sym");
+  const auto r = run(m, "high-gain", "0", {0, 1}, {0.5, 0.5}, 30);
+  const std::string prefix = "the observer rejected its step at t = ";
+  const auto at = r.diverged.find(prefix);
+  ASSERT_NE(at, std::string::npos) << r.diverged;
+  EXPECT_NE(r.diverged.find("O(xh) is singular where x2 = 0"), std::string::npos) << r.diverged;
+  const double t_reject = std::stod(r.diverged.substr(at + prefix.size()));
+  const double eps = std::numeric_limits<double>::epsilon(), dt = 1e-3;
+  const double t_hand = std::log(1 / std::sqrt(2 * eps / 3)) - dt;
+  EXPECT_GE(t_reject, t_hand - dt) << r.diverged;
+  EXPECT_LE(t_reject, t_hand + 2 * dt) << r.diverged;
+  // Off the set at the start, and every recorded estimate finite; the last one (at the
+  // rejected step) agrees with the plant, which is then within 2e-8 of the set.
+  ASSERT_FALSE(r.t.empty());
+  EXPECT_GT(std::abs(r.xh.front()[1]), 0.1);
+  EXPECT_NEAR(r.t.back(), t_reject, 1e-9);
+  for (const auto& xh : r.xh)
+    for (double v : xh) ASSERT_TRUE(std::isfinite(v));
+  EXPECT_LT(std::abs(r.x.back()[1]), 2e-8);
+  EXPECT_LT(final_error(r, 0), 1e-12);
+  EXPECT_LT(final_error(r, 1), 1e-12);
 }
 
 TEST(HighGain, BadOptions) {
