@@ -343,6 +343,29 @@ TEST(HighGain, SingularSetReachedAlongTheTrajectory) {
   EXPECT_LT(final_error(r, 1), 1e-12);
 }
 
+// The certificate of the same model refuses a guarantee in x. In z = (x1, x2^3) the
+// nonlinearity is phi = (0, -3 z2) (L_f^2 h = 3 x2^2 x2' = -3 x2^3), so L = 3 rigorously and
+// theta = 10 is above theta*; but the realisation in x solves with O(xh), and det O = 3 x2^2
+// vanishes at x2 = 0 inside the box [-2, 2], so the convergence row says "not guaranteed in x"
+// and names x2 = 0 (the run above reaches that set). Van der Pol (det O = 1) is guaranteed.
+TEST(HighGain, CertificateRefusesWhenOIsSingularInTheBox) {
+  DesignOptions d;
+  d.values["theta"] = "10";
+  const ObserverSpec s =
+      find_design("high-gain")->build(analyse(parse_model(kCubicDecay, "cubic_decay.sym")), d);
+  EXPECT_NE(row(s, "Lipschitz constant L").find("rigorous"), std::string::npos)
+      << row(s, "Lipschitz constant L");
+  EXPECT_NEAR(std::stod(row(s, "Lipschitz constant L")), 3, 1e-4);
+  const std::string conv = row(s, "convergence");
+  EXPECT_EQ(conv.rfind("not guaranteed in x: theta = 10 > theta*", 0), 0u) << conv;
+  EXPECT_NE(conv.find("x2 = 0"), std::string::npos) << conv;
+  EXPECT_NE(s.summary.find("not guaranteed in x"), std::string::npos) << s.summary;
+  d.values["theta"] = "60";
+  const ObserverSpec v = find_design("high-gain")->build(analyse(model("vanderpol")), d);
+  EXPECT_EQ(row(v, "convergence").rfind("guaranteed: theta = 60 >", 0), 0u)
+      << row(v, "convergence");
+}
+
 TEST(HighGain, BadOptions) {
   const Analysis a = analyse(model("vanderpol"));
   DesignOptions d;
