@@ -2,6 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
+#include "analysis/observability.hpp"
 #include "analysis/persistence.hpp"
 #include "analysis/triangular_form.hpp"
 #include "designs/design_helpers.hpp"
@@ -253,6 +256,30 @@ SolveCorrection kt_correction(std::size_t n) {
   return corr;
 }
 
+// The factors of x_of_z's denominators that depend on z and may vanish for a state in the
+// domain box (f(z_of_x(x)), zeros_in_box; those proved nonzero there are left out): where they
+// vanish the estimate is not finite (the generated estimate returns Status::non_finite).
+std::string denominators_text(const Model& m, const KtForm& form) {
+  GiNaC::exmap at_x;
+  for (std::size_t i = 0; i < form.z.size(); ++i) at_x[form.z[i]] = form.z_of_x[i];
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  std::vector<std::string> seen, out;
+  for (const auto& e : form.x_of_z)
+    for (const auto& f : dependent_factors(GiNaC::denom(GiNaC::normal(e)), form.z)) {
+      const std::string t = to_string(f);
+      if (std::find(seen.begin(), seen.end(), t) != seen.end()) continue;
+      seen.push_back(t);
+      const BoxZeros zx = zeros_in_box(f.subs(at_x), boxes);
+      if (zx.kind == BoxZeros::never) continue;
+      out.push_back(fmt::format("{} = 0 ({})", t,
+                                zx.kind == BoxZeros::somewhere
+                                    ? "meets the domain box: " + zx.detail
+                                    : "not proved to stay out of the domain box"));
+    }
+  if (out.empty()) return "";
+  return fmt::format("; not finite where {}", fmt::join(out, "; "));
+}
+
 // Title, description, class documentation, constants, report rows and summary.
 void describe_kt(ObserverSpec& s, const Model& m, const KtForm& form, const numeric& theta,
                  const std::vector<numeric>& S0packed, const DesignOptions& o) {
@@ -289,13 +316,14 @@ void describe_kt(ObserverSpec& s, const Model& m, const KtForm& form, const nume
   } else {
     std::vector<std::string> zs;
     for (const auto& z : form.z) zs.push_back(z.get_name());
-    s.report = {
-        {"coordinates", fmt::format("{} ({}): [{}] = [{}]", coordinates_text(form),
-                                    coordinates_name(form.coordinates), fmt::join(zs, ", "),
-                                    fmt::join(to_strings(form.z_of_x), ", "))},
-        {"form", fmt::format("a(u) = [{}], phi(u, z) = [{}], C = e_1", as, phis)},
-        {"estimate", fmt::format("x = x_of_z(zh) = [{}] (explicit inverse; zh starts at z(xh0))",
-                                 fmt::join(to_strings(form.x_of_z), ", "))}};
+    s.report = {{"coordinates", fmt::format("{} ({}): [{}] = [{}]", coordinates_text(form),
+                                            coordinates_name(form.coordinates), fmt::join(zs, ", "),
+                                            fmt::join(to_strings(form.z_of_x), ", "))},
+                {"form", fmt::format("a(u) = [{}], phi(u, z) = [{}], C = e_1", as, phis)},
+                {"estimate", fmt::format("x = x_of_z(zh) = [{}] (explicit inverse; zh starts at "
+                                         "z(xh0)){}",
+                                         fmt::join(to_strings(form.x_of_z), ", "),
+                                         denominators_text(m, form))}};
   }
   const std::string conv =
       "for strongly persistent inputs (seed 002's Theorem, phi globally Lipschitz in z); check "
