@@ -360,6 +360,13 @@ TEST(HighGain, CertificateRefusesWhenOIsSingularInTheBox) {
   EXPECT_EQ(conv.rfind("not guaranteed in x: theta = 10 > theta*", 0), 0u) << conv;
   EXPECT_NE(conv.find("x2 = 0"), std::string::npos) << conv;
   EXPECT_NE(s.summary.find("not guaranteed in x"), std::string::npos) << s.summary;
+  // Below theta* the row does not advise raising theta alone: the set stays.
+  const ObserverSpec s5 =
+      find_design("high-gain")->build(analyse(parse_model(kCubicDecay, "cubic_decay.sym")), {});
+  const std::string conv5 = row(s5, "convergence");
+  EXPECT_EQ(conv5.find("raise --theta"), std::string::npos) << conv5;
+  EXPECT_NE(conv5.find("x2 = 0"), std::string::npos) << conv5;
+  EXPECT_NE(conv5.find("for any theta"), std::string::npos) << conv5;
   d.values["theta"] = "60";
   const ObserverSpec v = find_design("high-gain")->build(analyse(model("vanderpol")), d);
   EXPECT_EQ(row(v, "convergence").rfind("guaranteed: theta = 60 >", 0), 0u)

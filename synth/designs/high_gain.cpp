@@ -513,28 +513,39 @@ void describe_hg(ObserverSpec& s, const GainChoice& g, const Certificate& cert,
 
 // The "convergence" report row.
 std::string convergence_text(const GainChoice& g, const Certificate& cert, const Convergence& c) {
-  if (cert.unbounded)
-    return "not guaranteed: the triangular nonlinearity has no finite Lipschitz bound on the "
-           "domain box (see the bounds above)";
   if (c.above && cert.rigorous && !c.singular_in_box.empty())
     return fmt::format(
         "not guaranteed in x: theta = {} > theta* = {} gives zh -> z in z = (h, L_f h, ...), "
         "but {}: the realisation in x (a solve with O(xh)) is not covered where the estimate "
         "meets that set (Status::singular when it reaches it numerically)",
         to_string(g.theta), up6(cert.theta_star), c.singular_in_box);
+  // Whatever theta: with O singular in the box the realisation in x is not covered there.
+  const std::string singular =
+      c.singular_in_box.empty()
+          ? std::string()
+          : "; and " + c.singular_in_box +
+                ": the realisation in x (a solve with O(xh)) is not covered where the estimate "
+                "meets that set, for any theta";
+  if (cert.unbounded)
+    return "not guaranteed: the triangular nonlinearity has no finite Lipschitz bound on the "
+           "domain box (see the bounds above)" +
+           singular;
   if (c.above && !cert.rigorous)
     return fmt::format(
-        "not proven: theta = {} > theta* = {}, but L is sampled (an estimate, not an upper "
-        "bound)",
-        to_string(g.theta), up6(cert.theta_star));
+               "not proven: theta = {} > theta* = {}, but L is sampled (an estimate, not an upper "
+               "bound)",
+               to_string(g.theta), up6(cert.theta_star)) +
+           singular;
   if (c.guaranteed)
     return fmt::format(
         "guaranteed: theta = {} > theta* = {} (while xh and x stay in the domain box, where L "
         "holds)",
         to_string(g.theta), up6(cert.theta_star));
-  return fmt::format(
-      "not guaranteed by the theorem: theta = {} <= theta* = {} (short by {}); raise --theta",
-      to_string(g.theta), up6(cert.theta_star), up6(cert.theta_star - g.theta.to_double()));
+  return fmt::format("not guaranteed by the theorem: theta = {} <= theta* = {} (short by {}){}",
+                     to_string(g.theta), up6(cert.theta_star),
+                     up6(cert.theta_star - g.theta.to_double()),
+                     singular.empty() ? "; raise --theta" : "") +
+         singular;
 }
 
 // The report rows and the summary.
