@@ -106,10 +106,11 @@ TEST(Synthesize, AllIsEveryDesignThatApplies) {
   for (const char* m : {"canonical", "perfect", "high-gain", "riccati"})
     EXPECT_TRUE(has(s, m)) << m;
   // Lorenz, y = x1: no canonical form, not in seed 002's form in x (row 2 depends on x3), but
-  // uniformly observable for the high-gain design (det O = -100 x1 not identically 0).
+  // in it in z = (h, L_f h, L_f^2 h) (kalman-theta runs there) and uniformly observable for
+  // the high-gain design (det O = -100 x1 not identically 0).
   const auto l = resolve_methods(analysed("lorenz"), {"all"}, why);
   EXPECT_FALSE(has(l, "canonical"));
-  EXPECT_FALSE(has(l, "kalman-theta"));
+  EXPECT_TRUE(has(l, "kalman-theta"));
   EXPECT_TRUE(has(l, "high-gain"));
   EXPECT_TRUE(has(l, "riccati"));
   EXPECT_TRUE(resolve_methods(analysed("stuart_landau"), {"all"}, why).empty());

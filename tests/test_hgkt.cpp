@@ -4,10 +4,12 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "analysis/analysis.hpp"
 #include "analysis/persistence.hpp"
+#include "analysis/triangular_form.hpp"
 #include "app/simulate.hpp"
 #include "designs/high_gain.hpp"
 #include "designs/registry.hpp"
@@ -27,6 +29,10 @@ std::string read_model(const std::string& name) {
 
 Model model(const std::string& name) {
   return parse_model(read_model(name), name + ".sym");
+}
+
+Model test_model(const std::string& name) {  // tests/models/<name>.sym
+  return load_model(std::string(OBSYNTH_SOURCE_DIR) + "/tests/models/" + name + ".sym");
 }
 
 SimulationResult run(const Model& m, const std::string& method, const std::string& u,
@@ -297,6 +303,76 @@ TEST(HighGain, SingularObservabilityMatrixStops) {
   EXPECT_TRUE(said);
 }
 
+// The same O on a plant that reaches the singular set along its trajectory, from an estimate
+// that starts off it: x1' = x2^3, x2' = -x2, y = x1, x2 = e^-t -> 0. The LU solve rejects a
+// pivot <= d eps times the largest (runtime/obsynth/linear_solve.hpp, the simulator the same;
+// d = 2). With O = [[1, 0], [0, 3 xh2^2]] the pivots are 1 and 3 xh2^2, so the solve fails
+// once xh2 <= sqrt(2 eps / 3) = 1.2166e-8. Plant and observer run as one ODE (continuous
+// sampling): xh has converged to x long before (error ~1e-20 at t = 18), so the step from t is
+// rejected when its last RK4 stage, at x2(t + dt) = e^-(t + dt), is inside:
+// t = ln(1 / sqrt(2 eps / 3)) - dt = 18.2235, i.e. the step that starts at t = 18.224.
+// The run stops there with the solve's message: no NaN, and the last estimate is still right.
+const char* kCubicDecay = R"(model cubic_decay
+states x1 x2
+f = [ x2^3, -x2 ]
+h = [ x1 ]
+domain x1 in [-2, 2], x2 in [-2, 2]
+)";
+
+TEST(HighGain, SingularSetReachedAlongTheTrajectory) {
+  const Model m = parse_model(kCubicDecay, "cubic_decay.sym");
+  const auto r = run(m, "high-gain", "0", {0, 1}, {0.5, 0.5}, 30);
+  const std::string prefix = "the observer rejected its step at t = ";
+  const auto at = r.diverged.find(prefix);
+  ASSERT_NE(at, std::string::npos) << r.diverged;
+  EXPECT_NE(r.diverged.find("O(xh) is singular where x2 = 0"), std::string::npos) << r.diverged;
+  const double t_reject = std::stod(r.diverged.substr(at + prefix.size()));
+  const double eps = std::numeric_limits<double>::epsilon(), dt = 1e-3;
+  const double t_hand = std::log(1 / std::sqrt(2 * eps / 3)) - dt;
+  EXPECT_GE(t_reject, t_hand - dt) << r.diverged;
+  EXPECT_LE(t_reject, t_hand + 2 * dt) << r.diverged;
+  // Off the set at the start, and every recorded estimate finite; the last one (at the
+  // rejected step) agrees with the plant, which is then within 2e-8 of the set.
+  ASSERT_FALSE(r.t.empty());
+  EXPECT_GT(std::abs(r.xh.front()[1]), 0.1);
+  EXPECT_NEAR(r.t.back(), t_reject, 1e-9);
+  for (const auto& xh : r.xh)
+    for (double v : xh) ASSERT_TRUE(std::isfinite(v));
+  EXPECT_LT(std::abs(r.x.back()[1]), 2e-8);
+  EXPECT_LT(final_error(r, 0), 1e-12);
+  EXPECT_LT(final_error(r, 1), 1e-12);
+}
+
+// The certificate of the same model refuses a guarantee in x. In z = (x1, x2^3) the
+// nonlinearity is phi = (0, -3 z2) (L_f^2 h = 3 x2^2 x2' = -3 x2^3), so L = 3 rigorously and
+// theta = 10 is above theta*; but the realisation in x solves with O(xh), and det O = 3 x2^2
+// vanishes at x2 = 0 inside the box [-2, 2], so the convergence row says "not guaranteed in x"
+// and names x2 = 0 (the run above reaches that set). Van der Pol (det O = 1) is guaranteed.
+TEST(HighGain, CertificateRefusesWhenOIsSingularInTheBox) {
+  DesignOptions d;
+  d.values["theta"] = "10";
+  const ObserverSpec s =
+      find_design("high-gain")->build(analyse(parse_model(kCubicDecay, "cubic_decay.sym")), d);
+  EXPECT_NE(row(s, "Lipschitz constant L").find("rigorous"), std::string::npos)
+      << row(s, "Lipschitz constant L");
+  EXPECT_NEAR(std::stod(row(s, "Lipschitz constant L")), 3, 1e-4);
+  const std::string conv = row(s, "convergence");
+  EXPECT_EQ(conv.rfind("not guaranteed in x: theta = 10 > theta*", 0), 0u) << conv;
+  EXPECT_NE(conv.find("x2 = 0"), std::string::npos) << conv;
+  EXPECT_NE(s.summary.find("not guaranteed in x"), std::string::npos) << s.summary;
+  // Below theta* the row does not advise raising theta alone: the set stays.
+  const ObserverSpec s5 =
+      find_design("high-gain")->build(analyse(parse_model(kCubicDecay, "cubic_decay.sym")), {});
+  const std::string conv5 = row(s5, "convergence");
+  EXPECT_EQ(conv5.find("raise --theta"), std::string::npos) << conv5;
+  EXPECT_NE(conv5.find("x2 = 0"), std::string::npos) << conv5;
+  EXPECT_NE(conv5.find("for any theta"), std::string::npos) << conv5;
+  d.values["theta"] = "60";
+  const ObserverSpec v = find_design("high-gain")->build(analyse(model("vanderpol")), d);
+  EXPECT_EQ(row(v, "convergence").rfind("guaranteed: theta = 60 >", 0), 0u)
+      << row(v, "convergence");
+}
+
 TEST(HighGain, BadOptions) {
   const Analysis a = analyse(model("vanderpol"));
   DesignOptions d;
@@ -308,6 +384,203 @@ TEST(HighGain, BadOptions) {
   DesignOptions k;
   k.values["S0"] = "1, 2, 3";  // packed [[1, 2], [2, 3]]: det -1, not positive definite
   EXPECT_THROW(find_design("kalman-theta")->build(a, k), UserError);
+}
+
+// ---- Kalman-like theta observer out of x ----------------------------------------------------
+
+// Each entry of a and b equal (GiNaC: normal of the expanded difference; expand also expands
+// function arguments, so sin(x2 (1 + x1^2)) meets sin(x2 + x1^2 x2)).
+void expect_same(const ExVec& a, const ExVec& b, const std::string& what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    EXPECT_TRUE(zero(GiNaC::expand(a[i] - b[i])))
+        << what << "[" << i << "]: " << a[i] << " vs " << b[i];
+}
+
+// The function of the spec with that name (fails the test when it is missing).
+const GeneratedFunction& function(const ObserverSpec& s, const std::string& name) {
+  const GeneratedFunction* f = s.function(name);
+  EXPECT_NE(f, nullptr) << name;
+  static const GeneratedFunction none;
+  return f ? *f : none;
+}
+
+// tests/models/kt_lie3.sym, by hand (its comment): L_f h = x2 (1 + x1^2) and L_f^2 h = x3, so
+// Z(x) = (x1, x2 (1 + x1^2), x3), Z^-1(z) = (z1, z2 / (1 + z1^2), z3), and in z the field is
+// z1' = z2, z2' = z3, z3' = -z1 - 3 z2 - 3 z3 + sin(z2)/2 + cos(z1) u: a = (1, 1),
+// phi = (0, 0, -z1 - 3 z2 - 3 z3 + sin(z2)/2 + cos(z1) u). Not in the form in x: x1' = x2 (1 +
+// x1^2) has a state-dependent coefficient.
+struct KtLie3Hand {
+  Model m = test_model("kt_lie3");
+  GiNaC::ex x1 = m.states[0], x2 = m.states[1], x3 = m.states[2], u = m.inputs[0];
+  ExVec Z() const { return {x1, x2 * (1 + x1 * x1), x3}; }
+  ExVec Zinv(const std::vector<GiNaC::symbol>& z) const {
+    return {z[0], z[1] / (1 + GiNaC::pow(z[0], 2)), z[2]};
+  }
+  ExVec phi(const std::vector<GiNaC::symbol>& z) const {
+    return {0, 0, -z[0] - 3 * z[1] - 3 * z[2] + GiNaC::sin(z[1]) / 2 + GiNaC::cos(z[0]) * u};
+  }
+  // d/dt Z(x) along the plant, written in Z: (Z2, Z3, -Z1 - 3 Z2 - 3 Z3 + sin(Z2)/2 + cos(Z1) u).
+  ExVec Zdot() const {
+    const ExVec z = Z();
+    return {z[1], z[2], -z[0] - 3 * z[1] - 3 * z[2] + GiNaC::sin(z[1]) / 2 + GiNaC::cos(z[0]) * u};
+  }
+};
+
+TEST(KalmanThetaOutOfX, LieCoordinatesAndInverseByHand) {
+  const KtLie3Hand hand;
+  std::string why;
+  EXPECT_FALSE(triangular_in_x(hand.m, &why).has_value());
+  EXPECT_NE(why.find("depends on the state"), std::string::npos) << why;
+  const auto t = triangular_form(hand.m, &why);
+  ASSERT_TRUE(t.has_value()) << why;
+  EXPECT_EQ(t->coordinates, TriangularForm::Coordinates::lie_derivatives);
+  expect_same(t->z_of_x, hand.Z(), "z_of_x");
+  expect_same(t->x_of_z, hand.Zinv(t->z), "x_of_z");
+  expect_same(t->phi, hand.phi(t->z), "phi");
+  expect_same(t->a, {1, 1}, "a");
+}
+
+TEST(KalmanThetaOutOfX, DesignRunsInZ) {
+  const KtLie3Hand hand;
+  const Analysis a = analyse(hand.m);
+  const Verdict v = find_design("kalman-theta")->applies(a);
+  EXPECT_TRUE(v.applies) << v.text();
+  EXPECT_NE(v.text().find("in the coordinates z = (h, L_f h, ..., L_f^{n-1} h)"), std::string::npos)
+      << v.text();
+  DesignOptions o;
+  o.values["theta"] = "5";
+  const ObserverSpec s = find_design("kalman-theta")->build(a, o);
+  EXPECT_NE(row(s, "coordinates").find("lie_derivatives"), std::string::npos)
+      << row(s, "coordinates");
+  EXPECT_NE(row(s, "estimate").find("x_of_z"), std::string::npos);
+  // The one denominator of x_of_z, 1 + z1^2, is 1 + x1^2 > 0 on the box: nothing to warn about.
+  EXPECT_EQ(row(s, "estimate").find("not finite"), std::string::npos) << row(s, "estimate");
+  ASSERT_EQ(s.state_size, 3u + 6u);
+  EXPECT_EQ(s.init, InitKind::function);
+  EXPECT_EQ(s.estimate, EstimateKind::function);
+
+  // init: w = (Z(xh0), S0 = I packed), in the function's own argument symbols.
+  const GeneratedFunction& init = function(s, s.roles.init);
+  ASSERT_EQ(init.outputs.size(), 9u);
+  GiNaC::exmap to_x;
+  for (std::size_t i = 0; i < 3; ++i) to_x[init.args.at(0).symbols.at(i)] = hand.m.states[i];
+  ExVec z0, s0;
+  for (std::size_t i = 0; i < 9; ++i) (i < 3 ? z0 : s0).push_back(init.outputs[i].subs(to_x));
+  expect_same(z0, hand.Z(), "init z");
+  expect_same(s0, {1, 0, 0, 1, 0, 1}, "init S0");
+
+  // estimate: xh = Z^-1(zh) in the first three w symbols.
+  const GeneratedFunction& est = function(s, s.roles.estimate);
+  const auto& w = est.args.at(0).symbols;
+  ASSERT_EQ(w.size(), 9u);
+  expect_same(est.outputs, hand.Zinv({w[0], w[1], w[2]}), "estimate");
+
+  // rhs: at zh = Z(x) the zh part is d/dt Z(x); the S part is -theta S - A^T S - S A + e1 e1^T
+  // with A the 3x3 upper shift, entry by entry: (A^T S)_rc = S_(r-1)c, (S A)_rc = S_r(c-1).
+  const GeneratedFunction& rhs = function(s, s.roles.rhs);
+  const auto& rw = rhs.args.at(0).symbols;
+  GiNaC::exmap at_Z;
+  const ExVec Zx = hand.Z();
+  for (std::size_t i = 0; i < 3; ++i) at_Z[rw[i]] = Zx[i];
+  at_Z[rhs.args.at(1).symbols.at(0)] = hand.u;
+  ExVec zdot;
+  for (std::size_t i = 0; i < 3; ++i) zdot.push_back(rhs.outputs[i].subs(at_Z));
+  expect_same(zdot, hand.Zdot(), "zh' at Z(x)");
+  const GiNaC::ex S11 = rw[3], S12 = rw[4], S13 = rw[5], S22 = rw[6], S23 = rw[7], S33 = rw[8];
+  const ExVec Sdot = {-5 * S11 + 1,       -5 * S12 - S11,       -5 * S13 - S12,
+                      -5 * S22 - 2 * S12, -5 * S23 - S13 - S22, -5 * S33 - 2 * S23};
+  expect_same(ExVec(rhs.outputs.begin() + 3, rhs.outputs.end()), Sdot, "S'");
+  // The gain vector -C^T (C zh - y) = (y - zh1, 0, 0).
+  const GeneratedFunction& gv = function(s, s.correction->vector_function);
+  const GiNaC::ex y = gv.args.at(2).symbols.at(0);
+  expect_same(gv.outputs, {y - gv.args.at(0).symbols.at(0), 0, 0}, "gain vector");
+}
+
+// Closed loop from an initial error of 1.5 (x0 = (0.5, -0.5, 0.5), xh0 = (1.5, 1, -1)), u =
+// sin t, theta = 5 (default): the error in x, through x_of_z, goes below 1e-6 by t = 20
+// (measured ~1e-13, continuous sampling).
+TEST(KalmanThetaOutOfX, LieCoordinatesClosedLoopConverges) {
+  const Model m = test_model("kt_lie3");
+  const auto r = run(m, "kalman-theta", "sin(t)", {0.5, -0.5, 0.5}, {1.5, 1, -1}, 20);
+  ASSERT_TRUE(r.diverged.empty()) << r.diverged;
+  double initial = 0;
+  for (std::size_t i = 0; i < 3; ++i)
+    initial = std::max(initial, std::abs(r.x.front()[i] - r.xh.front()[i]));
+  EXPECT_NEAR(initial, 1.5, 1e-12);
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_LT(final_error(r, i), 1e-6) << i;
+}
+
+// The persistence check uses the same form: a = (1, 1) is constant, so any input is strongly
+// persistent (A is the constant upper shift).
+TEST(KalmanThetaOutOfX, PersistenceCheckInLieCoordinates) {
+  PersistenceOptions o;
+  o.input_text = "sin(t)";
+  o.horizon = 20;
+  const auto p = check_persistence(test_model("kt_lie3"), o);
+  ASSERT_TRUE(p.applicable) << p.reason;
+  EXPECT_NE(p.reason.find("(h, L_f h, ...)"), std::string::npos) << p.reason;
+  EXPECT_TRUE(p.persistent) << p.verdict;
+}
+
+// Seed 002's example (4) with the states swapped: x1' = 0, x2' = u x1, y = x2. Not in the form
+// in x (the output is x2), in the states reordered z = (x2, x1), x = (z2, z1). As for (4): sin t
+// is persistent and the estimate converges; u = 0 leaves the gain without a z2 = x1 component,
+// so the x1 error keeps its initial value 2 while x2 = y is tracked.
+const char* kDufourSwapped = R"(model dufour4_swapped
+states x1 x2
+inputs u
+f = [ 0, 0 ]
+g = [ 0, u*x1 ]
+h = [ x2 ]
+domain x1 in [-2, 2], x2 in [-2, 2], u in [-1, 1]
+)";
+
+TEST(KalmanThetaOutOfX, PermutedStates) {
+  const Model m = parse_model(kDufourSwapped, "dufour4_swapped.sym");
+  const GiNaC::ex x1 = m.states[0], x2 = m.states[1];
+  std::string why;
+  EXPECT_FALSE(triangular_in_x(m, &why).has_value());
+  const Analysis a = analyse(m);
+  const ObserverSpec s = find_design("kalman-theta")->build(a, {});
+  EXPECT_NE(row(s, "coordinates").find("states reordered"), std::string::npos)
+      << row(s, "coordinates");
+  const GeneratedFunction& init = function(s, s.roles.init);
+  GiNaC::exmap to_x{{init.args.at(0).symbols.at(0), x1}, {init.args.at(0).symbols.at(1), x2}};
+  expect_same({init.outputs[0].subs(to_x), init.outputs[1].subs(to_x)}, {x2, x1}, "init z");
+  const GeneratedFunction& est = function(s, s.roles.estimate);
+  const auto& w = est.args.at(0).symbols;
+  expect_same(est.outputs, {w[1], w[0]}, "estimate");
+  const auto good = run(m, "kalman-theta", "sin(t)", {1, 1}, {-1, 0}, 20);
+  ASSERT_TRUE(good.diverged.empty()) << good.diverged;
+  EXPECT_LT(final_error(good, 0), 1e-6);
+  EXPECT_LT(final_error(good, 1), 1e-6);
+  const auto bad = run(m, "kalman-theta", "0", {1, 1}, {-1, 0}, 20);
+  ASSERT_TRUE(bad.diverged.empty()) << bad.diverged;
+  EXPECT_NEAR(final_error(bad, 0), 2, 1e-9);  // x1 = z2 does not converge
+  EXPECT_LT(final_error(bad, 1), 1e-6);       // x2 = y is tracked
+}
+
+// Models without a canonical form (issue 8's list) on which the form exists only in
+// z = (h, L_f h, ...): Lorenz with y = x1 (z = (x1, 10 (x2 - x1), 380 x1 - 110 x2 - 10 x1 x3), so
+// x3 = (380 z1 - 110 x2 - z3) / (10 z1): x_of_z is singular on x1 = 0) and the CSTR (y = x2). From
+// stated initial errors; Lorenz needs theta = 10 (phi is not globally Lipschitz; theta = 5 diverges
+// from this start).
+TEST(KalmanThetaOutOfX, LorenzAndCstrConverge) {
+  DesignOptions d;
+  d.values["theta"] = "10";
+  const Analysis la = analyse(model("lorenz"));
+  const ObserverSpec ls = find_design("kalman-theta")->build(la, d);
+  EXPECT_NE(row(ls, "coordinates").find("lie_derivatives"), std::string::npos);
+  EXPECT_NE(row(ls, "estimate").find("not finite where z1 = 0 (meets the domain box"),
+            std::string::npos)
+      << row(ls, "estimate");
+  const auto lz = run(model("lorenz"), "kalman-theta", "0", {1, 1, 20}, {2, 0, 25}, 5, d);
+  ASSERT_TRUE(lz.diverged.empty()) << lz.diverged;
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_LT(final_error(lz, i), 1e-6) << i;
+  const auto cs = run(model("cstr"), "kalman-theta", "0.5*sin(t)", {0.5, 2}, {0.2, 2.5}, 20);
+  ASSERT_TRUE(cs.diverged.empty()) << cs.diverged;
+  for (std::size_t i = 0; i < 2; ++i) EXPECT_LT(final_error(cs, i), 1e-8) << i;
 }
 
 }  // namespace

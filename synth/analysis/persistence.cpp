@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "analysis/triangular_form.hpp"
 #include "emit/dag.hpp"
 #include "front/parse.hpp"
 #include "symbolic/expr_print.hpp"
@@ -265,16 +266,32 @@ PersistenceResult check_persistence(const Model& m, const PersistenceOptions& op
     throw UserError(SourceLoc{}, "the checked interval [t0, horizon] is empty");
   r.window = opt.horizon - r.t0;
   std::string why;
-  const auto form = triangular_in_x(m, &why);
+  auto form = triangular_in_x(m, &why);
+  std::string where = "in x";
   if (!form) {
-    r.reason = "the model is not in seed 002's form z' = A(u) z + phi(u, z), y = z1 in x: " + why;
-    r.verdict = "not decided: " + r.reason;
-    return r;
+    // The triangular form in other coordinates (z a permutation of x, or z = (h, L_f h, ...)):
+    // only A(u) enters Psi, Gamma and the Gramian.
+    std::string why_t;
+    if (const auto t = triangular_form(m, &why_t)) {
+      form = TriangularInX{t->a, t->phi};
+      where = t->coordinates == TriangularForm::Coordinates::states
+                  ? "in the states reordered"
+                  : fmt::format("in the coordinates z = (h, L_f h, ...) = [{}]",
+                                fmt::join(to_strings(t->z_of_x), ", "));
+    } else {
+      r.reason = fmt::format(
+          "the model is not in seed 002's form z' = A(u) z + phi(u, z), y = z1 in x ({}), nor "
+          "in other coordinates ({})",
+          why, why_t);
+      r.verdict = "not decided: " + r.reason;
+      return r;
+    }
   }
   r.applicable = true;
   std::vector<std::string> as;
   for (const auto& a : form->a) as.push_back(to_string(a));
-  r.reason = fmt::format("in seed 002's form in x, superdiagonal a(u) = [{}]", fmt::join(as, ", "));
+  r.reason =
+      fmt::format("in seed 002's form {}, superdiagonal a(u) = [{}]", where, fmt::join(as, ", "));
   const InputPath path = make_path(m, *form, opt.input_text);
   std::vector<double> thetas = opt.thetas;
   std::sort(thetas.begin(), thetas.end());

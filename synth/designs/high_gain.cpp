@@ -10,6 +10,7 @@
 #include <cmath>
 
 #include "analysis/observability.hpp"
+#include "analysis/triangular_form.hpp"
 #include "certify/enclosure.hpp"
 #include "designs/canonical.hpp"
 #include "designs/options.hpp"
@@ -478,15 +479,38 @@ void add_hg_functions(ObserverSpec& s, const Model& m, const HighGainStructure& 
 
 // What the certificate says of convergence for this theta. Only a rigorous L gives a
 // guarantee; a sampled L is an estimate from below of the true one.
+// The theorem gives zh -> z in z = (h, L_f h, ...); the realisation in x integrates
+// xh' = ... + O(xh)^-1 ..., which needs O(xh) invertible along the estimate. Unless every
+// x-dependent factor of det O is proved nonzero on the domain box (zeros_in_box), an estimate
+// in the box may meet the singular set, and no guarantee is given in x: the reason, or nothing.
+std::optional<std::string> singular_in_box(const Model& m, const HighGainStructure& st) {
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  std::vector<std::string> meets, unknown;
+  for (const auto& f : dependent_factors(st.det, m.states)) {
+    const BoxZeros z = zeros_in_box(f, boxes);
+    if (z.kind == BoxZeros::somewhere) meets.push_back(z.detail);
+    if (z.kind == BoxZeros::unknown) unknown.push_back(z.detail);
+  }
+  if (!meets.empty())
+    return fmt::format("O(x) is singular inside the domain box ({})", fmt::join(meets, "; "));
+  if (!unknown.empty())
+    return fmt::format("O(x) is not proved nonsingular on the domain box ({})",
+                       fmt::join(unknown, "; "));
+  return std::nullopt;
+}
+
 struct Convergence {
   bool above = false, guaranteed = false;
-  std::string kind;  // of L: unbounded, rigorous or sampled
+  std::string kind;             // of L: unbounded, rigorous or sampled
+  std::string singular_in_box;  // why the realisation in x is not covered (empty: it is)
 };
 
-Convergence convergence(const GainChoice& g, const Certificate& cert) {
+Convergence convergence(const GainChoice& g, const Certificate& cert,
+                        const std::optional<std::string>& singular) {
   Convergence c;
   c.above = g.theta.to_double() > cert.theta_star;
-  c.guaranteed = c.above && cert.rigorous;
+  c.singular_in_box = singular.value_or("");
+  c.guaranteed = c.above && cert.rigorous && c.singular_in_box.empty();
   c.kind = cert.unbounded ? "unbounded" : cert.rigorous ? "rigorous" : "sampled";
   return c;
 }
@@ -504,8 +528,10 @@ void describe_hg(ObserverSpec& s, const GainChoice& g, const Certificate& cert,
       fmt::format("Lipschitz constant of phi in z: L = {} ({}); theta* = {}: convergence {}",
                   up6(cert.L), c.kind, up6(cert.theta_star),
                   c.guaranteed ? "guaranteed"
-                  : c.above    ? "not proven (sampled L)"
-                               : "not guaranteed")};
+                  : c.above && !c.singular_in_box.empty() && cert.rigorous
+                      ? "not guaranteed in x (O singular in the domain box)"
+                  : c.above ? "not proven (sampled L)"
+                            : "not guaranteed")};
   s.class_doc = {"  xh' = f(xh) + g(xh, u) + O(xh)^-1 Delta_theta K (y - h(xh))",
                  "with O = d(h, L_f h, ..., L_f^{n-1} h)/dx and Delta_theta = diag(theta, ..., "
                  "theta^n); in z = (h, L_f h, ...) this is the",
@@ -521,22 +547,39 @@ void describe_hg(ObserverSpec& s, const GainChoice& g, const Certificate& cert,
 
 // The "convergence" report row.
 std::string convergence_text(const GainChoice& g, const Certificate& cert, const Convergence& c) {
+  if (c.above && cert.rigorous && !c.singular_in_box.empty())
+    return fmt::format(
+        "not guaranteed in x: theta = {} > theta* = {} gives zh -> z in z = (h, L_f h, ...), "
+        "but {}: the realisation in x (a solve with O(xh)) is not covered where the estimate "
+        "meets that set (Status::singular when it reaches it numerically)",
+        to_string(g.theta), up6(cert.theta_star), c.singular_in_box);
+  // Whatever theta: with O singular in the box the realisation in x is not covered there.
+  const std::string singular =
+      c.singular_in_box.empty()
+          ? std::string()
+          : "; and " + c.singular_in_box +
+                ": the realisation in x (a solve with O(xh)) is not covered where the estimate "
+                "meets that set, for any theta";
   if (cert.unbounded)
     return "not guaranteed: the triangular nonlinearity has no finite Lipschitz bound on the "
-           "domain box (see the bounds above)";
+           "domain box (see the bounds above)" +
+           singular;
   if (c.above && !cert.rigorous)
     return fmt::format(
-        "not proven: theta = {} > theta* = {}, but L is sampled (an estimate, not an upper "
-        "bound)",
-        to_string(g.theta), up6(cert.theta_star));
+               "not proven: theta = {} > theta* = {}, but L is sampled (an estimate, not an upper "
+               "bound)",
+               to_string(g.theta), up6(cert.theta_star)) +
+           singular;
   if (c.guaranteed)
     return fmt::format(
         "guaranteed: theta = {} > theta* = {} (while xh and x stay in the domain box, where L "
         "holds)",
         to_string(g.theta), up6(cert.theta_star));
-  return fmt::format(
-      "not guaranteed by the theorem: theta = {} <= theta* = {} (short by {}); raise --theta",
-      to_string(g.theta), up6(cert.theta_star), up6(cert.theta_star - g.theta.to_double()));
+  return fmt::format("not guaranteed by the theorem: theta = {} <= theta* = {} (short by {}){}",
+                     to_string(g.theta), up6(cert.theta_star),
+                     up6(cert.theta_star - g.theta.to_double()),
+                     singular.empty() ? "; raise --theta" : "") +
+         singular;
 }
 
 // The report rows and the summary.
@@ -565,9 +608,10 @@ void report_hg(ObserverSpec& s, const HighGainStructure& st, const GainChoice& g
       "{} ({}), theta* = {}: convergence {}",
       to_string(g.theta), numbers_text(g.poles), numbers_text(g.gain), up6(cert.L), c.kind,
       up6(cert.theta_star),
-      c.guaranteed ? "guaranteed"
-      : c.above    ? "not proven"
-                   : "not guaranteed");
+      c.guaranteed                                             ? "guaranteed"
+      : c.above && !c.singular_in_box.empty() && cert.rigorous ? "not guaranteed in x"
+      : c.above                                                ? "not proven"
+                                                               : "not guaranteed");
 }
 
 ObserverSpec build(const Analysis& a, const DesignOptions& o) {
@@ -590,7 +634,7 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.params = runtime_params(m);
   s.functions = model_functions(m);
   add_hg_functions(s, m, st, g, where_singular);
-  const Convergence c = convergence(g, cert);
+  const Convergence c = convergence(g, cert, singular_in_box(m, st));
   describe_hg(s, g, cert, c, where_singular);
   report_hg(s, st, g, cert, c, where_singular, o);
   return s;

@@ -2,7 +2,11 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
+#include "analysis/observability.hpp"
 #include "analysis/persistence.hpp"
+#include "analysis/triangular_form.hpp"
 #include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
 #include "symbolic/expr_print.hpp"
@@ -21,21 +25,103 @@ std::string numbers_text(const std::vector<numeric>& v) {
   return fmt::format("{}", fmt::join(s, ", "));
 }
 
+// The form the observer runs in: seed 002's z' = A(u) z + phi(u, z), y = z1,
+//  - directly in x (z = x, triangular_in_x): w starts with the states themselves;
+//  - otherwise the analysis' triangular form (analysis/triangular_form.hpp): z a permutation of
+//    the states or z = (h, L_f h, ..., L_f^{n-1} h); the observer runs in zh, started from
+//    z_of_x(xh0), and its estimate is x_of_z(zh).
+struct KtForm {
+  bool in_x = true;
+  TriangularForm::Coordinates coordinates = TriangularForm::Coordinates::states;
+  std::vector<GiNaC::symbol> z;  // the first n symbols of w
+  ExVec a;                       // a_1(u) .. a_{n-1}(u)
+  ExVec phi;                     // phi_i(u, z)
+  ExVec field;                   // A(u) z + phi(u, z), in the z symbols
+  ExVec z_of_x, x_of_z;          // empty when in_x
+};
+
+std::string coordinates_text(const KtForm& f) {
+  if (f.in_x) return "in x";
+  return f.coordinates == TriangularForm::Coordinates::states
+             ? "in the states reordered (z a permutation of x)"
+             : "in the coordinates z = (h, L_f h, ..., L_f^{n-1} h)";
+}
+
+KtForm from_triangular(const TriangularForm& t) {
+  KtForm f;
+  f.in_x = false;
+  f.coordinates = t.coordinates;
+  f.z = t.z;
+  f.a = t.a;
+  f.phi = t.phi;
+  f.z_of_x = t.z_of_x;
+  f.x_of_z = t.x_of_z;
+  const std::size_t n = t.z.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    ex e = t.phi[i];
+    for (std::size_t j = 0; j < n; ++j)
+      if (!t.A[i][j].is_zero()) e += t.A[i][j] * t.z[j];
+    f.field.push_back(e);
+  }
+  return f;
+}
+
+// Directly in x first (the model's own states, no change of coordinates), then the analysis'
+// triangular form. `compute`: when the analysis has none because it did not run, search now
+// (build, the user asked for this design); otherwise report that it is undecided.
+std::optional<KtForm> find_form(const Analysis& a, bool compute, std::string& why) {
+  const Model& m = a.model;
+  std::string why_x;
+  if (const auto t = triangular_in_x(m, &why_x)) {
+    KtForm f;
+    f.z.assign(m.states.begin(), m.states.end());
+    f.a = t->a;
+    f.phi = t->phi;
+    f.field = m.field();
+    return f;
+  }
+  const ObservabilityUnderInputs& ui = a.under_inputs;
+  if (ui.triangular) return from_triangular(*ui.triangular);
+  std::string why_t = ui.triangular_note;
+  if (!ui.computed) {
+    if (!compute) {
+      why = fmt::format(
+          "not in seed 002's form in x ({}); the triangular form in other coordinates is "
+          "undecided (observability under inputs {})",
+          why_x, ui.reason.empty() ? std::string("not computed") : ui.reason);
+      return std::nullopt;
+    }
+    if (const auto t = triangular_form(m, &why_t)) return from_triangular(*t);
+  }
+  why = fmt::format(
+      "not in seed 002's form z' = A(u) z + phi(u, z), y = z1 in x ({}), nor in other "
+      "coordinates ({})",
+      why_x, why_t);
+  return std::nullopt;
+}
+
 Verdict applies(const Analysis& a) {
   Verdict v;
   std::string why;
-  const auto form = triangular_in_x(a.model, &why);
+  const auto form = find_form(a, false, why);
   if (!form) {
-    v.reasons.push_back("not in seed 002's form z' = A(u) z + phi(u, z), y = z1 in x: " + why);
+    v.reasons.push_back(why);
     return v;
   }
   v.applies = true;
-  std::vector<std::string> as;
-  for (const auto& e : form->a) as.push_back(to_string(e));
-  v.reasons.push_back(fmt::format(
-      "in seed 002's form in x with a(u) = [{}]: converges for strongly persistent inputs (check "
-      "with `obsynth check --input ... --horizon ...`)",
-      fmt::join(as, ", ")));
+  if (form->in_x) {
+    v.reasons.push_back(fmt::format(
+        "in seed 002's form in x with a(u) = [{}]: converges for strongly persistent inputs "
+        "(check with `obsynth check --input ... --horizon ...`)",
+        fmt::join(to_strings(form->a), ", ")));
+  } else {
+    v.reasons.push_back(fmt::format(
+        "in seed 002's form {}, z = [{}], with a(u) = [{}]: the observer runs in z and "
+        "estimates x = [{}]; converges for strongly persistent inputs (check with `obsynth "
+        "check --input ... --horizon ...`)",
+        coordinates_text(*form), fmt::join(to_strings(form->z_of_x), ", "),
+        fmt::join(to_strings(form->a), ", "), fmt::join(to_strings(form->x_of_z), ", ")));
+  }
   return v;
 }
 
@@ -85,17 +171,18 @@ std::vector<std::vector<numeric>> chosen_S0(const DesignOptions& o, std::size_t 
 
 using ExMatrix = std::vector<std::vector<ex>>;
 
-// The observer state w = (zh, S packed): the states (zh = xh in these coordinates), then
-// S_r_c (r <= c), created in that order (it fixes GiNaC's term order in the output).
+// The observer state w = (zh, S packed): zh (the states themselves when the form is in x, the
+// form's z symbols otherwise), then S_r_c (r <= c), created in that order (it fixes GiNaC's term
+// order in the output).
 struct KtSymbols {
   std::vector<GiNaC::symbol> w;
   ExMatrix S;  // n x n, symmetric, entries from w
 };
 
-KtSymbols kt_symbols(const Model& m) {
-  const std::size_t n = m.n();
+KtSymbols kt_symbols(const KtForm& form) {
+  const std::size_t n = form.z.size();
   KtSymbols sym;
-  sym.w.assign(m.states.begin(), m.states.end());
+  sym.w.assign(form.z.begin(), form.z.end());
   sym.S.assign(n, std::vector<ex>(n));
   for (std::size_t r = 0; r < n; ++r)
     for (std::size_t c = r; c < n; ++c) {
@@ -106,12 +193,12 @@ KtSymbols kt_symbols(const Model& m) {
   return sym;
 }
 
-// zh' = A(u) zh + phi(u, zh) (= F(zh, u)), then S' = -theta S - A^T S - S A + C^T C packed.
-ExVec kt_rhs(const Model& m, const TriangularInX& form, const ExMatrix& S, const numeric& theta) {
-  const std::size_t n = m.n();
+// zh' = A(u) zh + phi(u, zh), then S' = -theta S - A^T S - S A + C^T C packed.
+ExVec kt_rhs(const KtForm& form, const ExMatrix& S, const numeric& theta) {
+  const std::size_t n = form.z.size();
   ExMatrix A(n, std::vector<ex>(n, 0));
   for (std::size_t i = 0; i + 1 < n; ++i) A[i][i + 1] = form.a[i];
-  ExVec rhs = m.field();
+  ExVec rhs = form.field;
   for (std::size_t r = 0; r < n; ++r)
     for (std::size_t c = r; c < n; ++c) {
       ex acc = -theta * S[r][c] + (r == 0 && c == 0 ? 1 : 0);
@@ -121,9 +208,10 @@ ExVec kt_rhs(const Model& m, const TriangularInX& form, const ExMatrix& S, const
   return rhs;
 }
 
-// The generated functions (rhs, gain vector, init, estimate) and their roles.
-void add_kt_functions(ObserverSpec& s, const Model& m, const KtSymbols& sym, const ExVec& rhs,
-                      const std::vector<numeric>& S0packed) {
+// The generated functions (rhs, gain vector, init, estimate) and their roles. Out of x the
+// init is (z_of_x(xh0), S0) and the estimate x_of_z(zh).
+void add_kt_functions(ObserverSpec& s, const Model& m, const KtForm& form, const KtSymbols& sym,
+                      const ExVec& rhs, const std::vector<numeric>& S0packed) {
   const GiNaC::symbol y("y");
   const FunctionArg w = vector_arg("w", "ObserverState", sym.w, FunctionArg::Kind::observer_state);
   const FunctionArg u = input_arg(m), yarg = output_arg({y});
@@ -133,16 +221,19 @@ void add_kt_functions(ObserverSpec& s, const Model& m, const KtSymbols& sym, con
                     "(packed); the gain is added by a Cholesky solve with S.",
                     {w, u, yarg}, rhs, "ObserverState"));
   ExVec v(m.n(), 0);
-  v[0] = y - m.states[0];  // -C^T (C zh - y)
+  v[0] = y - form.z[0];  // -C^T (C zh - y)
   s.functions.push_back(make_function("kt_gain_vector", "-C^T (C zh - y), solved with S.",
                                       {w, u, yarg}, v, "GainVector"));
-  ExVec init(m.states.begin(), m.states.end());
+  ExVec init = form.in_x ? ExVec(m.states.begin(), m.states.end()) : form.z_of_x;
   init.insert(init.end(), S0packed.begin(), S0packed.end());
-  s.functions.push_back(
-      make_function("kt_init", "w = (xh0, S0 packed).", {state_arg(m)}, init, "ObserverState"));
-  ExVec est(m.states.begin(), m.states.end());
-  s.functions.push_back(
-      make_function("kt_estimate", "xh = zh (the first n entries of w).", {w}, est, "State"));
+  s.functions.push_back(make_function(
+      "kt_init", form.in_x ? "w = (xh0, S0 packed)." : "w = (z(xh0), S0 packed), z = z_of_x.",
+      {state_arg(m)}, init, "ObserverState"));
+  ExVec est = form.in_x ? ExVec(m.states.begin(), m.states.end()) : form.x_of_z;
+  s.functions.push_back(make_function("kt_estimate",
+                                      form.in_x ? "xh = zh (the first n entries of w)."
+                                                : "xh = x_of_z(zh) (the first n entries of w).",
+                                      {w}, est, "State"));
   s.init = InitKind::function;
   s.roles.init = "kt_init";
   s.update = UpdateKind::ode;
@@ -165,47 +256,99 @@ SolveCorrection kt_correction(std::size_t n) {
   return corr;
 }
 
+// The factors of x_of_z's denominators that depend on z and may vanish for a state in the
+// domain box (f(z_of_x(x)), zeros_in_box; those proved nonzero there are left out): where they
+// vanish the estimate is not finite (the generated estimate returns Status::non_finite).
+std::string denominators_text(const Model& m, const KtForm& form) {
+  GiNaC::exmap at_x;
+  for (std::size_t i = 0; i < form.z.size(); ++i) at_x[form.z[i]] = form.z_of_x[i];
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  std::vector<std::string> seen, out;
+  for (const auto& e : form.x_of_z)
+    for (const auto& f : dependent_factors(GiNaC::denom(GiNaC::normal(e)), form.z)) {
+      const std::string t = to_string(f);
+      if (std::find(seen.begin(), seen.end(), t) != seen.end()) continue;
+      seen.push_back(t);
+      const BoxZeros zx = zeros_in_box(f.subs(at_x), boxes);
+      if (zx.kind == BoxZeros::never) continue;
+      out.push_back(fmt::format("{} = 0 ({})", t,
+                                zx.kind == BoxZeros::somewhere
+                                    ? "meets the domain box: " + zx.detail
+                                    : "not proved to stay out of the domain box"));
+    }
+  if (out.empty()) return "";
+  return fmt::format("; not finite where {}", fmt::join(out, "; "));
+}
+
 // Title, description, class documentation, constants, report rows and summary.
-void describe_kt(ObserverSpec& s, const Model& m, const TriangularInX& form, const numeric& theta,
+void describe_kt(ObserverSpec& s, const Model& m, const KtForm& form, const numeric& theta,
                  const std::vector<numeric>& S0packed, const DesignOptions& o) {
-  std::vector<std::string> as;
-  for (const auto& e : form.a) as.push_back(to_string(e));
+  const std::string as = fmt::format("{}", fmt::join(to_strings(form.a), ", "));
+  const std::string phis = fmt::format("{}", fmt::join(to_strings(form.phi), ", "));
   s.title = "Kalman-like theta observer (Dufour-Flila-Hammouri)";
-  s.description = {"Observer: Kalman-like theta observer (seed 002 eq. 7/10)",
-                   fmt::format("Form in x: a(u) = [{}], y = {}; theta = {}; S0 (packed) = [{}]",
-                               fmt::join(as, ", "), m.states[0].get_name(), to_string(theta),
-                               numbers_text(S0packed)),
-                   "Gain S^-1 C^T (y - C zh) by a Cholesky solve; S not positive definite -> "
-                   "Status::singular"};
+  s.description = {"Observer: Kalman-like theta observer (seed 002 eq. 7/10)"};
+  if (form.in_x) {
+    s.description.push_back(
+        fmt::format("Form in x: a(u) = [{}], y = {}; theta = {}; S0 (packed) = [{}]", as,
+                    m.states[0].get_name(), to_string(theta), numbers_text(S0packed)));
+  } else {
+    s.description.push_back(fmt::format(
+        "Form {}: z = [{}], a(u) = [{}]; theta = {}; S0 (packed) = [{}]", coordinates_text(form),
+        fmt::join(to_strings(form.z_of_x), ", "), as, to_string(theta), numbers_text(S0packed)));
+    s.description.push_back(
+        fmt::format("Estimate x = x_of_z(zh) = [{}]", fmt::join(to_strings(form.x_of_z), ", ")));
+  }
+  s.description.push_back(
+      "Gain S^-1 C^T (y - C zh) by a Cholesky solve; S not positive definite -> "
+      "Status::singular");
   s.class_doc = {"  zh' = A(u) zh + phi(u, zh) - S^-1 C^T (C zh - y)",
                  "  S'  = -theta S - A(u)^T S - S A(u) + C^T C",
                  "Converges for strongly persistent inputs (seed 002, Theorem)."};
+  if (!form.in_x)
+    s.class_doc.insert(s.class_doc.begin() + 2,
+                       fmt::format("in z = [{}], started at z(xh0); estimate xh = [{}].",
+                                   fmt::join(to_strings(form.z_of_x), ", "),
+                                   fmt::join(to_strings(form.x_of_z), ", ")));
   s.constants.push_back({"theta", {theta}, "forgetting rate of S"});
   s.constants.push_back({"S0", S0packed, "initial S, packed upper triangle"});
-  s.report = {
-      {"form", fmt::format("z = x, a(u) = [{}], phi = [{}], C = e_1", fmt::join(as, ", "),
-                           fmt::join(to_strings(form.phi), ", "))},
-      {"theta", to_string(theta) + (o.find("theta") ? "" : " (default)")},
-      {"S0 (packed)", numbers_text(S0packed) + (o.find("S0") ? "" : " (default: identity)")},
-      {"gain", "S^-1 C^T (y - C zh), Cholesky solve with S"},
-      {"convergence",
-       "for strongly persistent inputs (seed 002's Theorem, phi globally Lipschitz in z); check "
-       "an input with `obsynth check model.sym --input \"...\" --horizon T`"}};
+  if (form.in_x) {
+    s.report = {{"form", fmt::format("z = x, a(u) = [{}], phi = [{}], C = e_1", as, phis)}};
+  } else {
+    std::vector<std::string> zs;
+    for (const auto& z : form.z) zs.push_back(z.get_name());
+    s.report = {{"coordinates", fmt::format("{} ({}): [{}] = [{}]", coordinates_text(form),
+                                            coordinates_name(form.coordinates), fmt::join(zs, ", "),
+                                            fmt::join(to_strings(form.z_of_x), ", "))},
+                {"form", fmt::format("a(u) = [{}], phi(u, z) = [{}], C = e_1", as, phis)},
+                {"estimate", fmt::format("x = x_of_z(zh) = [{}] (explicit inverse; zh starts at "
+                                         "z(xh0)){}",
+                                         fmt::join(to_strings(form.x_of_z), ", "),
+                                         denominators_text(m, form))}};
+  }
+  const std::string conv =
+      "for strongly persistent inputs (seed 002's Theorem, phi globally Lipschitz in z); check "
+      "an input with `obsynth check model.sym --input \"...\" --horizon T`";
+  s.report.insert(
+      s.report.end(),
+      {{"theta", to_string(theta) + (o.find("theta") ? "" : " (default)")},
+       {"S0 (packed)", numbers_text(S0packed) + (o.find("S0") ? "" : " (default: identity)")},
+       {"gain", "S^-1 C^T (y - C zh), Cholesky solve with S"},
+       {"convergence", form.in_x
+                           ? conv
+                           : conv + "; the theorem is about zh - z: xh - x follows where x_of_z is "
+                                    "continuous along the trajectory"}});
   s.summary = fmt::format(
-      "Kalman-like theta observer, theta = {}, S0 = [{}] (packed); converges for strongly "
+      "Kalman-like theta observer{}, theta = {}, S0 = [{}] (packed); converges for strongly "
       "persistent inputs",
-      to_string(theta), numbers_text(S0packed));
+      form.in_x ? "" : " " + coordinates_text(form), to_string(theta), numbers_text(S0packed));
 }
 
 ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Model& m = a.model;
   std::string why;
-  const auto form = triangular_in_x(m, &why);
+  const auto form = find_form(a, true, why);
   if (!form)
-    throw UserError(SourceLoc{m.file, 0, 0},
-                    "method 'kalman-theta' does not apply: not in seed 002's form z' = A(u) z + "
-                    "phi(u, z), y = z1 in x: " +
-                        why);
+    throw UserError(SourceLoc{m.file, 0, 0}, "method 'kalman-theta' does not apply: " + why);
   const std::size_t n = m.n();
   const numeric theta = chosen_theta(o);
   const auto S0 = chosen_S0(o, n);
@@ -217,7 +360,10 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.method = "kalman-theta";
   s.class_suffix = "KalmanTheta";
   s.state_name = "w";
-  s.state_doc = "(zh, S): the estimate zh = xh, then S packed (upper triangle, row by row)";
+  s.state_doc = form->in_x
+                    ? "(zh, S): the estimate zh = xh, then S packed (upper triangle, row by row)"
+                    : "(zh, S): zh in the form's coordinates z (xh = x_of_z(zh)), then S packed "
+                      "(upper triangle, row by row)";
   SymmetricBlock block;
   block.name = "S";
   block.offset = n;
@@ -228,8 +374,8 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.params = runtime_params(m);
   s.functions = model_functions(m);
 
-  const KtSymbols sym = kt_symbols(m);
-  add_kt_functions(s, m, sym, kt_rhs(m, *form, sym.S, theta), S0packed);
+  const KtSymbols sym = kt_symbols(*form);
+  add_kt_functions(s, m, *form, sym, kt_rhs(*form, sym.S, theta), S0packed);
   s.correction = kt_correction(n);
   describe_kt(s, m, *form, theta, S0packed, o);
   return s;

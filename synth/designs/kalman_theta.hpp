@@ -8,7 +8,12 @@
 // the gain S^-1 C^T (y - C zh) applied by a Cholesky solve with S (never an inverse); S losing
 // definiteness is Status::singular. Convergence needs a strongly persistent input
 // (analysis/persistence.hpp, `obsynth check --input ... --horizon ...`).
-// The form is detected when the model is already in it in x (analysis/persistence.hpp).
+// The form is taken directly in x when the model is already in it (triangular_in_x,
+// analysis/persistence.hpp: w starts with the states, the estimate is zh itself); otherwise
+// from the analysis' triangular form (analysis/triangular_form.hpp: z a permutation of the
+// states, or z = (h, L_f h, ..., L_f^{n-1} h) with an explicit inverse x_of_z): the observer
+// runs in zh, started from z_of_x(xh0), and its estimate is x_of_z(zh) (init and estimate
+// functions of the spec). The verdict and report say which coordinates were used.
 #pragma once
 
 #include "designs/registry.hpp"

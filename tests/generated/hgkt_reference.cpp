@@ -4,7 +4,11 @@
 //   high-gain:    xh' = F(xh, u) + O(xh)^-1 Delta_theta K (y - h(xh)), O = d(h, L_f h, ...)/dx
 //                 (Lie derivatives and K recomputed here; the solve by GiNaC's exact lsolve);
 //   kalman-theta: zh' = F(zh, u) + S^-1 e1 (y - zh1), S' = -theta S - A^T S - S A + e1 e1^T,
-//                 A(u) = the superdiagonal d F_i / d x_{i+1}.
+//                 A(u) = the superdiagonal d F_i / d x_{i+1}, when the model is in seed 002's
+//                 form in x (y = x1, every d F_i / d x_{i+1} free of x, F_i free of x_{i+2..n});
+//                 otherwise in z = Z(x) = (h, L_f h, ..., L_f^{n-1} h) (Lie derivatives written
+//                 out here): at w = (Z(x), S), zh' = DZ(x) F(x, u) + S^-1 e1 (y - h(x)) by the
+//                 chain rule (no inverse map), A the upper shift (ones).
 // The design defaults are used (theta = 5; poles -2, -5/2, ...), as the generated headers.
 // usage: hgkt_reference <model.sym> <high-gain|kalman-theta> <out.hpp>
 #include <fmt/format.h>
@@ -72,6 +76,33 @@ ExVec high_gain(const Model& m, const GiNaC::symbol& y) {
   return out;
 }
 
+// Seed 002's form directly in x (checked here, not by synth/): y = x1, the superdiagonal
+// coefficients free of x, row i free of x_{i+2}..x_n.
+bool form_in_x(const Model& m) {
+  const std::size_t n = m.n();
+  if (!(m.h[0] - m.states[0]).is_zero()) return false;
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    const ex Fi = m.f[i] + m.g[i];
+    const ex a = GiNaC::normal(Fi.diff(m.states[i + 1]));
+    for (const auto& x : m.states)
+      if (a.has(x)) return false;
+    for (std::size_t j = i + 2; j < n; ++j)
+      if (!GiNaC::normal(Fi.diff(m.states[j])).is_zero()) return false;
+  }
+  return true;
+}
+
+// Z(x) = (h, L_f h, ..., L_f^{n-1} h), the drift's Lie derivatives written out here.
+ExVec lie_coordinates(const Model& m) {
+  ExVec L = {m.h[0]};
+  for (std::size_t k = 1; k < m.n(); ++k) {
+    ex d = 0;
+    for (std::size_t j = 0; j < m.n(); ++j) d += L.back().diff(m.states[j]) * m.f[j];
+    L.push_back(d);
+  }
+  return L;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -87,9 +118,13 @@ int main(int argc, char** argv) {
     std::vector<GiNaC::symbol> wsyms(m.states.begin(), m.states.end());
     ExVec rhs;
     std::vector<std::vector<ex>> S(n, std::vector<ex>(n));
+    bool in_x = true;
+    ExVec Z;  // out of x: the coordinates z = Z(x) the observer runs in
     if (method == "high-gain") {
       rhs = high_gain(m, y);
     } else {
+      in_x = form_in_x(m);
+      if (!in_x) Z = lie_coordinates(m);
       for (std::size_t r = 0; r < n; ++r)
         for (std::size_t c = r; c < n; ++c) {
           wsyms.emplace_back(fmt::format("S{}{}", r, c));
@@ -98,12 +133,20 @@ int main(int argc, char** argv) {
       GiNaC::matrix Sm(n, n), A(n, n), e1y(n, 1);
       for (std::size_t r = 0; r < n; ++r)
         for (std::size_t c = 0; c < n; ++c) Sm(r, c) = S[r][c];
-      for (std::size_t i = 0; i + 1 < n; ++i) A(i, i + 1) = (m.f[i] + m.g[i]).diff(m.states[i + 1]);
-      e1y(0, 0) = y - m.states[0];
+      for (std::size_t i = 0; i + 1 < n; ++i)
+        A(i, i + 1) = in_x ? (m.f[i] + m.g[i]).diff(m.states[i + 1]) : ex(1);
+      e1y(0, 0) = y - (in_x ? ex(m.states[0]) : Z[0]);
       GiNaC::matrix X(n, 1);
       for (std::size_t i = 0; i < n; ++i) X(i, 0) = GiNaC::symbol(fmt::format("q{}", i));
       const GiNaC::matrix gain = Sm.solve(X, e1y, GiNaC::solve_algo::gauss);
-      for (std::size_t i = 0; i < n; ++i) rhs.push_back(m.f[i] + m.g[i] + gain(i, 0));
+      for (std::size_t i = 0; i < n; ++i) {
+        ex zdot = 0;  // in x: F_i; in z: d/dt Z_i(x) = DZ_i(x) F(x, u)
+        if (in_x)
+          zdot = m.f[i] + m.g[i];
+        else
+          for (std::size_t j = 0; j < n; ++j) zdot += Z[i].diff(m.states[j]) * (m.f[j] + m.g[j]);
+        rhs.push_back(zdot + gain(i, 0));
+      }
       const GiNaC::matrix dS = Sm.mul_scalar(-kTheta).sub(A.transpose().mul(Sm)).sub(Sm.mul(A));
       for (std::size_t r = 0; r < n; ++r)
         for (std::size_t c = r; c < n; ++c) rhs.push_back(dS(r, c) + (r == 0 && c == 0 ? 1 : 0));
@@ -121,7 +164,8 @@ int main(int argc, char** argv) {
       for (std::size_t j = 0; j < m.m(); ++j)
         pt[m.inputs[j]] = at(m.box(m.inputs[j]), k, 5 + static_cast<int>(j));
       pt[y] = numeric(k - 2, 3);
-      for (const auto& s : wsyms) wv.push_back(s);
+      for (std::size_t i = 0; i < wsyms.size(); ++i)  // out of x, w starts with Z(x)
+        wv.push_back(!in_x && i < n ? Z[i] : ex(wsyms[i]));
       for (const auto& s : m.inputs) uv.push_back(s);
       W += "    " + row(wv, pt) + ",\n";
       U += "    " + row(uv, pt) + ",\n";
