@@ -411,9 +411,11 @@ bool may_skip_canonical_form(const std::vector<std::string>& methods) {
          std::find(methods.begin(), methods.end(), "all") != methods.end();
 }
 
-int main_job_body(const MainJob& c, const std::string& canonical_stop) {
+int main_job_body(const MainJob& c, const std::string& canonical_stop,
+                  const std::vector<ExcludedDesign>& excluded) {
   SynthesisOptions so;
   so.methods = split_list(c.methods);
+  so.auto_excluded = excluded;
   so.design = given(c.design);
   so.emit.precision = c.precision == "float" ? Precision::single : Precision::double_precision;
   so.emit.source_name = c.model;
@@ -444,6 +446,19 @@ int main_job_body(const MainJob& c, const std::string& canonical_stop) {
   return 0;
 }
 
+bool asks_auto(const std::vector<std::string>& methods) {
+  return methods.empty() || std::find(methods.begin(), methods.end(), "auto") != methods.end();
+}
+
+// "<method> design" (synthesize's stage name for one design's build) -> method, else "".
+std::string design_of_stage(const std::string& stage) {
+  const std::string suffix = " design";
+  if (stage.size() <= suffix.size() ||
+      stage.compare(stage.size() - suffix.size(), suffix.size(), suffix) != 0)
+    return "";
+  return stage.substr(0, stage.size() - suffix.size());
+}
+
 int run_main_job(const MainJob& c) {
   if (c.out.empty()) {
     std::fprintf(stderr,
@@ -451,20 +466,32 @@ int run_main_job(const MainJob& c) {
                  c.model.c_str());
     return 1;
   }
-  std::optional<JobStop> stop;
-  const int code = guarded(
-      c.common, [&] { return main_job_body(c, ""); }, &stop);
-  if (!stop) return code;
-  // A time or memory stop killed the worker: once more without the canonical-form stages when
-  // auto/all may choose a design that does not need them.
-  if (!may_skip_canonical_form(split_list(c.methods)) || !is_canonical_form_stage(stop->stage)) {
-    print_stop(stop->stage, stop->reason);
-    return 1;
+  const auto methods = split_list(c.methods);
+  std::string canonical_why;
+  std::vector<ExcludedDesign> excluded;
+  // A time or memory stop kills the worker; auto/all then run once more without the
+  // canonical-form stages (when they stopped), and auto without the design whose build stopped.
+  for (;;) {
+    std::optional<JobStop> stop;
+    const int code = guarded(
+        c.common, [&] { return main_job_body(c, canonical_why, excluded); }, &stop);
+    if (!stop) return code;
+    const std::string why = fmt::format("stage '{}' {}", stop->stage, stop->reason);
+    const std::string design = design_of_stage(stop->stage);
+    if (canonical_why.empty() && may_skip_canonical_form(methods) &&
+        is_canonical_form_stage(stop->stage)) {
+      std::fprintf(stderr, "obsynth: note: %s; continuing without the canonical form\n",
+                   why.c_str());
+      canonical_why = why;
+    } else if (asks_auto(methods) && !design.empty() &&
+               excluded.size() < design_registry().size()) {
+      std::fprintf(stderr, "obsynth: note: %s; auto tries the next design\n", why.c_str());
+      excluded.push_back({design, "stopped: " + why});
+    } else {
+      print_stop(stop->stage, stop->reason);
+      return 1;
+    }
   }
-  std::fprintf(stderr, "obsynth: note: stage '%s' %s; continuing without the canonical form\n",
-               stop->stage.c_str(), stop->reason.c_str());
-  const std::string why = fmt::format("stage '{}' {}", stop->stage, stop->reason);
-  return guarded(c.common, [&] { return main_job_body(c, why); });
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cstdio>
 
 #include "app/design_report.hpp"
 #include "app/report.hpp"
@@ -47,10 +48,17 @@ std::string not_observable_note(const Analysis& a) {
                      ui.reason.empty() ? "not computed" : ui.reason);
 }
 
-std::string choose_auto(const Analysis& a, std::string& explanation) {
+std::string choose_auto(const Analysis& a, std::string& explanation,
+                        const std::vector<ExcludedDesign>& excluded) {
   std::vector<std::string> rejected;
   for (const auto& d : design_registry()) {
     if (!d.in_all) continue;  // by name only (large tables)
+    const auto skip = std::find_if(excluded.begin(), excluded.end(),
+                                   [&](const ExcludedDesign& e) { return e.method == d.name; });
+    if (skip != excluded.end()) {
+      rejected.push_back(fmt::format("{}: it applies, but its build {}", d.name, skip->reason));
+      continue;
+    }
     const Verdict v = d.applies(a);
     if (v.applies) {
       explanation = fmt::format("auto: chose '{}' because {}", d.name, v.text());
@@ -71,7 +79,9 @@ std::string choose_auto(const Analysis& a, std::string& explanation) {
 }  // namespace
 
 std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<std::string>& asked,
-                                         std::string& explanation) {
+                                         std::string& explanation,
+                                         const std::vector<ExcludedDesign>& excluded,
+                                         std::string* auto_choice) {
   std::vector<std::string> methods;
   for (const auto& m : asked) {
     std::string name = m;
@@ -83,7 +93,8 @@ std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<st
       continue;
     }
     if (m == "auto") {
-      name = choose_auto(a, explanation);
+      name = choose_auto(a, explanation, excluded);
+      if (auto_choice) *auto_choice = name;
     } else if (!find_design(m)) {
       const auto& planned = planned_methods();
       if (std::find(planned.begin(), planned.end(), m) != planned.end())
@@ -122,6 +133,45 @@ ObserverSpec build_design(const Analysis& a, const std::string& method, const De
   return d->build(a, with_model_options(a.model, o));
 }
 
+namespace {
+
+// The chosen methods' specs. When the design auto chose fails to build (UserError, or a budget
+// stop within this process), auto passes over it and chooses again, with a note on stderr.
+std::vector<std::pair<std::string, ObserverSpec>> build_chosen(
+    const Analysis& a, const SynthesisOptions& opt, std::vector<ExcludedDesign>& excluded,
+    std::vector<std::string>& chosen, std::string& explanation) {
+  for (;;) {
+    std::string auto_choice;
+    chosen = resolve_methods(a, opt.methods, explanation, excluded, &auto_choice);
+    std::vector<std::pair<std::string, ObserverSpec>> specs;
+    std::string failed, why;
+    for (const auto& method : chosen) {
+      publish_stage(method + " design");
+      try {
+        specs.emplace_back(method, build_design(a, method, opt.design));
+      } catch (const BudgetExceeded& e) {  // a UserError too: caught first
+        if (method != auto_choice) throw;
+        why = fmt::format("stopped: stage '{}' {}", e.stage(), e.reason());
+      } catch (const UserError& e) {
+        if (method != auto_choice) throw;
+        why = "failed: " +
+              (e.diagnostics().empty() ? std::string(e.what()) : e.diagnostics()[0].message);
+      }
+      if (!why.empty()) {
+        failed = method;
+        break;
+      }
+    }
+    if (failed.empty()) return specs;
+    std::fprintf(stderr,
+                 "obsynth: note: auto chose '%s', but its build %s; trying the next design\n",
+                 failed.c_str(), why.c_str());
+    excluded.push_back({failed, why});
+  }
+}
+
+}  // namespace
+
 Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   Synthesis s;
   with_model_options(a.model, opt.design);  // unknown option lines fail before any work
@@ -129,11 +179,11 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
       std::find(opt.methods.begin(), opt.methods.end(), "auto") != opt.methods.end();
   // Each step under its own stage name, so that a budget stop names it (worker watchdog).
   publish_stage("verdicts");
-  s.chosen = resolve_methods(a, opt.methods, s.explanation);
+  std::vector<ExcludedDesign> excluded = opt.auto_excluded;
+  const std::vector<std::pair<std::string, ObserverSpec>> specs =
+      build_chosen(a, opt, excluded, s.chosen, s.explanation);
   std::vector<GeneratedObserver> generated;
-  for (const auto& method : s.chosen) {
-    publish_stage(method + " design");
-    const ObserverSpec spec = build_design(a, method, opt.design);
+  for (const auto& [method, spec] : specs) {
     const bool c = opt.emit.language == Language::c;
     const EmittedHeader h = c ? emit_c_pair(a, spec, opt.emit) : emit_cxx_header(a, spec, opt.emit);
     s.files.push_back({h.filename, h.text});

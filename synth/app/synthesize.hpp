@@ -12,10 +12,18 @@
 
 namespace obsynth {
 
+// Designs auto passes over, with the reason (their build failed or a budget stopped it).
+struct ExcludedDesign {
+  std::string method, reason;
+};
+
 struct SynthesisOptions {
   std::vector<std::string> methods = {"auto"};
   DesignOptions design;
   EmitOptions emit;
+  // Designs whose build an earlier attempt's time or memory budget stopped (the worker was
+  // killed): auto goes on with the next design that applies.
+  std::vector<ExcludedDesign> auto_excluded;
 };
 
 struct Synthesis {
@@ -25,9 +33,12 @@ struct Synthesis {
 };
 
 // The methods to build: `auto` resolved through the registry (first design that applies, in
-// registry order), names checked. `explanation` says why auto chose what it chose.
+// registry order, passing over `excluded`), names checked. `explanation` says why auto chose
+// what it chose; `auto_choice`, when given, receives that choice.
 std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<std::string>& asked,
-                                         std::string& explanation);
+                                         std::string& explanation,
+                                         const std::vector<ExcludedDesign>& excluded = {},
+                                         std::string* auto_choice = nullptr);
 
 // The design options with the model file's `option` lines added; a value given on the command
 // line wins. An option no registered design declares is a UserError at its line.

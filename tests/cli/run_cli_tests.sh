@@ -152,6 +152,22 @@ check "auto after a frame size stop exits 0" test $? -eq 0
 check "auto after a frame size stop: note" grep -q "^obsynth: note: stage 'frame' exceeded its expression-size budget.*; continuing without the canonical form" "$tmp/err"
 check "auto after a frame size stop: report says why" grep -q "not analysed: stage 'frame' exceeded its expression-size budget" "$tmp/job_auto_size/heavy6_report.md"
 check "auto after a frame size stop: an observer" test -s "$tmp/job_auto_size/heavy6_auto.hpp"
+# auto after a time stop in its chosen design's build: the next design that applies. heavy8: the
+# 8-state version, whose high-gain build (symbolic gain through O) takes over a minute.
+{
+  echo "model heavy8"
+  echo "states $(seq -f 'x%g' -s ' ' 1 8)"
+  printf 'f = ['
+  for i in $(seq 1 7); do printf 'x%d + x%d^2*x1, ' $((i + 1)) "$i"; done
+  printf -- '-('; for i in $(seq 1 8); do printf 'x%d^3' "$i"; [ "$i" -lt 8 ] && printf '+'; done; echo ') ]'
+  echo "h = [x1]"
+} >"$tmp/heavy8.sym"
+"$bin" "$tmp/heavy8.sym" -o "$tmp/job_auto_next" --stage-seconds 2 >"$tmp/out" 2>"$tmp/err"
+timed_check "auto after a design-build time stop exits 0" test $? -eq 0
+timed_check "auto after a design-build time stop: note" grep -q "^obsynth: note: stage 'high-gain design' exceeded its time budget of 2 s.*; auto tries the next design" "$tmp/err"
+timed_check "auto after a design-build time stop: report says why" grep -q "high-gain: it applies, but its build stopped: stage 'high-gain design' exceeded its time budget" "$tmp/job_auto_next/heavy8_report.md"
+timed_check "auto after a design-build time stop: another observer" test -s "$tmp/job_auto_next/heavy8_auto.hpp"
+timed_check "auto after a design-build time stop: no high-gain header" test ! -e "$tmp/job_auto_next/heavy8_high-gain.hpp"
 "$bin" "$tmp/heavy6.sym" -o "$tmp/job_named_size" --max-expression-size 2000 --method canonical >"$tmp/out" 2>"$tmp/err"
 check "canonical after a frame size stop exits 1" test $? -eq 1
 check "canonical after a frame size stop writes nothing" test ! -e "$tmp/job_named_size"
