@@ -23,6 +23,9 @@ std::string ginac_text(const ex& e) {
   return os.str();
 }
 std::string int_text(const numeric& v) {
+  // Machine-size integers without a stream (most exponents and coefficients); the same digits.
+  static const numeric limit = numeric(1L << 62);
+  if (v.is_integer() && GiNaC::abs(v) < limit) return std::to_string(v.to_long());
   return ginac_text(v);
 }
 
