@@ -272,6 +272,9 @@ TEST(UnderInputs, ByConstructionUniformlyObservableInPermutedStates) {
   EXPECT_TRUE(
       GiNaC::normal(GiNaC::expand(d * d - GiNaC::pow(2 + u * u, 4) * GiNaC::exp(2 * u))).is_zero())
       << d;
+  // det O_u as reported (from a(u) and the permutation, no Lie chain) is the oracle's.
+  ASSERT_TRUE(ui.det.has_value());
+  EXPECT_TRUE(GiNaC::normal(*ui.det - d).is_zero()) << *ui.det << " vs " << d;
   ASSERT_TRUE(ui.triangular.has_value()) << ui.triangular_note;
   const TriangularForm& t = *ui.triangular;
   EXPECT_EQ(t.order, (std::vector<std::size_t>{1, 2, 0}));
@@ -298,6 +301,13 @@ TEST(UnderInputs, ByConstructionUniformlyObservableInLieCoordinates) {
   const GiNaC::symbol u = Sym(m, "u");
   EXPECT_TRUE(GiNaC::normal(ui.triangular->phi[0] - u * ui.triangular->z[0]).is_zero());
   EXPECT_EQ(ui.uniformly_observable, std::optional<bool>(true)) << ui.reason;
+  // det O_u as reported (the drift's det: dz/dx with a unit-triangular O_u in z) is the
+  // oracle's, free of u, so no input is singular.
+  ASSERT_TRUE(ui.det.has_value());
+  const ex d = OracleOu(m).determinant();
+  EXPECT_TRUE(GiNaC::normal(*ui.det - d).is_zero()) << *ui.det << " vs " << d;
+  EXPECT_FALSE(d.has(u)) << d;
+  EXPECT_TRUE(ui.singular.empty());
 }
 
 TEST(UnderInputs, TriangularFormRefusals) {

@@ -654,9 +654,27 @@ Observability observability_rank(const Model& m, Budget& budget, const Observabi
   return observability_into(m, budget, opt, ob, false);
 }
 
+namespace {
+
+// The drift's rank, selected rows, det and its factors, without the expressions of its chain.
+std::optional<Observability> rank_of_drift(const Observability& drift, std::size_t n) {
+  if (drift.jets || drift.p != 1 || drift.generic_rank != n || drift.selected.size() != n)
+    return std::nullopt;
+  Observability ob = drift;
+  ob.lie.clear();
+  ob.O.clear();
+  ob.ring.reset();
+  return ob;
+}
+
+}  // namespace
+
 std::optional<Observability> observability_of_triangular_form(const Model& frozen,
-                                                              const TriangularForm& t) {
-  if (t.coordinates != TriangularForm::Coordinates::states || frozen.p() != 1) return std::nullopt;
+                                                              const TriangularForm& t,
+                                                              const Observability& drift) {
+  if (frozen.p() != 1) return std::nullopt;
+  if (t.coordinates == TriangularForm::Coordinates::lie_derivatives)
+    return rank_of_drift(drift, frozen.n());
   Observability ob;
   ob.n = frozen.n();
   ob.p = 1;

@@ -338,7 +338,8 @@ ObservabilityUnderInputs analyse_observability_under_inputs(const Model& m,
       // observability_rank, which leaves out the expressions it can.
       const Model fm = frozen_input_model(m);
       std::optional<Observability> direct;
-      if (r.triangular && !drift.jets) direct = observability_of_triangular_form(fm, *r.triangular);
+      if (r.triangular && !drift.jets)
+        direct = observability_of_triangular_form(fm, *r.triangular, drift);
       frozen = direct ? std::move(*direct) : observability_rank(fm, budget, fopt);
     }
     const Observability& ob = r.same_as_drift ? drift : frozen;
