@@ -223,7 +223,9 @@ bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
   // With g's variables too when g lives in the ring (later stages reuse the ring with g).
   ExVec with_g(all);
   with_g.insert(with_g.end(), m.g.begin(), m.g.end());
-  rows.ring = PolyRing::for_expressions(with_g, m.states);
+  // (g alone first: it is small, and a g outside the ring would cost a second pass over f.)
+  if (PolyRing::for_expressions(m.g, m.states))
+    rows.ring = PolyRing::for_expressions(with_g, m.states);
   if (!rows.ring) rows.ring = PolyRing::for_expressions(all, m.states);
   if (!rows.ring) return false;
   const PolyRing& ring = *rows.ring;

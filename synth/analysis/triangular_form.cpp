@@ -159,22 +159,24 @@ void finish(TriangularForm& t, std::size_t n) {
 }
 
 // z a permutation of x: y = x_j and each x' affine in exactly one new state.
-std::optional<TriangularForm> in_states(const Model& m, const ExVec& F, std::string& why) {
+// The state the output is (the first z of the form in the states), or nullopt with `why`.
+std::optional<std::size_t> output_state(const Model& m, std::string& why) {
+  const ex h = simplify(m.h[0]);
+  for (std::size_t j = 0; j < m.n(); ++j)
+    if (GiNaC::is_a<GiNaC::symbol>(h) && GiNaC::ex_to<GiNaC::symbol>(h) == m.states[j]) return j;
+  why = fmt::format("the output {} is not a state", to_string(h));
+  return std::nullopt;
+}
+
+std::optional<TriangularForm> in_states(const Model& m, const ExVec& F, std::size_t first,
+                                        std::string& why) {
   const std::size_t n = m.n();
   const Symbols& x = m.states;
-  const ex h = simplify(m.h[0]);
-  std::optional<std::size_t> first;
-  for (std::size_t j = 0; j < n; ++j)
-    if (GiNaC::is_a<GiNaC::symbol>(h) && GiNaC::ex_to<GiNaC::symbol>(h) == x[j]) first = j;
-  if (!first) {
-    why = fmt::format("the output {} is not a state", to_string(h));
-    return std::nullopt;
-  }
   TriangularForm t;
   t.coordinates = TriangularForm::Coordinates::states;
-  t.order = {*first};
+  t.order = {first};
   std::vector<bool> used(n, false);
-  used[*first] = true;
+  used[first] = true;
   for (std::size_t i = 0; i + 1 < n; ++i) {
     const std::size_t s = t.order[i];
     const ex Fi = F[s];
@@ -295,13 +297,20 @@ std::optional<TriangularForm> triangular_form(const Model& m, std::string* why,
     w = "the output depends on the input (the form needs y = z_1 = h(x))";
     return std::nullopt;
   }
+  // The field in canonical form only when a way needs it: expanding a large field is the
+  // costly part, and the output decides the first way at once.
   ExVec F;
-  for (const auto& e : m.field()) F.push_back(simplify(e));
+  const auto field = [&]() -> const ExVec& {
+    if (F.empty())
+      for (const auto& e : m.field()) F.push_back(simplify(e));
+    return F;
+  };
   std::string why_states, why_lie;
-  if (auto t = in_states(m, F, why_states)) return t;
+  if (const auto first = output_state(m, why_states))
+    if (auto t = in_states(m, field(), *first, why_states)) return t;
   if (!lie_coordinates)
     why_lie = "not tried: the symbolic Lie derivatives were skipped";
-  else if (auto t = in_lie_coordinates(m, F, drift_lie, why_lie))
+  else if (auto t = in_lie_coordinates(m, field(), drift_lie, why_lie))
     return t;
   w = fmt::format("not in the form in the states ({}), nor in the coordinates (h, L_f h, ...) ({})",
                   why_states, why_lie);
