@@ -220,13 +220,7 @@ bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
                        std::vector<ExMatrix>& grads, RingRows& rows, bool expressions = true) {
   ExVec all(m.f);
   all.insert(all.end(), m.h.begin(), m.h.end());
-  // With g's variables too when g lives in the ring (later stages reuse the ring with g).
-  ExVec with_g(all);
-  with_g.insert(with_g.end(), m.g.begin(), m.g.end());
-  // (g alone first: it is small, and a g outside the ring would cost a second pass over f.)
-  if (PolyRing::for_expressions(m.g, m.states))
-    rows.ring = PolyRing::for_expressions(with_g, m.states);
-  if (!rows.ring) rows.ring = PolyRing::for_expressions(all, m.states);
+  rows.ring = PolyRing::for_expressions(all, m.states);
   if (!rows.ring) return false;
   const PolyRing& ring = *rows.ring;
   try {

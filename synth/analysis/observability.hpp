@@ -40,7 +40,6 @@ struct RowId {
 
 // O's rows in the polynomial ring the Lie chain was computed in (same row order as O), so
 // that later stages evaluate or differentiate them without converting O back from GiNaC.
-// The ring also holds g's variables (inputs, atoms) when g lives in it.
 struct RingO {
   PolyRing ring;
   std::vector<std::vector<Poly>> rows;

@@ -275,27 +275,27 @@ const numeric kCancelled = numeric(1, 1000000) * numeric(10).power(-24);  // 1e-
 std::optional<std::vector<std::optional<PhiAtPoint>>> sample_phi_ring(
     const Model& m, const Observability& ob, const std::vector<GiNaC::exmap>& points) {
   const std::size_t n = m.n();
-  std::optional<PolyRing> own;
+  // O's rows in the Lie chain's ring when the analysis kept them (else converted here), g in a
+  // ring of its own: both are only evaluated at the same points.
+  std::optional<PolyRing> own_O;
   const PolyRing* ring = nullptr;
   std::vector<std::vector<Poly>> O(n);
-  std::vector<Poly> g;
-  if (ob.ring) {  // the ring of the Lie chain, with O's rows already in it
+  if (ob.ring) {
     ring = &ob.ring->ring;
-    for (const auto& e : m.g)
-      if (auto p = ring->from_ex(e)) g.push_back(std::move(*p));
-    if (g.size() == m.g.size()) O = ob.ring->rows;
-  }
-  if (g.size() != m.g.size()) {
-    std::vector<ex> all(m.g.begin(), m.g.end());
+    O = ob.ring->rows;
+  } else {
+    std::vector<ex> all;
     for (const auto& row : ob.O) all.insert(all.end(), row.begin(), row.end());
-    own = PolyRing::for_expressions(all, m.states);
-    if (!own) return std::nullopt;
-    ring = &*own;
-    g.clear();
-    for (const auto& e : m.g) g.push_back(*ring->from_ex(e));
+    own_O = PolyRing::for_expressions(all, m.states);
+    if (!own_O) return std::nullopt;
+    ring = &*own_O;
     for (std::size_t r = 0; r < n; ++r)
       for (const auto& e : ob.O[r]) O[r].push_back(*ring->from_ex(e));
   }
+  const auto g_ring = PolyRing::for_expressions(std::vector<ex>(m.g.begin(), m.g.end()), m.states);
+  if (!g_ring) return std::nullopt;
+  std::vector<Poly> g;
+  for (const auto& e : m.g) g.push_back(*g_ring->from_ex(e));
   // d phi_i / dx_k = sum_j (dO_ij/dx_k g_j + O_ij dg_j/dx_k), with dO_ij/dx_k = dO_ik/dx_j (a
   // Hessian of L_f^i h): values at the points, never the product polynomials O_ij g_j (which
   // swell on dense models).
@@ -305,29 +305,31 @@ std::optional<std::vector<std::optional<PhiAtPoint>>> sample_phi_ring(
       for (std::size_t k = j; k < n; ++k) dO[i][j].push_back(ring->derivative(O[i][j], k));
   std::vector<std::vector<Poly>> dg(n);
   for (std::size_t j = 0; j < n; ++j)
-    for (std::size_t k = 0; k < n; ++k) dg[j].push_back(ring->derivative(g[j], k));
+    for (std::size_t k = 0; k < n; ++k) dg[j].push_back(g_ring->derivative(g[j], k));
   const auto hessian = [&](std::size_t i, std::size_t j, std::size_t k) -> const Poly& {
     return j <= k ? dO[i][j][k - j] : dO[i][k][j - k];
   };
   std::vector<std::optional<PhiAtPoint>> out;
   for (const auto& pt : points) {
     const auto values = ring->values_at(pt, 40);
-    if (!values) {
+    const auto g_values = g_ring->values_at(pt, 40);
+    if (!values || !g_values) {
       out.push_back(std::nullopt);
       continue;
     }
     DigitsGuard guard(40);
     const auto at = [&](const Poly& p) { return PolyRing::evaluate(p, *values); };
+    const auto at_g = [&](const Poly& p) { return PolyRing::evaluate(p, *g_values); };
     PhiAtPoint v{NumericRows(n), NumericRows(n - 1)};
     for (std::size_t r = 0; r < n; ++r)
       for (const auto& p : O[r]) v.O[r].push_back(at(p));
     std::vector<numeric> g_at;
-    for (const auto& p : g) g_at.push_back(at(p));
+    for (const auto& p : g) g_at.push_back(at_g(p));
     for (std::size_t i = 0; i + 1 < n; ++i)
       for (std::size_t k = 0; k < n; ++k) {
         numeric d = 0, size = 0;
         for (std::size_t j = 0; j < n; ++j) {
-          const numeric a = at(hessian(i, j, k)) * g_at[j], b = v.O[i][j] * at(dg[j][k]);
+          const numeric a = at(hessian(i, j, k)) * g_at[j], b = v.O[i][j] * at_g(dg[j][k]);
           d += a + b;
           size += GiNaC::abs(a) + GiNaC::abs(b);
         }
