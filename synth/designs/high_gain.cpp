@@ -450,7 +450,10 @@ const char* kSingularGuard =
     "L_f h, ...) to x like a Newton step, and epsilon^(-1/2) is Dennis and Schnabel's limit for "
     "such a Jacobian: beyond it at least half of the working digits of the correction are lost, "
     "and near det O = 0 the fixed step no longer resolves xh (the realisation in x crosses a "
-    "singularity that z does not have)";
+    "singularity that z does not have). The limit is not an error bound: near the singular set "
+    "xh resolves x only to O(xh)^-1 times the resolution of zh (rounding of a fixed step: about "
+    "epsilon |y| / dt in z_2), so an estimate can lag or stall there with Status::ok before the "
+    "limit is met (x1' = x2^3, x2' = -x2 in float with dt = 1e-3 stalls at xh2 = 0.02)";
 
 // The generated functions (rhs, O(xh), gain vector), their roles and the LU-solved correction.
 void add_hg_functions(ObserverSpec& s, const Model& m, const HighGainStructure& st,
