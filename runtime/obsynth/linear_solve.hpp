@@ -69,8 +69,23 @@ inline bool solve_cholesky(const Eigen::Matrix<Scalar, D, D>& M,
   return all_finite(x);
 }
 
-/// x = M^-1 v by LU with partial pivoting. False when a pivot is below D * epsilon times the
-/// largest one (singular to working precision) or the result is not finite.
+/// The ill-conditioning limit of solve_lu: sqrt(epsilon) of the scalar type (2^-26 = 1.49e-8 for
+/// double, 3.45e-4 for float). A matrix whose smallest LU pivot is at most this fraction of its
+/// largest one has an (estimated) condition number of at least epsilon^(-1/2): the solve's
+/// relative error bound kappa * epsilon exceeds sqrt(epsilon), so at least half of the working
+/// digits of M^-1 v are lost. This is Dennis and Schnabel's test for treating the Jacobian of
+/// a Newton step as singular (Numerical Methods for Unconstrained Optimization and Nonlinear
+/// Equations, 1983, sec. 6.5); the high-gain observer's O(xh)^-1 v is such a step (O = dPhi/dx
+/// maps a correction of z = Phi(x) to one of x).
+template <class Scalar>
+inline Scalar lu_conditioning_limit() noexcept {
+  return std::sqrt(Eigen::NumTraits<Scalar>::epsilon());
+}
+
+/// x = M^-1 v by LU with partial pivoting. False when the smallest pivot is at most
+/// lu_conditioning_limit<Scalar>() = sqrt(epsilon) times the largest one (ill-conditioned at
+/// this precision; this also covers a pivot below D * epsilon, singular to working precision),
+/// when M is not finite, or when the result is not finite.
 template <class Scalar, int D>
 inline bool solve_lu(const Eigen::Matrix<Scalar, D, D>& M, const Eigen::Matrix<Scalar, D, 1>& v,
                      Eigen::Matrix<Scalar, D, 1>& x) noexcept {
@@ -78,7 +93,7 @@ inline bool solve_lu(const Eigen::Matrix<Scalar, D, D>& M, const Eigen::Matrix<S
   const auto U = lu.matrixLU().diagonal().cwiseAbs();
   const Scalar largest = U.maxCoeff();
   if (!(largest > Scalar(0)) || !std::isfinite(largest)) return false;
-  if (U.minCoeff() <= Scalar(D) * Eigen::NumTraits<Scalar>::epsilon() * largest) return false;
+  if (!(U.minCoeff() > lu_conditioning_limit<Scalar>() * largest)) return false;
   x = lu.solve(v);
   return all_finite(x);
 }

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 
 #include <Eigen/Dense>
@@ -270,8 +271,14 @@ class SpecObserver {
       if (llt.info() != Eigen::Success) return false;
       x = llt.solve(vv);
     } else {
-      const Eigen::FullPivLU<Eigen::MatrixXd> lu(M);
-      if (!lu.isInvertible()) return false;
+      // The generated solve_lu's rule (runtime/obsynth/linear_solve.hpp): rejected when the
+      // smallest pivot of LU with partial pivoting is at most sqrt(epsilon) times the largest.
+      const Eigen::PartialPivLU<Eigen::MatrixXd> lu(M);
+      const Eigen::VectorXd U = lu.matrixLU().diagonal().cwiseAbs();
+      const double largest = U.maxCoeff();
+      if (!std::isfinite(largest) ||
+          !(U.minCoeff() > std::sqrt(std::numeric_limits<double>::epsilon()) * largest))
+        return false;
       x = lu.solve(vv);
     }
     for (Eigen::Index i = 0; i < d; ++i) dw[k.target_offset + static_cast<std::size_t>(i)] += x(i);

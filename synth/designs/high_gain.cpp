@@ -442,6 +442,21 @@ GainChoice choose_gain(const DesignOptions& o, std::size_t n) {
   return g;
 }
 
+// The rule of the gain solve's guard (SolveCorrection with LU; runtime/obsynth/linear_solve.hpp
+// lu_conditioning_limit), stated in the report and the generated header.
+const char* kSingularGuard =
+    "in every RK4 stage the LU factorisation of O(xh) (partial pivoting) must have its smallest "
+    "pivot above sqrt(epsilon) times its largest (epsilon of the scalar type: 1.49e-8 in double, "
+    "3.45e-4 in float), i.e. an estimated condition number below epsilon^(-1/2); otherwise the "
+    "step is rejected (state kept) with Status::singular. O(xh)^-1 maps a correction of z = (h, "
+    "L_f h, ...) to x like a Newton step, and epsilon^(-1/2) is Dennis and Schnabel's limit for "
+    "such a Jacobian: beyond it at least half of the working digits of the correction are lost, "
+    "and near det O = 0 the fixed step no longer resolves xh (the realisation in x crosses a "
+    "singularity that z does not have). The limit is not an error bound: near the singular set "
+    "xh resolves x only to O(xh)^-1 times the resolution of zh (rounding of a fixed step: about "
+    "epsilon |y| / dt in z_2), so an estimate can lag or stall there with Status::ok before the "
+    "limit is met (x1' = x2^3, x2' = -x2 in float with dt = 1e-3 stalls at xh2 = 0.02)";
+
 // The generated functions (rhs, O(xh), gain vector), their roles and the LU-solved correction.
 void add_hg_functions(ObserverSpec& s, const Model& m, const HighGainStructure& st,
                       const GainChoice& g, const std::string& where_singular) {
@@ -475,7 +490,8 @@ void add_hg_functions(ObserverSpec& s, const Model& m, const HighGainStructure& 
   corr.vector_function = "gain_vector";
   corr.target_offset = 0;
   corr.dim = n;
-  corr.singular_doc = "O(xh) is singular " + where_singular;
+  corr.singular_doc = "O(xh) is singular " + where_singular +
+                      ", or ill-conditioned: smallest LU pivot <= sqrt(epsilon) x largest";
   s.correction = corr;
 }
 
@@ -526,7 +542,10 @@ void describe_hg(ObserverSpec& s, const GainChoice& g, const Certificate& cert,
       fmt::format("theta = {}; poles of A - K C: {}; K = [{}]; Delta_theta K = [{}]",
                   to_string(g.theta), numbers_text(g.poles), numbers_text(g.K),
                   numbers_text(g.gain)),
-      "Gain applied by an LU solve with O(xh); O singular -> Status::singular, " + where_singular,
+      "Gain applied by an LU solve with O(xh); O singular or ill-conditioned (smallest LU pivot "
+      "<= sqrt(epsilon) x largest, in any RK4 stage) -> Status::singular, state kept; O is "
+      "singular " +
+          where_singular,
       fmt::format("Lipschitz constant of phi in z: L = {} ({}); theta* = {}: convergence {}",
                   up6(cert.L), c.kind, up6(cert.theta_star),
                   c.guaranteed ? "guaranteed"
@@ -538,7 +557,9 @@ void describe_hg(ObserverSpec& s, const GainChoice& g, const Certificate& cert,
                  "with O = d(h, L_f h, ..., L_f^{n-1} h)/dx and Delta_theta = diag(theta, ..., "
                  "theta^n); in z = (h, L_f h, ...) this is the",
                  "observer zh' = A zh + phi(zh, u) + Delta_theta K (y - zh_1). A step where O(xh) "
-                 "is singular returns Status::singular."};
+                 "is singular or ill-conditioned returns Status::singular and keeps the state:",
+                 "in any RK4 stage, the smallest LU pivot of O(xh) is at most sqrt(epsilon) times "
+                 "the largest (epsilon of Scalar; obsynth::lu_conditioning_limit)."};
   s.constants.push_back({"theta", {g.theta}, "high-gain parameter"});
   s.constants.push_back(
       {"poles", g.poles, "poles of A - K C (the error poles are theta times these)"});
@@ -596,6 +617,7 @@ void report_hg(ObserverSpec& s, const HighGainStructure& st, const GainChoice& g
       {"Delta_theta K", numbers_text(g.gain)},
       {"det O", to_string(st.det)},
       {"O singular", where_singular},
+      {"singular guard", kSingularGuard},
       {"phi (in x)", fmt::format("[{}]", fmt::join(to_strings(st.phi), ", "))},
       {"Lipschitz bounds", fmt::format("{}", fmt::join(cert.entries, "; "))},
       {"Lipschitz constant L",

@@ -178,7 +178,10 @@ struct SymmetricBlock {
 // M is either a generated function of (w, u) (matrix_function, e.g. the observability matrix
 // O(xh) of the high-gain observer) or a SymmetricBlock of w (matrix_block, e.g. S of the
 // Kalman-theta observer). v is a generated function of (w, u, y) (vector_function; fold any
-// sign into v). A failed factorisation rejects the step with Status::singular.
+// sign into v). A failed factorisation rejects the step with Status::singular: Cholesky fails
+// when M is not positive definite; LU (partial pivoting) fails when its smallest pivot is at most
+// sqrt(epsilon) times its largest (epsilon of the scalar type: an ill-conditioned M, see
+// lu_conditioning_limit in runtime/obsynth/linear_solve.hpp). Either fails on a non-finite result.
 struct SolveCorrection {
   enum class Factor { cholesky, lu };
   Factor factor = Factor::lu;

@@ -290,10 +290,12 @@ static int solve_cholesky(Scalar* M, int d, const Scalar* v, Scalar* x) {
 )";
 
 const char* kSolveLu = R"(
-/* LU with partial pivoting; 0 when a pivot is below d * epsilon times the largest. */
+/* LU with partial pivoting; 0 when a pivot is at most sqrt(epsilon) times the largest one
+ * (condition number >= epsilon^-1/2: half the digits of M^-1 v lost; obsynth's
+ * lu_conditioning_limit), or when the result is not finite. */
 static int solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x) {
   int i, j, k;
-  Scalar largest = {{zero}};
+  Scalar largest = {{zero}}, smallest = {{zero}};
   for (i = 0; i < d; ++i) x[i] = v[i];
   for (k = 0; k < d; ++k) {
     int p = k;
@@ -311,14 +313,19 @@ static int solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x) {
         x[p] = t;
       }
     }
-    if ({{fabs}}(M[k * d + k]) > largest) largest = {{fabs}}(M[k * d + k]);
-    if (!({{fabs}}(M[k * d + k]) > (Scalar)d * {{epsilon}} * largest)) return 0;
+    {
+      const Scalar a = {{fabs}}(M[k * d + k]);
+      if (!(a > {{zero}})) return 0; /* zero or NaN pivot */
+      if (a > largest) largest = a;
+      if (k == 0 || a < smallest) smallest = a;
+    }
     for (i = k + 1; i < d; ++i) {
       const Scalar f = M[i * d + k] / M[k * d + k];
       for (j = k; j < d; ++j) M[i * d + j] -= f * M[k * d + j];
       x[i] -= f * x[k];
     }
   }
+  if (!isfinite(largest) || !(smallest > {{sqrt_epsilon}} * largest)) return 0;
   for (i = d - 1; i >= 0; --i) {
     Scalar t = x[i];
     for (k = i + 1; k < d; ++k) t -= M[i * d + k] * x[k];
@@ -762,7 +769,7 @@ std::string guarded_helpers(const ObserverSpec& s, CBuilder& b, Precision precis
       {"zero", b.lit(0)},
       {"sqrt", single ? "sqrtf" : "sqrt"},
       {"fabs", single ? "fabsf" : "fabs"},
-      {"epsilon", single ? "1.1920929e-7f" : "2.220446049250313e-16"},
+      {"sqrt_epsilon", single ? "3.4526698e-4f" : "1.4901161193847656e-8"},
       {"max_dim", std::to_string(max_dim)}};
   auto helper = [&](const char* text, std::vector<std::string> keys) {
     std::map<std::string, std::string> v;
@@ -774,7 +781,7 @@ std::string guarded_helpers(const ObserverSpec& s, CBuilder& b, Precision precis
   if (s.correction && s.correction->factor == SolveCorrection::Factor::cholesky)
     out += helper(kSolveCholesky, {"zero", "sqrt"});
   if (s.correction && s.correction->factor == SolveCorrection::Factor::lu)
-    out += helper(kSolveLu, {"zero", "fabs", "epsilon"});
+    out += helper(kSolveLu, {"zero", "fabs", "sqrt_epsilon"});
   bool pd = false;
   for (const auto& q : s.symmetric_blocks) pd = pd || q.keep_positive_definite;
   if (pd) out += helper(kPackedPositiveDefinite, {"zero", "max_dim"});

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <limits>
 
 namespace {
@@ -62,6 +63,34 @@ TYPED_TEST(LinearSolve, LuSolvePivotsAndRefusesSingularMatrices) {
   EXPECT_FALSE((obsynth::solve_lu<S, 2>(M, v, x)));
   M << 1, 0, 0, 0;
   EXPECT_FALSE((obsynth::solve_lu<S, 2>(M, v, x)));
+}
+
+// The ill-conditioning limit: a pivot ratio at most sqrt(epsilon) is refused, whatever the
+// determinant. diag(1, r) has pivots 1 and r (no exchange) and the solution (v0, v1 / r); the
+// upper triangular [[r, 1], [0, 1]] needs no exchange either and has pivots r and 1. Both are
+// exactly invertible, far from D * epsilon, and refused below sqrt(epsilon) only.
+TYPED_TEST(LinearSolve, LuSolveRefusesIllConditionedMatrices) {
+  using S = TypeParam;
+  const S root_eps = std::sqrt(std::numeric_limits<S>::epsilon());
+  // 2^-26 in double; float: sqrt(2^-23) = 3.4526698e-4.
+  EXPECT_EQ(obsynth::lu_conditioning_limit<S>(), root_eps);
+  Eigen::Matrix<S, 2, 2> M;
+  Eigen::Matrix<S, 2, 1> v(S(3), S(1)), x;
+  const S above = 2 * root_eps, below = root_eps / 2;
+  M << 1, 0, 0, above;
+  ASSERT_TRUE((obsynth::solve_lu<S, 2>(M, v, x)));
+  EXPECT_EQ(x(0), S(3));
+  EXPECT_NEAR(double(x(1) * above), 1.0, 1e-6);
+  M << 1, 0, 0, below;
+  EXPECT_FALSE((obsynth::solve_lu<S, 2>(M, v, x)));
+  M << 1, 0, 0, root_eps;  // at the limit: refused (the rule is pivot > limit * largest)
+  EXPECT_FALSE((obsynth::solve_lu<S, 2>(M, v, x)));
+  M << below, 1, 0, 1;
+  EXPECT_FALSE((obsynth::solve_lu<S, 2>(M, v, x)));
+  // A uniformly small matrix is not ill-conditioned: only the ratio counts.
+  M << below, 0, 0, below;
+  ASSERT_TRUE((obsynth::solve_lu<S, 2>(M, v, x)));
+  EXPECT_NEAR(double(x(0) * below), 3.0, 1e-5);
 }
 
 }  // namespace
