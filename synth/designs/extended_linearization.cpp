@@ -435,7 +435,9 @@ bool check_charpoly(const Model& m, const FamilyJacobians& J, int order, Extende
     for (unsigned j = 0; j < n; ++j) M(i, j) = J.A(i, j) - r.c_eps[i] * J.H(0, j);
   ex want = 1;
   for (const auto& q : r.poles) want *= lambda - q;
-  const ex diff = GiNaC::expand(M.charpoly(lambda) - want);
+  // GiNaC's charpoly is det(M - lambda I) = (-1)^n det(lambda I - M).
+  const ex sign = n % 2 == 0 ? 1 : -1;
+  const ex diff = GiNaC::expand(sign * M.charpoly(lambda) - want);
   bool ok = true;
   SampleBoxes eboxes = SampleBoxes::from_model(m);
   eboxes.by_name[r.eps.get_name()] = Interval{numeric(-1, 20), numeric(1, 20)};
