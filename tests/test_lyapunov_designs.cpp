@@ -544,6 +544,35 @@ TEST(Thau, SixStateChainCertifiedOnTheDomain) {
   }
 }
 
+// On 8 states the best ratio is below (1 - cos 2)/5: (26) fails on the domain (the sampled M
+// at the corner x1 = +-2 already refutes it) and holds, rigorously, on a sub-box where only
+// x1 (the one state D_x phi depends on) is shrunk to |x1| <= a, with M = (1 - cos a)/5.
+TEST(Thau, EightStateChainCertifiedOnASubBox) {
+  const int n = 8;
+  const Model m = parse_model(chain_text(n, "chain8", "sin(x1)/5", "u"), "chain8.sym");
+  const ThauCertificate c = thau_certificate(m);
+  ASSERT_TRUE(c.not_applicable.empty()) << c.not_applicable;
+  EXPECT_NEAR(c.M_domain_sampled, (1 - std::cos(2.0)) / 5, 1e-9);
+  EXPECT_LT(c.margin_domain, 0);
+  ASSERT_TRUE(c.holds);
+  EXPECT_TRUE(c.M_rigorous);
+  ASSERT_EQ(c.region.size(), static_cast<std::size_t>(n));
+  const double a = c.region[0].second;
+  EXPECT_NEAR(c.region[0].first, -a, 1e-12);
+  EXPECT_GT(a, 0.5);
+  EXPECT_LT(a, 2);
+  for (int i = 1; i < n; ++i) {
+    EXPECT_EQ(c.region[static_cast<std::size_t>(i)].first, -2);
+    EXPECT_EQ(c.region[static_cast<std::size_t>(i)].second, 2);
+  }
+  const double M_hand = (1 - std::cos(a)) / 5;
+  EXPECT_GE(c.M_region, M_hand - 1e-12);
+  EXPECT_LE(c.M_region, M_hand * 1.05 + 1e-12);
+  EXPECT_GT(c.ratio, M_hand);
+  EXPECT_GT(c.margin_region, 0);
+  EXPECT_NEAR(c.margin_region, c.ratio - c.M_region, 1e-12);
+}
+
 // Thau provably fails on a 7-state chain with x7' = -x7 + 10 u x1: D_x phi = 10 u at (7, 1),
 // so M >= 10 on every sub-box (u is not shrunk). For any L (C = e_1' changes column 1 of A
 // only), entry (7, 7) of (21) reads Q77 = P77 - P76 <= 2 sigma_max(P): the ratio is below 2

@@ -803,14 +803,15 @@ void solve_P(const Split& s, Result& r) {
 // the sampled M (labelled sampled; the verdict is then "sampled only") and not_proven says why.
 void find_region_budgeted(const Model& m, const Split& s, Result& r) {
   r.domain = budgeted_region_at(m, s, 1.0, false);
+  bool proven = false;
   if (r.domain.M_sampled < r.ratio) {
     const Region d = budgeted_region_at(m, s, 1.0, true);
     if (d.M.kind == certify::BoundKind::rigorous && d.M.value < r.ratio) {
       r.domain = d;
+      proven = true;
     } else {
-      r.domain.M.method += fmt::format("; the enclosure's bound {} did not prove it",
-                                       fmt::format("{:.6g} ({}: {})", d.M.value,
-                                                   certify::bound_kind_name(d.M.kind), d.M.method));
+      r.domain.M.method += fmt::format("; the enclosure's bound {:.6g} ({}: {}) did not prove it",
+                                       d.M.value, certify::bound_kind_name(d.M.kind), d.M.method);
       r.not_proven = fmt::format("on the whole domain the enclosure gave M <= {:.6g} ({})",
                                  d.M.value, d.M.method);
     }
@@ -818,10 +819,11 @@ void find_region_budgeted(const Model& m, const Split& s, Result& r) {
     r.domain.M.method += " (a lower bound of M: it already refutes (26), no enclosure needed)";
   }
   r.region = r.domain;
-  r.region_found = r.domain_margin() > 0;
-  if (!r.region_found && !r.whole_domain_only && r.ratio > 0) {
+  r.region_found = proven;
+  double lo = 0;
+  if (!proven && !r.whole_domain_only && r.ratio > 0) {
     const std::size_t count = bisection_samples(m);
-    double lo = 0, hi = 1;
+    double hi = 1;
     for (int k = 0; k < kRegionBisections; ++k) {
       const double mid = (lo + hi) / 2;
       if (budgeted_region_at(m, s, mid, false, count).M_sampled < kRegionTarget * r.ratio)
@@ -834,18 +836,24 @@ void find_region_budgeted(const Model& m, const Split& s, Result& r) {
       const Region t = budgeted_region_at(m, s, scale, true);
       if (t.M.kind == certify::BoundKind::rigorous && t.M.value < r.ratio) {
         r.region = t;
-        r.region_found = true;
+        r.region_found = proven = true;
         r.not_proven.clear();
         break;
       }
-      if (attempt == 0) {
-        r.region = budgeted_region_at(m, s, scale, false);
-        r.region_found = r.margin() > 0;
-      }
       r.not_proven = fmt::format(
-          "the enclosure did not prove M < sigma_min(Q)/sigma_max(P) on W or on {} smaller "
-          "boxes (scale down to {:.6g}: M <= {:.6g}, {})",
-          attempt, scale, t.M.value, t.M.method);
+          "the enclosure did not prove M < sigma_min(Q)/sigma_max(P) on the whole domain nor on "
+          "{} sub-boxes (scale {:.6g} down to {:.6g}; last: M <= {:.6g}, {})",
+          attempt + 1, lo, scale, t.M.value, t.M.method);
+    }
+  }
+  if (!proven) {
+    // Sampled only: the domain when the samples say (26) holds there, else the bisection's box.
+    if (r.domain_margin() > 0) {
+      r.region = r.domain;
+      r.region_found = true;
+    } else if (lo > 0) {
+      r.region = budgeted_region_at(m, s, lo, false);
+      r.region_found = r.margin() > 0;
     }
   }
   r.holds = r.region_found && r.margin() > 0;
