@@ -394,4 +394,40 @@ TEST(ExtendedLinearization, ExpressionBudgetStopsLargeConstructions) {
   EXPECT_TRUE(abandoned);
 }
 
+// An 8-state chain with a sine in every equation: the closed-form family nests sines 8 deep,
+// past the nesting budget, so the family and the injection are series (they took minutes as
+// closed forms). The linearized error has the prescribed eigenvalues at the base point and,
+// along the series family, up to its truncation (order 6).
+TEST(ExtendedLinearization, NestedFunctionsTakeTheSeries) {
+  const int n = 8;
+  std::string f;
+  for (int i = 1; i < n; ++i)
+    f += "x" + std::to_string(i + 1) + " - x" + std::to_string(i) + " + sin(x" + std::to_string(i) +
+         ")/10, ";
+  f += "-x8 + sin(x1)/5";
+  const Model m = model_text(("model dense8\nstates x1 x2 x3 x4 x5 x6 x7 x8\ninputs u\nf = [ " + f +
+                              " ]\ng = [ 0, 0, 0, 0, 0, 0, 0, u ]\nh = [ x1 ]\n")
+                                 .c_str());
+  const auto& r = extended_linearization(m, {});
+  ASSERT_TRUE(r.failures.empty()) << r.failures[0];
+  EXPECT_FALSE(r.family_closed);
+  EXPECT_FALSE(r.injection_closed);
+  bool noted = false;
+  for (const auto& note : r.notes)
+    noted = noted || note.find("nests functions") != std::string::npos;
+  EXPECT_TRUE(noted);
+  const ObserverSpec s = build_design(analyse(m), "extended-linearization", {});
+  auto dev = [&](double e) {
+    GiNaC::exmap at;
+    at[r.eps] = e;
+    std::vector<double> x;
+    for (const auto& xi : r.x_eps)
+      x.push_back(GiNaC::ex_to<GiNaC::numeric>(GiNaC::evalf(xi.subs(at))).to_double());
+    const double u = GiNaC::ex_to<GiNaC::numeric>(GiNaC::evalf(r.u_eps.subs(at))).to_double();
+    return deviation(error_eigenvalues(m, s, x, u), {-8, -7, -6, -5, -4, -3, -2, -1});
+  };
+  EXPECT_LT(dev(0), 1e-8);
+  EXPECT_LT(dev(0.05), 1e-4);
+}
+
 }  // namespace

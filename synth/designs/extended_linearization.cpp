@@ -30,8 +30,20 @@ namespace {
 // - the Ackermann gain schedule (a symbolic inverse of the n x n observability matrix along
 //   the family) is not attempted when A_eps holds more than kJacobianNodes nodes (chain6
 //   closed: 12000 nodes, 1.6 s; chain6 series: 30000, 5 s; chain7 series: 77000, 48 s).
+// - functions nested more than kNesting deep (sin(x - sin(x)/10) is 2 deep) make the zero
+//   test's rewrite and the integrator blow up (an 8-state chain with a sine in every equation:
+//   minutes): such a closed-form family is taken as its series, and such a c_i(eps) is not
+//   integrated in closed form (its series injection instead).
 constexpr std::size_t kFamilyNodes = 4000;
 constexpr std::size_t kJacobianNodes = 20000;
+constexpr int kNesting = 2;
+
+// Depth of nested function calls (sin, exp, ...; powers and products do not count).
+int function_depth(const ex& e) {
+  int d = 0;
+  for (std::size_t i = 0; i < e.nops(); ++i) d = std::max(d, function_depth(e.op(i)));
+  return GiNaC::is_a<GiNaC::function>(e) ? d + 1 : d;
+}
 constexpr int kDefaultOrder = 6;
 constexpr double kTiny = 1e-12;
 
@@ -89,7 +101,7 @@ struct Problem {
 // too_large: the solution's size in nodes when it was abandoned past kFamilyNodes.
 std::optional<GiNaC::exmap> closed_family(const Model& m, const Problem& P,
                                           const GiNaC::symbol& eps, const GiNaC::exmap& params,
-                                          std::size_t& too_large) {
+                                          std::size_t& too_large, int& too_deep) {
   GiNaC::exmap sol;
   std::vector<bool> used(P.equations.size(), false);
   std::set<unsigned> solved;
@@ -129,6 +141,11 @@ std::optional<GiNaC::exmap> closed_family(const Model& m, const Problem& P,
     }
   }
   if (sol.size() < P.unknowns.size()) return std::nullopt;
+  for (const auto& kv : sol)
+    if (function_depth(kv.second) > kNesting) {
+      too_deep = function_depth(kv.second);
+      return std::nullopt;
+    }
   // Verify: every equation vanishes identically in eps on the family.
   SampleBoxes boxes = SampleBoxes::from_model(m);
   boxes.by_name[eps.get_name()] = Interval{numeric(-1, 20), numeric(1, 20)};
@@ -377,7 +394,13 @@ std::optional<GiNaC::exmap> equilibrium_family(const Model& m, const Problem& P,
   std::optional<GiNaC::exmap> fam;
   std::string why;
   std::size_t too_large = 0;
-  if (ro.family == "auto") fam = closed_family(m, P, r.eps, params, too_large);
+  int too_deep = 0;
+  if (ro.family == "auto") fam = closed_family(m, P, r.eps, params, too_large, too_deep);
+  if (too_deep > 0)
+    r.notes.push_back(fmt::format(
+        "the closed-form equilibrium family was abandoned for its series: it nests functions {} "
+        "deep (budget {})",
+        too_deep, kNesting));
   if (too_large > 0)
     r.notes.push_back(fmt::format(
         "the closed-form equilibrium family was abandoned for its series: its expressions grew "
@@ -508,6 +531,12 @@ bool closed_injection(const GiNaC::exmap& params, ExtendedLinearization& r) {
   const GiNaC::symbol& eps = r.eps;
   ExVec k;
   for (unsigned i = 0; i < r.c_eps.size(); ++i) {
+    if (function_depth(r.c_eps[i]) > kNesting) {
+      r.injection_reason = fmt::format(
+          "c_{}(eps) nests functions {} deep (budget {}): not integrated in closed form", i + 1,
+          function_depth(r.c_eps[i]), kNesting);
+      return false;
+    }
     const Integral I = integrate(r.c_eps[i], eps);
     if (!I.value) {
       r.injection_reason = fmt::format("no antiderivative of c_{}(eps) = {} found: {}", i + 1,

@@ -39,7 +39,8 @@ constexpr std::size_t kReportSamples = 4096;
 // then the worst of each result joins, at most kActiveRounds times per phase); each
 // candidate kept is still scored on all samples. Each Nelder-Mead run stops after
 // kSolveBudget / |active| evaluations, and the enclosure is capped at kWorkBudget ball
-// operations (deterministic budgets); when it cannot decide, the verdict is "sampled".
+// operations and its second try at 2^14 boxes (deterministic budgets); when it cannot decide,
+// the verdict is "sampled" (not proven), never certified.
 constexpr std::size_t kExhaustiveStates = 4;
 constexpr std::size_t kActive = 24;
 constexpr int kActiveRounds = 3;
@@ -497,7 +498,7 @@ void KouSearch::certify_exact(bool last_round) {
   r_.verdict = certify::negative_definite(S, r_.box, first);
   if (r_.verdict.kind == certify::BoundKind::sampled && r_.sampled_max_eig < 0) {
     certify::EnclosureBudget big;
-    big.max_boxes = 1u << 15;
+    big.max_boxes = budgeted_ ? 1u << 14 : 1u << 15;
     if (budgeted_) big.max_work = 4 * kWorkBudget;
     r_.verdict = certify::negative_definite(S, r_.box, big);
   }
