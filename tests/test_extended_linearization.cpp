@@ -21,6 +21,7 @@
 #include "designs/extended_linearization.hpp"
 #include "designs/registry.hpp"
 #include "front/parse.hpp"
+#include "support/construct.hpp"
 
 using namespace obsynth;
 using GiNaC::ex;
@@ -326,6 +327,107 @@ TEST(ExtendedLinearization, BadOptionsAreDiagnosed) {
   EXPECT_THROW(build_design(analyse(load("cart_pendulum")), "extended-linearization",
                             opts({{"el-injection", "closed"}})),
                UserError);
+}
+
+// Odd and larger n (5, 7, 8): chain x_i' = x_{i+1} - x_i, x_n' = -x_n + sin(x1)/5 + u, y = x1.
+// By hand: the family is x_i = eps for every i, u = eps - sin(eps)/5. The eigenvalues of the
+// linearized error (GiNaC derivative of the emitted rhs, Eigen) are the default poles
+// -1, ..., -n at points along it (odd n were refused before: the self-check's sign), and the
+// closed loop converges near the family.
+std::string el_chain(int n) {
+  std::string states, f, g;
+  for (int i = 1; i <= n; ++i) {
+    states += " x" + std::to_string(i);
+    f += i < n ? "x" + std::to_string(i + 1) + " - x" + std::to_string(i) + ", "
+               : "-x" + std::to_string(n) + " + sin(x1)/5";
+    g += i < n ? "0, " : "u";
+  }
+  return "model elchain" + std::to_string(n) + "\nstates" + states + "\ninputs u\nf = [ " + f +
+         " ]\ng = [ " + g + " ]\nh = [ x1 ]\n";
+}
+
+TEST(ExtendedLinearization, ChainsOfFiveToEightStates) {
+  for (int n : {5, 7, 8}) {
+    const Model m = model_text(el_chain(n).c_str());
+    const auto& r = extended_linearization(m, {});
+    ASSERT_TRUE(r.failures.empty()) << "n = " << n << ": " << r.failures[0];
+    EXPECT_TRUE(r.family_closed);
+    for (int i = 0; i < n; ++i) EXPECT_TRUE(exactly_equal(r.x_eps[i], r.eps));
+    EXPECT_TRUE(exactly_equal(r.u_eps, r.eps - GiNaC::sin(r.eps) / 5));
+    const Analysis a = analyse(m);
+    const ObserverSpec s = build_design(a, "extended-linearization", {});
+    std::vector<double> want;
+    for (int k = n; k >= 1; --k) want.push_back(-k);
+    for (double e : {-1.5, -0.4, 0.0, 0.6, 1.7}) {
+      const auto ev = error_eigenvalues(m, s, std::vector<double>(n, e), e - std::sin(e) / 5);
+      EXPECT_LT(deviation(ev, want), 1e-7) << "n = " << n << ", eps = " << e;
+    }
+    SimulationOptions o;
+    o.method = "extended-linearization";
+    o.u_text = "1/2 - sin(1/2)/5 + 1/10*sin(t)";
+    o.x0.assign(n, 0.5);
+    o.xhat0.assign(n, 0.5);
+    o.xhat0[0] = 0.8;
+    o.xhat0[n - 1] = 0.1;
+    o.t_end = 20;
+    o.dt = 1e-3;
+    const auto sim = simulate(a, o);
+    EXPECT_TRUE(sim.diverged.empty()) << sim.diverged;
+    EXPECT_LT(final_error(sim), 1e-5) << "n = " << n;
+  }
+}
+
+// A constructed 7-state rational chain: the closed-form family outgrows its budget (series
+// instead), and the symbolic gain schedule is not attempted, with the sizes in the message;
+// it returns in seconds (it took minutes without the budgets).
+TEST(ExtendedLinearization, ExpressionBudgetStopsLargeConstructions) {
+  const Model m = obsynth::testing::linearizable_chain(7, obsynth::testing::Flavor::stable).model;
+  const auto& r = extended_linearization(m, {});
+  ASSERT_FALSE(r.failures.empty());
+  EXPECT_NE(r.failures[0].find("gain schedule is not attempted"), std::string::npos)
+      << r.failures[0];
+  EXPECT_NE(r.failures[0].find("past the budget of 20000"), std::string::npos) << r.failures[0];
+  bool abandoned = false;
+  for (const auto& note : r.notes)
+    abandoned =
+        abandoned || note.find("closed-form equilibrium family was abandoned") != std::string::npos;
+  EXPECT_TRUE(abandoned);
+}
+
+// An 8-state chain with a sine in every equation: the closed-form family nests sines 8 deep,
+// past the nesting budget, so the family and the injection are series (they took minutes as
+// closed forms). The linearized error has the prescribed eigenvalues at the base point and,
+// along the series family, up to its truncation (order 6).
+TEST(ExtendedLinearization, NestedFunctionsTakeTheSeries) {
+  const int n = 8;
+  std::string f;
+  for (int i = 1; i < n; ++i)
+    f += "x" + std::to_string(i + 1) + " - x" + std::to_string(i) + " + sin(x" + std::to_string(i) +
+         ")/10, ";
+  f += "-x8 + sin(x1)/5";
+  const Model m = model_text(("model dense8\nstates x1 x2 x3 x4 x5 x6 x7 x8\ninputs u\nf = [ " + f +
+                              " ]\ng = [ 0, 0, 0, 0, 0, 0, 0, u ]\nh = [ x1 ]\n")
+                                 .c_str());
+  const auto& r = extended_linearization(m, {});
+  ASSERT_TRUE(r.failures.empty()) << r.failures[0];
+  EXPECT_FALSE(r.family_closed);
+  EXPECT_FALSE(r.injection_closed);
+  bool noted = false;
+  for (const auto& note : r.notes)
+    noted = noted || note.find("nests functions") != std::string::npos;
+  EXPECT_TRUE(noted);
+  const ObserverSpec s = build_design(analyse(m), "extended-linearization", {});
+  auto dev = [&](double e) {
+    GiNaC::exmap at;
+    at[r.eps] = e;
+    std::vector<double> x;
+    for (const auto& xi : r.x_eps)
+      x.push_back(GiNaC::ex_to<GiNaC::numeric>(GiNaC::evalf(xi.subs(at))).to_double());
+    const double u = GiNaC::ex_to<GiNaC::numeric>(GiNaC::evalf(r.u_eps.subs(at))).to_double();
+    return deviation(error_eigenvalues(m, s, x, u), {-8, -7, -6, -5, -4, -3, -2, -1});
+  };
+  EXPECT_LT(dev(0), 1e-8);
+  EXPECT_LT(dev(0.05), 1e-4);
 }
 
 }  // namespace

@@ -173,6 +173,18 @@ class BoxEnclosure {
 
   bool eval_point(const std::vector<double>& x, BallVec& out) { return tape_.eval_point(x, out); }
 
+  // Ball operations of one box evaluation (the tapes run by eval, at least 1).
+  std::size_t work_per_box() const {
+    return std::max<std::size_t>(1, tape_.size() + (mv_ ? mv_->size() + tape_.size() : 0));
+  }
+  // The budget with max_boxes lowered to what max_work allows (at least 1 box).
+  EnclosureBudget capped(const EnclosureBudget& b) const {
+    EnclosureBudget c = b;
+    if (b.max_work > 0)
+      c.max_boxes = std::max<std::size_t>(1, std::min(b.max_boxes, b.max_work / work_per_box()));
+    return c;
+  }
+
  private:
   std::size_t m_;
   Tape tape_;
@@ -601,7 +613,7 @@ Bound drive(const std::vector<ex>& outs, const Box& box, const EnclosureBudget& 
       return ub_of_balls(balls);
     };
     obj.at = [&](const std::vector<double>& p) { return score(pe(p)); };
-    const BBResult r = branch_and_bound(box, obj, budget, true, {}, tape.used_vars());
+    const BBResult r = branch_and_bound(box, obj, enc.capped(budget), true, {}, tape.used_vars());
     if (std::isfinite(r.upper)) {
       Bound b;
       b.kind = BoundKind::rigorous;
@@ -729,7 +741,7 @@ DefinitenessVerdict enclosure_verdict(BoxEnclosure& enc, PointEval& pe, std::siz
   };
   obj.at = [&](const std::vector<double>& p) { return lambda_max_d(pe(p), n); };
   const BBResult r = branch_and_bound(
-      box, obj, budget, false,
+      box, obj, enc.capped(budget), false,
       [&budget](double ub, double best) {
         // The sign is decided (proven negative, or a point with lambda_max >= 0) and the bound
         // is tight, so the worst point is the worst within relative_gap.

@@ -51,9 +51,13 @@ struct Bound {
 // Branch and bound stops when the proven upper bound is within relative_gap of the largest
 // value found at a point, or after max_boxes box evaluations (the bound stays rigorous, only
 // looser).
+// max_work (0: no limit) also caps the boxes at max_work / (ball operations per box, the
+// compiled tape's length with its mean-value gradients): a deterministic cost cap for large
+// expressions, where each box is expensive.
 struct EnclosureBudget {
   std::size_t max_boxes = 4096;
   double relative_gap = 0.05;
+  std::size_t max_work = 0;
 };
 
 // sup over the box of |e|: rigorous when Arb can evaluate e, else falls back to sampled and

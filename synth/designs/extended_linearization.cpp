@@ -21,7 +21,29 @@ using GiNaC::numeric;
 
 namespace {
 
-constexpr std::size_t kMaxStates = 4;  // n = 5, 6 chains: > 30 s in the family and checks
+// The symbolic construction's cost grows with the size of its expressions, not with n as such
+// (a linear chain of 8 states takes milliseconds; constructed rational chains took 0.2 s at
+// n = 5, 4 s at n = 6, minutes at n = 7). Two deterministic budgets, in expression nodes
+// (symbolic/symbolic.hpp expression_size), bound it:
+// - the closed-form family is abandoned (for its series) once its solution holds more than
+//   kFamilyNodes nodes (chain7: 8000 nodes, 35 s; chain6: 1550 nodes, 0.8 s);
+// - the Ackermann gain schedule (a symbolic inverse of the n x n observability matrix along
+//   the family) is not attempted when A_eps holds more than kJacobianNodes nodes (chain6
+//   closed: 12000 nodes, 1.6 s; chain6 series: 30000, 5 s; chain7 series: 77000, 48 s).
+// - functions nested more than kNesting deep (sin(x - sin(x)/10) is 2 deep) make the zero
+//   test's rewrite and the integrator blow up (an 8-state chain with a sine in every equation:
+//   minutes): such a closed-form family is taken as its series, and such a c_i(eps) is not
+//   integrated in closed form (its series injection instead).
+constexpr std::size_t kFamilyNodes = 4000;
+constexpr std::size_t kJacobianNodes = 20000;
+constexpr int kNesting = 2;
+
+// Depth of nested function calls (sin, exp, ...; powers and products do not count).
+int function_depth(const ex& e) {
+  int d = 0;
+  for (std::size_t i = 0; i < e.nops(); ++i) d = std::max(d, function_depth(e.op(i)));
+  return GiNaC::is_a<GiNaC::function>(e) ? d + 1 : d;
+}
 constexpr int kDefaultOrder = 6;
 constexpr double kTiny = 1e-12;
 
@@ -76,8 +98,10 @@ struct Problem {
 
 // Solve the family one unknown at a time; nullopt when some step is not linear with a
 // coefficient nonzero at the base point.
+// too_large: the solution's size in nodes when it was abandoned past kFamilyNodes.
 std::optional<GiNaC::exmap> closed_family(const Model& m, const Problem& P,
-                                          const GiNaC::symbol& eps, const GiNaC::exmap& params) {
+                                          const GiNaC::symbol& eps, const GiNaC::exmap& params,
+                                          std::size_t& too_large, int& too_deep) {
   GiNaC::exmap sol;
   std::vector<bool> used(P.equations.size(), false);
   std::set<unsigned> solved;
@@ -101,14 +125,27 @@ std::optional<GiNaC::exmap> closed_family(const Model& m, const Problem& P,
         if (!std::isfinite(dv) || std::fabs(dv) < kTiny) continue;
         const ex rest = e.subs(z == 0);
         const ex value = simplify(-rest / d);
-        for (auto& kv : sol) kv.second = simplify(kv.second.subs(z == value));
+        std::size_t nodes = expression_size(value);
+        for (auto& kv : sol) {
+          kv.second = simplify(kv.second.subs(z == value));
+          nodes += expression_size(kv.second);
+        }
         sol[z] = value;
         used[i] = true;
         progress = true;
+        if (nodes > kFamilyNodes) {
+          too_large = nodes;
+          return std::nullopt;
+        }
       }
     }
   }
   if (sol.size() < P.unknowns.size()) return std::nullopt;
+  for (const auto& kv : sol)
+    if (function_depth(kv.second) > kNesting) {
+      too_deep = function_depth(kv.second);
+      return std::nullopt;
+    }
   // Verify: every equation vanishes identically in eps on the family.
   SampleBoxes boxes = SampleBoxes::from_model(m);
   boxes.by_name[eps.get_name()] = Interval{numeric(-1, 20), numeric(1, 20)};
@@ -241,13 +278,6 @@ bool supported(const Model& m, ExtendedLinearization& r) {
         "the output depends on the input (y = h(x, u)); the seed assumes y = h(x)");
     return false;
   }
-  if (m.n() > kMaxStates) {
-    r.failures.push_back(
-        fmt::format("n = {} > {}: the symbolic Ackermann gain schedule is not "
-                    "attempted",
-                    m.n(), kMaxStates));
-    return false;
-  }
   return true;
 }
 
@@ -363,7 +393,19 @@ std::optional<GiNaC::exmap> equilibrium_family(const Model& m, const Problem& P,
                                                ExtendedLinearization& r) {
   std::optional<GiNaC::exmap> fam;
   std::string why;
-  if (ro.family == "auto") fam = closed_family(m, P, r.eps, params);
+  std::size_t too_large = 0;
+  int too_deep = 0;
+  if (ro.family == "auto") fam = closed_family(m, P, r.eps, params, too_large, too_deep);
+  if (too_deep > 0)
+    r.notes.push_back(fmt::format(
+        "the closed-form equilibrium family was abandoned for its series: it nests functions {} "
+        "deep (budget {})",
+        too_deep, kNesting));
+  if (too_large > 0)
+    r.notes.push_back(fmt::format(
+        "the closed-form equilibrium family was abandoned for its series: its expressions grew "
+        "to {} nodes (budget {})",
+        too_large, kFamilyNodes));
   if (fam) {
     r.family_closed = true;
   } else {
@@ -402,6 +444,20 @@ FamilyJacobians family_jacobians(const Model& m, const Problem& P, const GiNaC::
 // Taylor polynomial to eps^(m-1)); false with the failure in r when O_eps is singular.
 bool gain_schedule(const FamilyJacobians& J, int order, ExtendedLinearization& r) {
   const unsigned n = J.A.rows();
+  std::size_t nodes = 0;
+  for (unsigned i = 0; i < n; ++i) {
+    nodes += expression_size(J.H(0, i));
+    for (unsigned j = 0; j < n; ++j) nodes += expression_size(J.A(i, j));
+  }
+  if (nodes > kJacobianNodes) {
+    r.failures.push_back(fmt::format(
+        "the symbolic Ackermann gain schedule is not attempted: A_eps and H_eps along the {} "
+        "family hold {} expression nodes, past the budget of {} (its cost grows with their "
+        "size: minutes beyond it); a simpler model, or fewer states, keeps it in budget",
+        r.family_closed ? "closed-form" : fmt::format("series (order {})", r.family_order), nodes,
+        kJacobianNodes));
+    return false;
+  }
   GiNaC::matrix en(n, 1);
   en(n - 1, 0) = 1;
   const GiNaC::matrix O = linear_observability_matrix(J.A, J.H);
@@ -435,7 +491,9 @@ bool check_charpoly(const Model& m, const FamilyJacobians& J, int order, Extende
     for (unsigned j = 0; j < n; ++j) M(i, j) = J.A(i, j) - r.c_eps[i] * J.H(0, j);
   ex want = 1;
   for (const auto& q : r.poles) want *= lambda - q;
-  const ex diff = GiNaC::expand(M.charpoly(lambda) - want);
+  // GiNaC's charpoly is det(M - lambda I) = (-1)^n det(lambda I - M).
+  const ex sign = n % 2 == 0 ? 1 : -1;
+  const ex diff = GiNaC::expand(sign * M.charpoly(lambda) - want);
   bool ok = true;
   SampleBoxes eboxes = SampleBoxes::from_model(m);
   eboxes.by_name[r.eps.get_name()] = Interval{numeric(-1, 20), numeric(1, 20)};
@@ -473,6 +531,12 @@ bool closed_injection(const GiNaC::exmap& params, ExtendedLinearization& r) {
   const GiNaC::symbol& eps = r.eps;
   ExVec k;
   for (unsigned i = 0; i < r.c_eps.size(); ++i) {
+    if (function_depth(r.c_eps[i]) > kNesting) {
+      r.injection_reason = fmt::format(
+          "c_{}(eps) nests functions {} deep (budget {}): not integrated in closed form", i + 1,
+          function_depth(r.c_eps[i]), kNesting);
+      return false;
+    }
     const Integral I = integrate(r.c_eps[i], eps);
     if (!I.value) {
       r.injection_reason = fmt::format("no antiderivative of c_{}(eps) = {} found: {}", i + 1,

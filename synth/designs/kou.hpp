@@ -7,7 +7,9 @@
 // when certify/enclosure.hpp's interval eigenvalue bound (Gershgorin / midpoint + radius, with
 // bisection) proves it, and is labelled sampled otherwise. L and P are searched on samples
 // (pole placement on the linearisation, Lyapunov P, then Nelder-Mead on the largest sampled
-// eigenvalue divided by sigma_max(P)) when the user gives none, then certified.
+// eigenvalue divided by sigma_max(P)) when the user gives none, then certified. Past 4 states
+// Nelder-Mead scores on an active subset of the samples under an evaluation budget, and the
+// enclosure runs under a work cap (kou.cpp, kExhaustiveStates).
 #pragma once
 
 #include "designs/registry.hpp"

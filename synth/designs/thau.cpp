@@ -288,6 +288,22 @@ constexpr double kRegionTarget = 0.9;
 // fast poles buy little certificate and cost noise gain and integration step.
 constexpr double kMinPole = 0.05, kMaxPole = 20;
 constexpr double kPolePenalty = 1e-4;
+// Past kExhaustiveStates states the search and the region take their budgeted forms (models
+// with n <= 4, the bundled ones among them, keep the exhaustive ones and their outputs):
+// - Q = I unless given. For Hurwitz A_L the solution of A_L^T P + P A_L = -2 Q is
+//   P_Q = 2 int_0^inf e^(A_L^T t) Q e^(A_L t) dt, monotone in Q; Q >= sigma_min(Q) I gives
+//   P_Q >= sigma_min(Q) P_I, so sigma_min(Q)/sigma_max(P_Q) <= 1/sigma_max(P_I): no Q beats I,
+//   and only the poles are searched (grid, then Nelder-Mead on their log magnitudes);
+// - the region's scale is bisected on the sampled M (kBisectionSamples points per scale), and
+//   the rigorous enclosure runs on the chosen region only (shrunk by kShrink and run again when
+//   it does not certify, at most kRigorousAttempts times), each under the work cap kWorkBudget
+//   (ball operations, deterministic); the domain's enclosure is skipped when the sampled M
+//   there already refutes (26).
+constexpr std::size_t kExhaustiveStates = 4;
+constexpr std::size_t kBisectionSamples = 512;
+constexpr int kRigorousAttempts = 6;
+constexpr double kShrink = 0.7;
+constexpr std::size_t kWorkBudget = std::size_t{1} << 23;
 
 // The exact split F(x, u) = A x + B u + phi(x, u), h(x) = C x + c0.
 struct Split {
@@ -442,6 +458,8 @@ struct Result {
   Region domain, region;  // region == domain when the condition holds there
   bool region_found = false;
   bool holds = false, rigorous = false;
+  bool budgeted = false;   // n > kExhaustiveStates: Q = I, budgeted region search
+  std::string not_proven;  // budgeted: why the enclosure did not certify what the samples say
   double margin() const { return ratio - region.M.value; }
   double domain_margin() const { return ratio - domain.M.value; }
 };
@@ -467,7 +485,7 @@ certify::Box scaled_box(const Model& m, const Split& s, double scale) {
 }
 
 // Sampled sup ||D_x phi||_2 over the box (a lower estimate of the Lipschitz constant).
-void sampled_lipschitz(const Model& m, const Split& s, Region& r) {
+void sampled_lipschitz(const Model& m, const Split& s, Region& r, std::size_t count = 4096) {
   const std::size_t n = m.n();
   std::vector<ex> D;
   for (std::size_t j = 0; j < n; ++j)
@@ -480,7 +498,7 @@ void sampled_lipschitz(const Model& m, const Split& s, Region& r) {
   }
   const NumericFunction fn(D, names);
   r.M_sampled = 0;
-  for (const auto& pt : box_samples(ranges, 4096)) {
+  for (const auto& pt : box_samples(ranges, count)) {
     const std::vector<double> v = fn(pt);
     Eigen::MatrixXd J(n, n);
     for (std::size_t j = 0; j < n; ++j)
@@ -501,6 +519,33 @@ Region region_at(const Model& m, const Split& s, double scale, bool sampled_too)
   r.M = certify::lipschitz_bound(s.phi, m.states, r.box);
   if (sampled_too) sampled_lipschitz(m, s, r);
   return r;
+}
+
+// The budgeted form (n > kExhaustiveStates): the sampled M first (4096 points, or `count`),
+// then the enclosure under kWorkBudget unless `rigorous` is false.
+Region budgeted_region_at(const Model& m, const Split& s, double scale, bool rigorous,
+                          std::size_t count = 4096) {
+  Region r;
+  r.scale = scale;
+  r.box = scaled_box(m, s, scale);
+  sampled_lipschitz(m, s, r, count);
+  if (rigorous) {
+    certify::EnclosureBudget budget;
+    budget.max_work = kWorkBudget;
+    r.M = certify::lipschitz_bound(s.phi, m.states, r.box, budget);
+  } else {
+    r.M.value = r.M_sampled;
+    r.M.kind = certify::BoundKind::sampled;
+    r.M.worst_point = r.M_sampled_point;
+    r.M.method = fmt::format("sampled, {} points", count);
+  }
+  return r;
+}
+
+// Sample count of the bisection: the box's corners (up to 2^10) plus kBisectionSamples.
+std::size_t bisection_samples(const Model& m) {
+  const std::size_t d = m.all_symbols().size();
+  return kBisectionSamples + (d <= 10 ? std::size_t{1} << d : 0);
 }
 
 // sigma_min(Q) / sigma_max(P) for P of eq. (21); -inf when A + L c is not Hurwitz.
@@ -686,8 +731,6 @@ std::string options_key(const DesignOptions& o) {
   return k;
 }
 
-constexpr std::size_t kMaxSearchStates = 4;
-
 // Exact poles and L: the poles as given or rounded to 3 significant digits, L by exact
 // Ackermann through the chosen output.
 void exact_gain(const Split& s, const DesignOptions& o, const SearchOutcome& best, Result& r) {
@@ -755,6 +798,68 @@ void solve_P(const Split& s, Result& r) {
                       : -std::numeric_limits<double>::infinity();
 }
 
+// The budgeted region search (n > kExhaustiveStates): sampled M to choose, the enclosure to
+// certify. When no enclosure within its budget proves what the samples say, the region keeps
+// the sampled M (labelled sampled; the verdict is then "sampled only") and not_proven says why.
+void find_region_budgeted(const Model& m, const Split& s, Result& r) {
+  r.domain = budgeted_region_at(m, s, 1.0, false);
+  bool proven = false;
+  if (r.domain.M_sampled < r.ratio) {
+    const Region d = budgeted_region_at(m, s, 1.0, true);
+    if (d.M.kind == certify::BoundKind::rigorous && d.M.value < r.ratio) {
+      r.domain = d;
+      proven = true;
+    } else {
+      r.domain.M.method += fmt::format("; the enclosure's bound {:.6g} ({}: {}) did not prove it",
+                                       d.M.value, certify::bound_kind_name(d.M.kind), d.M.method);
+      r.not_proven = fmt::format("on the whole domain the enclosure gave M <= {:.6g} ({})",
+                                 d.M.value, d.M.method);
+    }
+  } else {
+    r.domain.M.method += " (a lower bound of M: it already refutes (26), no enclosure needed)";
+  }
+  r.region = r.domain;
+  r.region_found = proven;
+  double lo = 0;
+  if (!proven && !r.whole_domain_only && r.ratio > 0) {
+    const std::size_t count = bisection_samples(m);
+    double hi = 1;
+    for (int k = 0; k < kRegionBisections; ++k) {
+      const double mid = (lo + hi) / 2;
+      if (budgeted_region_at(m, s, mid, false, count).M_sampled < kRegionTarget * r.ratio)
+        lo = mid;
+      else
+        hi = mid;
+    }
+    double scale = lo;
+    for (int attempt = 0; scale > 0 && attempt < kRigorousAttempts; ++attempt, scale *= kShrink) {
+      const Region t = budgeted_region_at(m, s, scale, true);
+      if (t.M.kind == certify::BoundKind::rigorous && t.M.value < r.ratio) {
+        r.region = t;
+        r.region_found = proven = true;
+        r.not_proven.clear();
+        break;
+      }
+      r.not_proven = fmt::format(
+          "the enclosure did not prove M < sigma_min(Q)/sigma_max(P) on the whole domain nor on "
+          "{} sub-boxes (scale {:.6g} down to {:.6g}; last: M <= {:.6g}, {})",
+          attempt + 1, lo, scale, t.M.value, t.M.method);
+    }
+  }
+  if (!proven) {
+    // Sampled only: the domain when the samples say (26) holds there, else the bisection's box.
+    if (r.domain_margin() > 0) {
+      r.region = r.domain;
+      r.region_found = true;
+    } else if (lo > 0) {
+      r.region = budgeted_region_at(m, s, lo, false);
+      r.region_found = r.margin() > 0;
+    }
+  }
+  r.holds = r.region_found && r.margin() > 0;
+  r.rigorous = r.region.M.kind == certify::BoundKind::rigorous;
+}
+
 // M on the declared domain, then (unless --thau-region domain) the largest sub-box around x*
 // where (26) holds, by bisection of its scale.
 void find_region(const Model& m, const Split& s, Result& r) {
@@ -786,15 +891,7 @@ Result design(const Model& m, const DesignOptions& o) {
   if (!r.split.not_applicable.empty()) return r;
   const Split& s = r.split;
   const std::size_t n = m.n();
-  // Each candidate's M is a branch and bound over the whole box, and the search tries many:
-  // past kMaxSearchStates states that takes minutes (chain models, n = 6: > 60 s).
-  if (n > kMaxSearchStates && o.find("thau-poles") == nullptr) {
-    r.split.not_applicable = fmt::format(
-        "not searched: n = {} states > {}, where the certified search of poles and Q takes too "
-        "long; give --thau-poles (and --thau-q) to check a chosen observer",
-        n, kMaxSearchStates);
-    return r;
-  }
+  r.budgeted = n > kExhaustiveStates;
   const auto up = chosen_poles(o, n);
   const auto uQ = chosen_Q(o, n);
   r.user_poles = !up.empty();
@@ -807,16 +904,24 @@ Result design(const Model& m, const DesignOptions& o) {
   for (std::size_t j = 0; j < n; ++j)
     c(static_cast<Eigen::Index>(j)) =
         to_eigen(s.C)(static_cast<Eigen::Index>(s.output), static_cast<Eigen::Index>(j));
-  const SearchOutcome best =
-      search(A, c, up, uQ ? std::optional<Eigen::MatrixXd>(to_eigen(*uQ)) : std::nullopt);
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(A.rows(), A.cols());
+  const SearchOutcome best = search(A, c, up,
+                                    uQ           ? std::optional<Eigen::MatrixXd>(to_eigen(*uQ))
+                                    : r.budgeted ? std::optional<Eigen::MatrixXd>(I)
+                                                 : std::nullopt);
   r.choices_tried = best.tried;
 
   // Exact design: poles rounded to 3 significant digits, L by exact Ackermann, Q rounded to
   // 6 digits (or as given), P exact from (21).
   exact_gain(s, o, best, r);
-  r.Q = uQ ? *uQ : exact_Q(best.Q, static_cast<unsigned>(n));
+  r.Q = uQ           ? *uQ
+        : r.budgeted ? GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(static_cast<unsigned>(n)))
+                     : exact_Q(best.Q, static_cast<unsigned>(n));
   solve_P(s, r);
-  find_region(m, s, r);
+  if (r.budgeted)
+    find_region_budgeted(m, s, r);
+  else
+    find_region(m, s, r);
   return r;
 }
 
@@ -880,7 +985,10 @@ std::vector<std::string> verdict_reasons(const Model& m, const Result& r) {
           kRegionBisections, r.margin()));
   }
   if (r.holds && !r.rigorous)
-    out.push_back("M is only a sampled estimate (the enclosure fell back to sampling): not proven");
+    out.push_back(r.not_proven.empty()
+                      ? "M is only a sampled estimate (the enclosure fell back to sampling): not "
+                        "proven"
+                      : "M is only a sampled estimate: not proven; " + r.not_proven);
   return out;
 }
 
@@ -995,7 +1103,11 @@ void report_thau(ObserverSpec& spec, const Result& r, const GiNaC::matrix& L,
                                               kMaxPole, kMinPole))},
       {"L", matrix_text(L)},
       {"Q",
-       fmt::format("{} ({})", matrix_text(r.Q), r.user_Q ? "given with --thau-q" : "searched")},
+       fmt::format("{} ({})", matrix_text(r.Q),
+                   r.user_Q     ? "given with --thau-q"
+                   : r.budgeted ? "I: no Q gives a larger sigma_min(Q)/sigma_max(P) for any L, "
+                                  "since P_Q >= sigma_min(Q) P_I"
+                                : "searched")},
       {"P", fmt::format("{} ({}; Lyapunov residual {:.3g})", matrix_text(to_eigen(r.P)),
                         r.P_exact ? "exact rational solution of (21)" : "numeric solution of (21)",
                         r.lyapunov_residual)},

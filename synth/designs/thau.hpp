@@ -11,7 +11,10 @@
 // phi = F - A x - B u symbolically. M is bounded rigorously (Arb balls, certify/enclosure.hpp)
 // and estimated by sampling, each labelled. The free choices (poles, Q) are searched for the
 // largest sigma_min(Q)/sigma_max(P); when the condition fails on the whole domain, the largest
-// sub-box W around x* (states scaled towards x*) on which it holds is searched.
+// sub-box W around x* (states scaled towards x*) on which it holds is searched. Past 4 states
+// the search is budgeted (thau.cpp, kExhaustiveStates): Q = I (provably optimal), the poles
+// searched, the sub-box chosen on sampled M and only it enclosed, under a work cap; what the
+// enclosure cannot prove within it is reported as sampled.
 #pragma once
 
 #include <Eigen/Dense>
