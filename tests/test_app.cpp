@@ -138,6 +138,33 @@ TEST(Synthesize, AutoOnANonLinearizableModelListsEveryDesignsReason) {
   }
 }
 
+// A design whose build a budget stopped (main.cpp reruns with it excluded): auto takes the next
+// design that applies, and its explanation and the report name the one passed over.
+TEST(Synthesize, AutoPassesOverADesignWhoseBuildStopped) {
+  const Analysis a = analysed("rayleigh");
+  std::string why;
+  const std::vector<ExcludedDesign> excluded = {{"high-gain", "stopped: stage 'x' test"}};
+  std::string choice;
+  const auto m = resolve_methods(a, {"auto"}, why, excluded, &choice);
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_NE(m[0], "high-gain");
+  EXPECT_EQ(choice, m[0]);
+  EXPECT_NE(why.find("high-gain: it applies, but its build stopped: stage 'x' test"),
+            std::string::npos)
+      << why;
+  SynthesisOptions so;
+  so.auto_excluded = excluded;
+  const Synthesis s = synthesize(a, so);
+  EXPECT_EQ(s.chosen, m);
+  bool report = false;
+  for (const auto& f : s.files) {
+    EXPECT_EQ(f.name.find("high-gain"), std::string::npos) << f.name;
+    if (f.name == "rayleigh_report.md")
+      report = f.content.find("but its build stopped: stage 'x' test") != std::string::npos;
+  }
+  EXPECT_TRUE(report);
+}
+
 TEST(Synthesize, TheMainJobWritesTheAutoAliasAndTheReports) {
   SynthesisOptions o;
   o.emit.source_name = "models/slawinski17.sym";

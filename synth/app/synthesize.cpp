@@ -135,8 +135,9 @@ ObserverSpec build_design(const Analysis& a, const std::string& method, const De
 
 namespace {
 
-// The chosen methods' specs. When the design auto chose fails to build (UserError, or a budget
-// stop within this process), auto passes over it and chooses again, with a note on stderr.
+// The chosen methods' specs. When a budget stops the build of the design auto chose (within
+// this process; main.cpp reruns after a worker's time or memory stop), auto passes over it and
+// chooses again, with a note on stderr. Other errors (a bad option value) still end the job.
 std::vector<std::pair<std::string, ObserverSpec>> build_chosen(
     const Analysis& a, const SynthesisOptions& opt, std::vector<ExcludedDesign>& excluded,
     std::vector<std::string>& chosen, std::string& explanation) {
@@ -149,13 +150,9 @@ std::vector<std::pair<std::string, ObserverSpec>> build_chosen(
       publish_stage(method + " design");
       try {
         specs.emplace_back(method, build_design(a, method, opt.design));
-      } catch (const BudgetExceeded& e) {  // a UserError too: caught first
+      } catch (const BudgetExceeded& e) {
         if (method != auto_choice) throw;
         why = fmt::format("stopped: stage '{}' {}", e.stage(), e.reason());
-      } catch (const UserError& e) {
-        if (method != auto_choice) throw;
-        why = "failed: " +
-              (e.diagnostics().empty() ? std::string(e.what()) : e.diagnostics()[0].message);
       }
       if (!why.empty()) {
         failed = method;
@@ -164,7 +161,7 @@ std::vector<std::pair<std::string, ObserverSpec>> build_chosen(
     }
     if (failed.empty()) return specs;
     std::fprintf(stderr,
-                 "obsynth: note: auto chose '%s', but its build %s; trying the next design\n",
+                 "obsynth: note: auto chose '%s', but its build %s; auto tries the next design\n",
                  failed.c_str(), why.c_str());
     excluded.push_back({failed, why});
   }

@@ -12,7 +12,7 @@
 
 namespace obsynth {
 
-// Designs auto passes over, with the reason (their build failed or a budget stopped it).
+// Designs auto passes over, with the reason (a budget stopped their build).
 struct ExcludedDesign {
   std::string method, reason;
 };
