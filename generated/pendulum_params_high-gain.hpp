@@ -9,7 +9,7 @@
 //   h = [x1]
 // Observer: high-gain observer (Gauthier-Hammouri-Kupka; seed 002 eq. 3)
 // theta = 5; poles of A - K C: -2, -5/2; K = [9/2, 5]; Delta_theta K = [45/2, 125]
-// Gain applied by an LU solve with O(xh); O singular -> Status::singular, never (det O = 1)
+// Gain applied by an LU solve with O(xh); O singular or ill-conditioned (smallest LU pivot <= sqrt(epsilon) x largest, in any RK4 stage) -> Status::singular, state kept; O is singular never (det O = 1)
 // Lipschitz constant of phi in z: L = 4.12311 (rigorous); theta* = 9.29128: convergence not guaranteed
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
@@ -131,7 +131,8 @@ struct HighGainFunctions {
 /// High-gain observer (Gauthier-Hammouri-Kupka), realised in the original coordinates:
 ///   xh' = f(xh) + g(xh, u) + O(xh)^-1 Delta_theta K (y - h(xh))
 /// with O = d(h, L_f h, ..., L_f^{n-1} h)/dx and Delta_theta = diag(theta, ..., theta^n); in z = (h, L_f h, ...) this is the
-/// observer zh' = A zh + phi(zh, u) + Delta_theta K (y - zh_1). A step where O(xh) is singular returns Status::singular.
+/// observer zh' = A zh + phi(zh, u) + Delta_theta K (y - zh_1). A step where O(xh) is singular or ill-conditioned returns Status::singular and keeps the state:
+/// in any RK4 stage, the smallest LU pivot of O(xh) is at most sqrt(epsilon) times the largest (epsilon of Scalar; obsynth::lu_conditioning_limit).
 template <class Scalar_ = double>
 class PendulumParamsHighGain {
  public:
