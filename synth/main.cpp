@@ -215,7 +215,9 @@ struct CheckCommand {
   double horizon = 20;
   std::string thetas;
   bool no_timings = false;
-  bool certify = false;  // also the verdicts that are certificate searches (thau, kou)
+  // also the costly verdicts: certificate searches (thau, kou), the symbolic extended
+  // linearization
+  bool certify = false;
   std::vector<std::string> params;
   CommonOptions common;
 };
@@ -243,7 +245,8 @@ CLI::App* add_check(CLI::App& app, CheckCommand& c) {
       ->check(CLI::IsMember({"text", "json", "markdown", "latex"}))
       ->capture_default_str();
   check->add_flag("--certify", c.certify,
-                  "also run the design verdicts that are certificate searches (seconds each)");
+                  "also run the costly design verdicts: certificate searches (thau, kou) and the "
+                  "symbolic extended linearization (up to seconds each)");
   check->add_flag("--no-timings", c.no_timings,
                   "omit stage timings (byte-identical output between runs)");
   check->add_option("--input", c.input,

@@ -31,8 +31,9 @@ nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScop
     }
     if (d.verdict_searches && !scope.searches) {
       j.push_back(not_evaluated(
-          d.name, fmt::format("its verdict is a certificate search (seconds): `obsynth check "
-                              "--certify`, or the main job with --method {}, runs it",
+          d.name, fmt::format("its verdict is a certificate search or a symbolic construction "
+                              "(up to seconds): `obsynth check --certify`, or the main job with "
+                              "--method {}, runs it",
                               d.name)));
       continue;
     }

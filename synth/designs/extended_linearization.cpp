@@ -800,6 +800,9 @@ const ExtendedLinearization& extended_linearization(const Model& m, const Design
 Design extended_linearization_design() {
   Design d;
   d.name = "extended-linearization";
+  // Its verdict builds the design symbolically (family, Ackermann gain schedule, injection):
+  // most of `check`'s time on small models, seconds on larger ones.
+  d.verdict_searches = true;
   d.summary =
       "Extended linearization (Baumann-Rugh, seed 001 §5): nonlinear injection, linearized error "
       "eigenvalues invariant along the equilibrium family";

@@ -184,12 +184,15 @@ check "main job time stop writes nothing" test ! -e "$tmp/job_time"
 "$bin" "$src/models/vanderpol.sym" -o "$tmp/vdp_ft" --method finite-time >"$tmp/out" 2>"$tmp/err"
 check "finite-time backward escape exits 1" test $? -eq 1
 check "finite-time backward escape diagnostic" grep -q "backward simulation over the window T = 1 from the grid point x = (.*) at u = .* leaves the finite numbers" "$tmp/err"
-# check runs the certificate-search verdicts (thau, kou) only with --certify.
+# check runs the costly verdicts (thau, kou: certificate searches; extended-linearization: the
+# symbolic design) only with --certify.
 "$bin" check "$src/models/pendulum.sym" >"$tmp/out" 2>"$tmp/err"
 check "check leaves the searches out" grep -q "^  thau  *not evaluated: its verdict is a certificate search" "$tmp/out"
+check "check leaves the symbolic extended linearization out" grep -q "^  extended-linearization  *not evaluated: its verdict is a certificate search or a symbolic construction" "$tmp/out"
 "$bin" check "$src/models/pendulum.sym" --certify >"$tmp/out" 2>"$tmp/err"
 check "check --certify runs thau's search" grep -q "^  thau  *applies: " "$tmp/out"
 check "check --certify runs kou's search" grep -q "^  kou  *applies: .*(rigorous" "$tmp/out"
+check "check --certify builds extended linearization" grep -q "^  extended-linearization  *applies: constraints (i)-(iii) hold" "$tmp/out"
 # A named method's report evaluates only that design; the others say so.
 "$bin" "$src/models/pendulum.sym" -o "$tmp/named" --method high-gain >"$tmp/out" 2>"$tmp/err"
 check "named method report marks the others" grep -q '| `thau` | not evaluated | only --method high-gain was requested (`obsynth check --certify` evaluates every design)' "$tmp/named/pendulum_report.md"
