@@ -819,8 +819,19 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOpti
   const bool exact = s.update == UpdateKind::linear_exact && !s.rk4_for_linear;
   std::string members;
   const std::string wstate = own_state_type(s) ? "ObserverState" : "State";
-  if (own_state) members += fmt::format("  {} {}_;\n", wstate, s.state_name);
+  // Exact linear step: the observer state goes after the estimate, directly before exact_
+  // (only read in the step). The step loads the state soon after storing state and estimate,
+  // and GCC may load the state's last entry with a vector load that reaches past the state's
+  // end (SLP vectorisation). With the estimate right after the state, that load spans two
+  // pending stores (state and estimate), which store-to-load forwarding cannot serve: the
+  // load waits for both stores to retire, on the step-to-step dependency chain. Measured in
+  // bench/observer (float chain3_stable): 18.8 ns per step with the estimate after the state,
+  // 12.4 ns with it before.
+  const std::string own_member =
+      own_state ? fmt::format("  {} {}_;\n", wstate, s.state_name) : std::string();
+  if (!exact) members += own_member;
   members += "  State xh_;\n";
+  if (exact) members += own_member;
   const bool basis = exact && !s.input_map.empty();
   if (basis)
     members += fmt::format(
