@@ -234,8 +234,8 @@ class FlexibleJointCanonical {
     return exact_.prepare(A, B, dt);
   }
 
-  State zh_;
   State xh_;
+  State zh_;
   obsynth::ExactLinearStep<Scalar, n, 3> exact_;  ///< Phi(dt), Gamma(dt) B of the last dt
   obsynth::Status status_ = obsynth::Status::ok;
 };

@@ -223,8 +223,8 @@ class PendulumParamsCanonical {
     return exact_.prepare(A, dt);
   }
 
-  State zh_;
   State xh_;
+  State zh_;
   obsynth::ExactLinearStep<Scalar, n> exact_;  ///< Phi(dt), Gamma(dt) of the last dt
   Params prm_{};
   obsynth::Status status_ = obsynth::Status::ok;

@@ -197,8 +197,8 @@ class Slawinski17Canonical {
     return exact_.prepare(A, dt);
   }
 
-  State zh_;
   State xh_;
+  State zh_;
   obsynth::ExactLinearStep<Scalar, n> exact_;  ///< Phi(dt), Gamma(dt) of the last dt
   obsynth::Status status_ = obsynth::Status::ok;
 };

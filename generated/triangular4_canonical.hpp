@@ -238,8 +238,8 @@ class Triangular4Canonical {
     return exact_.prepare(A, B, dt);
   }
 
-  State zh_;
   State xh_;
+  State zh_;
   obsynth::ExactLinearStep<Scalar, n, 4> exact_;  ///< Phi(dt), Gamma(dt) B of the last dt
   obsynth::Status status_ = obsynth::Status::ok;
 };
