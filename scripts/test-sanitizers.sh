@@ -13,6 +13,7 @@ export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export LSAN_OPTIONS=suppressions=$PWD/tests/lsan.supp:print_suppressions=0
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" -DOBSYNTH_SANITIZE=ON \
-  -DOBSYNTH_BUILD_TESTS=ON -DOBSYNTH_BUILD_BENCH=OFF -DOBSYNTH_FULL_SUITE=OFF
+  -DOBSYNTH_BUILD_TESTS=ON -DOBSYNTH_BUILD_BENCH=OFF -DOBSYNTH_FULL_SUITE=OFF \
+  -DOBSYNTH_STATIC_GINAC=OFF
 cmake --build build-asan -j "$jobs"
 (cd build-asan && ctest --output-on-failure -j "$jobs" --timeout 900)
