@@ -72,7 +72,8 @@ void add_common(CLI::App* app, CommonOptions& c) {
                               format_memory_size(c.max_memory_bytes)))
       ->type_name("SIZE")
       ->transform(memory_size());
-  app->add_flag("--in-process", c.in_process, "run without the watchdog worker (for debugging)");
+  app->add_flag("--in-process", c.in_process,
+                "run without the watchdog (no time budget; for debugging)");
   app->add_option("--rank-method", c.rank_method,
                   "observability rank: symbolic, jets (Taylor jets at random points), or auto "
                   "(symbolic; jets when the Lie derivatives exceed their budget)")
@@ -106,7 +107,7 @@ void print_stop(const std::string& stage, const std::string& reason) {
   std::fprintf(stderr, "obsynth: error: stage '%s' %s\n", stage.c_str(), reason.c_str());
 }
 
-// Runs a job, turning exceptions into diagnostics and exit codes, under the watchdog.
+// Runs a job, turning exceptions into diagnostics and exit codes, under a watchdog.
 // Every budget stop (time, size, memory; in the analysis, the worker or this process) ends in
 // "obsynth: error: stage 'X' <reason>" and exit 1, after the partial report a checkpoint left.
 // When `stopped` is given, a time or memory stop of the worker fills it instead of printing the
@@ -139,6 +140,9 @@ int guarded(const CommonOptions& c, const std::function<int()>& job,
     }
   };
   if (c.in_process) return run_in_process(body, c.max_memory_bytes);
+  // A stop that ends the process needs no second process: a watchdog thread prints the
+  // checkpoint and the diagnostic itself. Only a caller that goes on after it needs the fork.
+  if (!stopped) return run_watched(body, {c.stage_seconds, c.max_memory_bytes});
   const WorkerResult r = run_in_worker(body, {c.stage_seconds, c.max_memory_bytes});
   if (r.stop != WorkerStop::none) {
     const std::string reason = r.stop == WorkerStop::time

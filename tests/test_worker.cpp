@@ -254,3 +254,63 @@ TEST(WorkerDeathTest, InProcessAbortAfterFailedMallocEndsWithTheDiagnostic) {
       "obsynth: error: stage 'flint' exceeded its memory budget of [0-9.]+ [MG]iB \\(raise it "
       "with --max-memory\\)");
 }
+
+// run_watched: the same limits, enforced by a thread in this process. A stop ends the
+// process, so these run as death tests (each in its own child).
+TEST(WorkerDeathTest, WatchedDeadlinePrintsTheCheckpointAndTheDiagnostic) {
+  EXPECT_EXIT(
+      {
+        dup2(STDERR_FILENO, STDOUT_FILENO);  // the checkpoint goes to stdout: match it too
+        run_watched(
+            [] {
+              publish_stage("slow");
+              publish_checkpoint(std::string("partial: ") + kStopReasonMarker + ".\n");
+              for (;;) pause();
+              return 0;
+            },
+            {0.2, budget});
+        std::exit(0);
+      },
+      ::testing::ExitedWithCode(1),
+      "partial: exceeded its time budget of 0.2 s.*\n.*"
+      "obsynth: error: stage 'slow' exceeded its time budget of 0.2 s");
+}
+
+TEST(WorkerDeathTest, WatchedResidentSetGuard) {
+  SKIP_WITHOUT_ADDRESS_SPACE_LIMIT();
+  EXPECT_EXIT(
+      {
+        run_watched(
+            [] {
+              publish_stage("greedy");
+              rlimit rl{};
+              getrlimit(RLIMIT_AS, &rl);
+              rl.rlim_cur = rl.rlim_max;  // as above: only the resident-set guard is left
+              setrlimit(RLIMIT_AS, &rl);
+              std::vector<char*> kept;
+              for (std::size_t total = 0; total < 3 * budget; total += 4 * MiB) {
+                kept.push_back(static_cast<char*>(std::malloc(4 * MiB)));
+                std::memset(kept.back(), 1, 4 * MiB);
+              }
+              for (;;) pause();
+              return 0;
+            },
+            {30, budget});
+        std::exit(0);
+      },
+      ::testing::ExitedWithCode(1), "obsynth: error: stage 'greedy' exceeded its memory budget");
+}
+
+TEST(Worker, WatchedPassesExitCodesThroughAndEachStageHasItsOwnDeadline) {
+  // Three stages of 0.3 s each under a 0.5 s budget per stage (+ 0.5 s grace): no stop.
+  const int code = run_watched(
+      [] {
+        for (const char* stage : {"a", "b", "c"}) {
+          publish_stage(stage);
+          usleep(300000);
+        }
+        return 7;
+      },
+      {0.5, 0});
+  EXPECT_EQ(code, 7);
+}

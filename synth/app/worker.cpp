@@ -13,8 +13,10 @@
 #include <atomic>
 #include <cerrno>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <cstring>
+#include <mutex>
 #include <thread>
 
 #include "analysis/budget.hpp"
@@ -35,10 +37,13 @@ struct StageBeacon {
 
 namespace {
 
-StageBeacon* g_beacon = nullptr;     // in the child only
-int g_checkpoint_fds[2] = {-1, -1};  // in the child and the parent
-char g_stage[64] = "start";          // this process's last published stage
-std::size_t g_memory_limit = 0;      // RLIMIT_AS applied to this process
+StageBeacon* g_beacon = nullptr;             // in the child only
+int g_checkpoint_fds[2] = {-1, -1};          // in the child and the parent
+char g_stage[64] = "start";                  // this process's last published stage
+std::atomic<long long> g_stage_start_ms{0};  // when it began (steady clock)
+// Guards g_stage and g_process_checkpoint against the watchdog thread of run_watched.
+std::mutex g_process_mutex;
+std::size_t g_memory_limit = 0;  // RLIMIT_AS applied to this process
 // --in-process: the checkpoint and the diagnostic's tail, ready for the signal handler.
 bool g_in_process = false;
 std::string g_process_checkpoint, g_process_reason;
@@ -105,22 +110,26 @@ bool memory_exhausted(int saved_errno) {
   return size + g_memory_limit / 16 >= g_memory_limit;
 }
 
+// Ends this process after a budget stop: the last checkpoint with the reason filled in on
+// stdout, "obsynth: error: stage 'X' <reason>" on stderr, exit 1. Async-signal-safe.
+[[noreturn]] void exit_with_process_stop(const std::string& reason) {
+  write_filled(STDOUT_FILENO, g_process_checkpoint, reason);
+  const char head[] = "obsynth: error: stage '";
+  write_all(STDERR_FILENO, head, sizeof head - 1);
+  write_all(STDERR_FILENO, g_stage, std::strlen(g_stage));
+  write_all(STDERR_FILENO, "' ", 2);
+  write_all(STDERR_FILENO, reason.data(), reason.size());
+  write_all(STDERR_FILENO, "\n", 1);
+  _exit(1);
+}
+
 void on_fatal_signal(int sig) {
   const int saved_errno = errno;
   if (memory_exhausted(saved_errno)) {
     const rlimit no_core{0, 0};
     setrlimit(RLIMIT_CORE, &no_core);
     if (g_beacon) g_beacon->out_of_memory.store(1);
-    if (g_in_process) {
-      write_filled(STDOUT_FILENO, g_process_checkpoint, g_process_reason);
-      const char head[] = "obsynth: error: stage '";
-      write_all(STDERR_FILENO, head, sizeof head - 1);
-      write_all(STDERR_FILENO, g_stage, std::strlen(g_stage));
-      write_all(STDERR_FILENO, "' ", 2);
-      write_all(STDERR_FILENO, g_process_reason.data(), g_process_reason.size());
-      write_all(STDERR_FILENO, "\n", 1);
-      _exit(1);
-    }
+    if (g_in_process) exit_with_process_stop(g_process_reason);
   }
   signal(sig, SIG_DFL);
   raise(sig);
@@ -258,18 +267,24 @@ void watch_child(pid_t pid, StageBeacon& beacon, const WorkerLimits& limits, Wor
 }  // namespace
 
 void publish_stage(const std::string& stage) {
-  std::snprintf(g_stage, sizeof g_stage, "%s", stage.c_str());
+  {
+    const std::lock_guard<std::mutex> lock(g_process_mutex);
+    std::snprintf(g_stage, sizeof g_stage, "%s", stage.c_str());
+  }
+  g_stage_start_ms.store(now_ms());
   if (!g_beacon) return;
   std::snprintf(g_beacon->name, sizeof g_beacon->name, "%s", stage.c_str());
   g_beacon->start_ms.store(now_ms());
 }
 
 std::string current_stage() {
+  const std::lock_guard<std::mutex> lock(g_process_mutex);
   return g_stage;
 }
 
 void publish_checkpoint(const std::string& text) {
   if (g_in_process) {
+    const std::lock_guard<std::mutex> lock(g_process_mutex);
     g_process_checkpoint = text;
     return;
   }
@@ -332,6 +347,58 @@ int run_in_process(const std::function<int()>& job, std::size_t max_memory_bytes
   limit_address_space(max_memory_bytes);
   install_fatal_signal_handlers();
   return job();
+}
+
+namespace {
+
+// The watchdog thread of run_watched: wakes every 5 ms (at once when the job ends), and stops
+// the process when the current stage has run past its deadline or the resident set is above
+// the memory budget. It touches no GiNaC object: only atomics, the guarded stage and
+// checkpoint, and write().
+class WatchdogThread {
+ public:
+  explicit WatchdogThread(const WorkerLimits& limits)
+      : limit_ms_(static_cast<long long>(limits.stage_seconds * 1000.0) + 500),
+        max_rss_(limits.max_memory_bytes),
+        time_reason_(time_budget_reason(limits.stage_seconds)),
+        memory_reason_(memory_budget_reason(limits.max_memory_bytes)),
+        thread_([this] { watch(); }) {}
+  ~WatchdogThread() {
+    {
+      const std::lock_guard<std::mutex> lock(g_process_mutex);
+      done_ = true;
+    }
+    wake_.notify_one();
+    thread_.join();
+  }
+  WatchdogThread(const WatchdogThread&) = delete;
+  WatchdogThread& operator=(const WatchdogThread&) = delete;
+
+ private:
+  void watch() {
+    std::unique_lock<std::mutex> lock(g_process_mutex);
+    for (int tick = 0; !done_; ++tick) {
+      if (now_ms() - g_stage_start_ms.load() > limit_ms_) exit_with_process_stop(time_reason_);
+      if (max_rss_ > 0 && tick % 4 == 0 && statm_bytes("/proc/self/statm", 1) > max_rss_)
+        exit_with_process_stop(memory_reason_);
+      wake_.wait_for(lock, std::chrono::milliseconds(5));
+    }
+  }
+
+  const long long limit_ms_;
+  const std::size_t max_rss_;
+  const std::string time_reason_, memory_reason_;
+  bool done_ = false;  // guarded by g_process_mutex
+  std::condition_variable wake_;
+  std::thread thread_;  // last: starts once the members above are ready
+};
+
+}  // namespace
+
+int run_watched(const std::function<int()>& job, const WorkerLimits& limits) {
+  g_stage_start_ms.store(now_ms());
+  const WatchdogThread watchdog(limits);
+  return run_in_process(job, limits.max_memory_bytes);
 }
 
 }  // namespace obsynth
