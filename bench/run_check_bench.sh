@@ -10,7 +10,7 @@
 #
 # --compare: obsynth check and bench/sympy_check.py (a straightforward SymPy script of the
 # same pipeline) side by side on the issue 6 families (nested: the chain family; dense: the
-# same through x = M w), each under /usr/bin/time -v: median wall time and median peak RSS
+# same through x = M w), each under bench/timed_run: median wall time and median peak RSS
 # over the repeats (defaults 3 for obsynth, 1 for SymPy), and the ratio SymPy / obsynth.
 # SymPy runs under --sympy-timeout (default 300 s) per model; a timeout shows as "> S".
 #
@@ -66,9 +66,10 @@ case "$build" in /*) ;; *) build="$PWD/$build" ;; esac
 obsynth="$build/synth/obsynth"
 summary="$build/bench/check_summary"
 gen="$build/bench/gen_family"
+timed_run="$build/bench/timed_run"
 models="$build/bench/models"
 timebin=/usr/bin/time
-for tool in "$obsynth" "$summary" "$gen"; do
+for tool in "$obsynth" "$summary" "$gen" "$timed_run"; do
   if [ ! -x "$tool" ]; then
     echo "run_check_bench.sh: $tool not found; build first: cmake -S . -B build -G Ninja && ninja -C build" >&2
     exit 1
@@ -81,23 +82,13 @@ fi
 mkdir -p "$out"
 "$gen" "$models"
 
-# timed TIME_FILE OUT_FILE ERR_FILE COMMAND...: runs the command under /usr/bin/time -v (and
-# the address-space limit); prints "<wall s> <peak RSS MiB> <exit status>". Wall time from
-# bash's EPOCHREALTIME (time -v rounds it to 10 ms), peak RSS from time -v.
+# timed TIME_FILE OUT_FILE ERR_FILE COMMAND...: runs the command under bench/timed_run (the
+# address-space limit, wall time from fork to reaping, peak RSS from wait4); prints
+# "<wall s> <peak RSS MiB> <exit status>" and keeps that line in TIME_FILE. A shell subshell
+# with ulimit and /usr/bin/time -v cost 3-4 ms per run itself, most of a small check.
 timed() {
   local tfile="$1" ofile="$2" efile="$3"; shift 3
-  local t0="$EPOCHREALTIME"
-  set +e
-  (
-    ulimit -v $((mem_limit_mib * 1024))
-    exec "$timebin" -v -o "$tfile" "$@" >"$ofile" 2>"$efile"
-  )
-  local rc=$?
-  local t1="$EPOCHREALTIME"
-  set -e
-  awk -v rc="$rc" -v t0="$t0" -v t1="$t1" '
-    /Maximum resident set size/ { m = $NF / 1024 }
-    END { printf "%.3f %.0f %d\n", t1 - t0, m, rc }' "$tfile"
+  "$timed_run" "$mem_limit_mib" "$ofile" "$efile" "$@" | tee "$tfile"
 }
 
 median() {  # numbers on stdin -> their median
