@@ -39,7 +39,8 @@ namespace {
 
 int main(int argc, char** argv) {
   if (argc < 5) {
-    std::fprintf(stderr, "usage: timed_run MEM_LIMIT_MIB STDOUT_FILE STDERR_FILE COMMAND [ARG...]\n");
+    std::fprintf(stderr,
+                 "usage: timed_run MEM_LIMIT_MIB STDOUT_FILE STDERR_FILE COMMAND [ARG...]\n");
     return 2;
   }
   const long long mem_limit_mib = std::atoll(argv[1]);

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/analysis.hpp"
+#include "analysis/flint_mpoly.hpp"
 #include "analysis/flint_products.hpp"
 #include "app/report.hpp"
 #include "emit/dag.hpp"
@@ -286,6 +287,26 @@ TEST(FlintProducts, DotDifferenceMatchesExpand) {
                                       {handle(a)});
   const ex expected = GiNaC::expand(a * b + c * d - d * a);
   EXPECT_TRUE(GiNaC::expand(ring->to_ex(r) - expected).is_zero()) << to_string(ring->to_ex(r));
+}
+
+// The same above FLINT's threshold (the operands' term pairs exceed kFlintProductWork, so the
+// products run in FLINT rather than in the ring), with signed (Laurent) exponents of exp.
+TEST(FlintProducts, LargeProductsInFlintMatchExpand) {
+  GiNaC::symbol x1("x1"), x2("x2"), x3("x3");
+  const Symbols x{x1, x2, x3};
+  const ex a = GiNaC::pow(x1 + 2 * x2 - x3 + numeric(1, 3), 7);
+  const ex b = GiNaC::pow(x1 - x2 + 3 * x3 * GiNaC::exp(-x1) + 5, 7);
+  const ex c = GiNaC::pow(x2 + x3 + 1, 9);
+  const auto ring = PolyRing::for_expressions({a, b, c}, x);
+  ASSERT_TRUE(ring);
+  const Poly pa = *ring->from_ex(a), pb = *ring->from_ex(b), pc = *ring->from_ex(c);
+  ASSERT_GT(pa.terms.size() * pb.terms.size() + pc.terms.size() * pa.terms.size(),
+            kFlintProductWork);
+  FlintProducts flint(ring->variables());
+  const auto ha = flint.add(pa), hb = flint.add(pb), hc = flint.add(pc);
+  const Poly r = flint.dot_difference({ha}, {hb}, {hc}, {ha});
+  const ex expected = GiNaC::expand(a * b - c * a);
+  EXPECT_TRUE(GiNaC::expand(ring->to_ex(r) - expected).is_zero());
 }
 
 }  // namespace

@@ -94,9 +94,15 @@ std::unique_ptr<MPolyContext> MPolyContext::for_polys(const PolyRing& ring,
     c->flint_var_[v] = static_cast<long>(c->ring_var_.size());
     c->ring_var_.push_back(v);
   }
-  c->ctx_ = new fmpq_mpoly_ctx_struct;
-  fmpq_mpoly_ctx_init(c->ctx_, static_cast<slong>(c->ring_var_.size()), ORD_DEGREVLEX);
   return c;
+}
+
+const fmpq_mpoly_ctx_struct* MPolyContext::ctx() const {
+  if (!ctx_) {
+    ctx_ = new fmpq_mpoly_ctx_struct;
+    fmpq_mpoly_ctx_init(ctx_, static_cast<slong>(ring_var_.size()), ORD_DEGREVLEX);
+  }
+  return ctx_;
 }
 
 MPolyContext::~MPolyContext() {

@@ -49,14 +49,28 @@ class MPolyContext {
 
   MPoly to_flint(const Poly& p) const;    // throws PolyOverflow on a variable outside the map
   Poly from_flint(const MPoly& p) const;  // throws PolyOverflow on an exponent > 127
-  const fmpq_mpoly_ctx_struct* ctx() const { return ctx_; }
+  // FLINT's context, created on first use: a small model whose products all stay in the ring
+  // (kFlintProductWork) never loads FLINT (the executable loads it lazily).
+  const fmpq_mpoly_ctx_struct* ctx() const;
 
  private:
   MPolyContext() = default;
-  fmpq_mpoly_ctx_struct* ctx_ = nullptr;
+  mutable fmpq_mpoly_ctx_struct* ctx_ = nullptr;
   std::vector<std::size_t> ring_var_;  // FLINT variable -> ring variable
   std::vector<long> flint_var_;        // ring variable -> FLINT variable, -1 when unused
 };
+
+// Below this many term pairs (sum over the products of |a| |b|) a sum of products is computed
+// in the ring: FLINT's conversions cost as much there, and a model whose products all stay
+// below it never pays FLINT's load (1-1.5 ms of a 5 ms check). Exact either way, so both
+// engines give the same polynomial.
+constexpr std::size_t kFlintProductWork = 2048;
+inline std::size_t product_work(const std::vector<Poly>& a, const std::vector<Poly>& b) {
+  std::size_t w = 0;
+  for (std::size_t j = 0; j < a.size() && j < b.size(); ++j)
+    w += a[j].terms.size() * b[j].terms.size();
+  return w;
+}
 
 // L_f phi = sum_j (d phi / d x_j) f_j with the products in FLINT.
 Poly lie_derivative_flint(const PolyRing& ring, const MPolyContext& ctx, const Poly& phi,

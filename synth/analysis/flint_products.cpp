@@ -9,6 +9,8 @@
 #include <array>
 #include <deque>
 
+#include "analysis/flint_mpoly.hpp"
+
 namespace obsynth {
 
 namespace {
@@ -58,16 +60,28 @@ cln::cl_I to_cl_I(const fmpz_t v) {
 
 }  // namespace
 
+// Every added polynomial is kept in the ring; its FLINT copy (and FLINT's context) is made at
+// the first product large enough for FLINT (kFlintProductWork).
 struct FlintProducts::Impl {
-  fmpq_mpoly_ctx_t ctx;
   std::size_t variables;
-  std::deque<fmpq_mpoly_struct> polys;
-  explicit Impl(std::size_t v) : variables(std::max<std::size_t>(v, 1)) {
-    fmpq_mpoly_ctx_init(ctx, static_cast<slong>(variables), ORD_LEX);
-  }
+  std::vector<Poly> ring;
+  std::deque<fmpq_mpoly_struct> polys;  // FLINT copies, by handle (empty until needed)
+  std::vector<bool> converted;
+  bool ctx_ready = false;
+  fmpq_mpoly_ctx_t ctx;
+  explicit Impl(std::size_t v) : variables(std::max<std::size_t>(v, 1)) {}
   ~Impl() {
-    for (auto& p : polys) fmpq_mpoly_clear(&p, ctx);
+    if (!ctx_ready) return;
+    for (std::size_t h = 0; h < polys.size(); ++h)
+      if (converted[h]) fmpq_mpoly_clear(&polys[h], ctx);
     fmpq_mpoly_ctx_clear(ctx);
+  }
+  const fmpq_mpoly_struct* flint(Handle h);
+  std::size_t work(const std::vector<Handle>& a, const std::vector<Handle>& b) const {
+    std::size_t w = 0;
+    for (std::size_t j = 0; j < a.size(); ++j)
+      w += ring[a[j]].terms.size() * ring[b[j]].terms.size();
+    return w;
   }
 };
 
@@ -77,38 +91,66 @@ FlintProducts::~FlintProducts() = default;
 constexpr long kExponentBias = 128;
 
 FlintProducts::Handle FlintProducts::add(const Poly& p) {
-  impl_->polys.emplace_back();
-  fmpq_mpoly_struct* out = &impl_->polys.back();
-  fmpq_mpoly_init(out, impl_->ctx);
+  impl_->ring.push_back(p);
+  return impl_->ring.size() - 1;
+}
+
+const fmpq_mpoly_struct* FlintProducts::Impl::flint(Handle h) {
+  if (!ctx_ready) {
+    fmpq_mpoly_ctx_init(ctx, static_cast<slong>(variables), ORD_LEX);
+    ctx_ready = true;
+  }
+  while (polys.size() < ring.size()) {
+    polys.emplace_back();
+    converted.push_back(false);
+  }
+  fmpq_mpoly_struct* out = &polys[h];
+  if (converted[h]) return out;
+  fmpq_mpoly_init(out, ctx);
+  converted[h] = true;
   std::array<ulong, kMaxPolyVariables> exps{};
   fmpq_t c;
   fmpq_init(c);
-  for (const auto& [m, coeff] : p.terms) {
+  for (const auto& [m, coeff] : ring[h].terms) {
     // Ring exponents are signed (exp bases are Laurent): biased to be FLINT's unsigned ones.
-    for (std::size_t i = 0; i < impl_->variables; ++i)
+    for (std::size_t i = 0; i < variables; ++i)
       exps[i] = static_cast<ulong>(int{m.e[i]} + kExponentBias);
     set_fmpz(fmpq_numref(c), cln::numerator(coeff));
     set_fmpz(fmpq_denref(c), cln::denominator(coeff));
-    fmpq_mpoly_push_term_fmpq_ui(out, c, exps.data(), impl_->ctx);
+    fmpq_mpoly_push_term_fmpq_ui(out, c, exps.data(), ctx);
   }
   fmpq_clear(c);
-  fmpq_mpoly_sort_terms(out, impl_->ctx);
-  fmpq_mpoly_combine_like_terms(out, impl_->ctx);
-  return impl_->polys.size() - 1;
+  fmpq_mpoly_sort_terms(out, ctx);
+  fmpq_mpoly_combine_like_terms(out, ctx);
+  return out;
 }
 
 Poly FlintProducts::dot_difference(const std::vector<Handle>& a, const std::vector<Handle>& b,
                                    const std::vector<Handle>& c, const std::vector<Handle>& d) {
-  const auto ctx = impl_->ctx;
+  Impl& im = *impl_;
+  if (im.work(a, b) + im.work(c, d) < kFlintProductWork) {
+    auto dot = [&](const std::vector<Handle>& u, const std::vector<Handle>& v) {
+      Poly out;
+      for (std::size_t j = 0; j < u.size(); ++j)
+        PolyRing::add_to(out, PolyRing::product(im.ring[u[j]], im.ring[v[j]]));
+      return out;
+    };
+    Poly out = dot(a, b);
+    PolyRing::subtract_from(out, dot(c, d));
+    return out;
+  }
   fmpq_mpoly_t acc, term;
+  for (const auto& hs : {a, b, c, d})
+    for (Handle h : hs) im.flint(h);
+  const auto ctx = im.ctx;
   fmpq_mpoly_init(acc, ctx);
   fmpq_mpoly_init(term, ctx);
   for (std::size_t j = 0; j < a.size(); ++j) {
-    fmpq_mpoly_mul(term, &impl_->polys[a[j]], &impl_->polys[b[j]], ctx);
+    fmpq_mpoly_mul(term, &im.polys[a[j]], &im.polys[b[j]], ctx);
     fmpq_mpoly_add(acc, acc, term, ctx);
   }
   for (std::size_t j = 0; j < c.size(); ++j) {
-    fmpq_mpoly_mul(term, &impl_->polys[c[j]], &impl_->polys[d[j]], ctx);
+    fmpq_mpoly_mul(term, &im.polys[c[j]], &im.polys[d[j]], ctx);
     fmpq_mpoly_sub(acc, acc, term, ctx);
   }
   Poly out;

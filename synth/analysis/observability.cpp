@@ -232,9 +232,14 @@ bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
     for (const auto& p : field) seen.push_back(&p);
     for (const auto& p : outputs) seen.push_back(&p);
     rows.ctx = MPolyContext::for_polys(ring, seen);
-    std::vector<MPoly> flint_field;
-    if (rows.ctx)
-      for (const auto& p : field) flint_field.push_back(rows.ctx->to_flint(p));
+    std::vector<MPoly> flint_field;  // converted at the first product worth FLINT
+    auto lie_derivative = [&](const Poly& phi, const std::vector<Poly>& grad) {
+      if (!rows.ctx || product_work(grad, field) < kFlintProductWork)
+        return PolyRing::dot(grad, field);
+      if (flint_field.empty())
+        for (const auto& p : field) flint_field.push_back(rows.ctx->to_flint(p));
+      return lie_derivative_flint(ring, *rows.ctx, phi, flint_field);
+    };
     const std::size_t n = m.n();
     rows.grads.assign(m.p(), {});
     for (std::size_t i = 0; i < m.p(); ++i) {
@@ -250,8 +255,7 @@ bool lie_chain_in_ring(const Model& m, Budget& budget, std::vector<ExVec>& lie,
         }
         if (expressions) grads[i].push_back(std::move(row));
         if (k + 1 < n) {
-          phi = rows.ctx ? lie_derivative_flint(ring, *rows.ctx, phi, flint_field)
-                         : PolyRing::dot(grad, field);
+          phi = lie_derivative(phi, grad);
           budget.check(phi.node_estimate());
           if (expressions) chain.push_back(ring.to_ex(phi));
         }
