@@ -32,6 +32,7 @@ using namespace obsynth;
 
 struct CommonOptions {
   double stage_seconds = 60.0;
+  double total_seconds = 60.0;
   std::size_t max_expression_size = 2000000;
   std::size_t max_memory_bytes = default_memory_budget();
   bool in_process = false;
@@ -61,6 +62,11 @@ CLI::Validator memory_size() {
 
 void add_common(CLI::App* app, CommonOptions& c) {
   app->add_option("--stage-seconds", c.stage_seconds, "time budget per analysis stage, in seconds")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app->add_option("--total-seconds", c.total_seconds,
+                  "time budget of the whole run, in seconds: it ends within it (with the results "
+                  "of the stages completed so far, exit 1)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   app->add_option("--max-expression-size", c.max_expression_size,
@@ -110,8 +116,9 @@ void print_stop(const std::string& stage, const std::string& reason) {
 // Runs a job, turning exceptions into diagnostics and exit codes, under a watchdog.
 // Every budget stop (time, size, memory; in the analysis, the worker or this process) ends in
 // "obsynth: error: stage 'X' <reason>" and exit 1, after the partial report a checkpoint left.
-// When `stopped` is given, a time or memory stop of the worker fills it instead of printing the
-// diagnostic, so that the caller can decide what follows.
+// When `stopped` is given, a stage's time or memory stop of the worker fills it instead of
+// printing the diagnostic, so that the caller can decide what follows (a stop of the total time
+// budget ends the run).
 struct JobStop {
   std::string stage, reason;
 };
@@ -142,15 +149,17 @@ int guarded(const CommonOptions& c, const std::function<int()>& job,
   if (c.in_process) return run_in_process(body, c.max_memory_bytes);
   // A stop that ends the process needs no second process: a watchdog thread prints the
   // checkpoint and the diagnostic itself. Only a caller that goes on after it needs the fork.
-  if (!stopped) return run_watched(body, {c.stage_seconds, c.max_memory_bytes});
-  const WorkerResult r = run_in_worker(body, {c.stage_seconds, c.max_memory_bytes});
+  const WorkerLimits limits{c.stage_seconds, c.max_memory_bytes, c.total_seconds};
+  if (!stopped) return run_watched(body, limits);
+  const WorkerResult r = run_in_worker(body, limits);
   if (r.stop != WorkerStop::none) {
-    const std::string reason = r.stop == WorkerStop::time
-                                   ? time_budget_reason(c.stage_seconds)
+    const std::string reason = r.stop == WorkerStop::time ? time_budget_reason(c.stage_seconds)
+                               : r.stop == WorkerStop::total_time
+                                   ? total_time_budget_reason(c.total_seconds)
                                    : memory_budget_reason(c.max_memory_bytes);
     std::fputs(fill_checkpoint(r.checkpoint, reason).c_str(), stdout);
     std::fflush(stdout);
-    if (stopped) {
+    if (stopped && r.stop != WorkerStop::total_time) {  // the total budget admits no rerun
       *stopped = JobStop{r.stage, reason};
       return 1;
     }

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <string>
 #include <vector>
 
 #include "analysis/budget.hpp"
@@ -34,6 +35,11 @@ std::size_t memory_budget() {
   return (bytes + 64 * MiB - 1) / (64 * MiB) * (64 * MiB);
 }
 const std::size_t budget = memory_budget();
+
+// A total budget whose deadline falls `seconds` from now (it counts from the process's start).
+double total_seconds_from_now(double seconds) {
+  return seconds_since_start() + seconds;
+}
 
 // AddressSanitizer reserves terabytes of address space: the worker applies no address-space
 // limit there (synth/app/worker.cpp), so the tests of what that limit triggers do not apply.
@@ -313,4 +319,40 @@ TEST(Worker, WatchedPassesExitCodesThroughAndEachStageHasItsOwnDeadline) {
       },
       {0.5, 0});
   EXPECT_EQ(code, 7);
+}
+
+// The total budget counts from the process's start, across stages (each within its own
+// budget), and stops kTotalMarginMs early.
+TEST(Worker, TotalBudgetStopsAcrossStages) {
+  const WorkerResult r = run_in_worker(
+      [] {
+        for (int k = 0;; ++k) {
+          publish_stage("stage" + std::to_string(k));
+          usleep(200000);
+        }
+        return 0;
+      },
+      {5, budget, total_seconds_from_now(1.0)});
+  EXPECT_EQ(r.stop, WorkerStop::total_time);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.stage, "stage0");
+}
+
+TEST(WorkerDeathTest, WatchedTotalBudget) {
+  EXPECT_EXIT(
+      {
+        run_watched(
+            [] {
+              for (int k = 0;; ++k) {
+                publish_stage("stage" + std::to_string(k));
+                usleep(200000);
+              }
+              return 0;
+            },
+            {5, budget, total_seconds_from_now(1.0)});
+        std::exit(0);
+      },
+      ::testing::ExitedWithCode(1),
+      "stage 'stage[1-9]' exceeded the total time budget of [0-9.]+ s \\(raise it with "
+      "--total-seconds\\)");
 }

@@ -56,6 +56,14 @@ long long now_ms() {
       .count();
 }
 
+const long long g_process_start_ms = now_ms();  // static initialisation: the run's start
+
+// Whether the run has used up its total budget (0: none).
+bool past_total_deadline(double total_seconds) {
+  return total_seconds > 0 && now_ms() - g_process_start_ms >
+                                  static_cast<long long>(total_seconds * 1000.0) - kTotalMarginMs;
+}
+
 // Fields of /proc/<pid>/statm in bytes (0: total program size, 1: resident set); 0 when
 // unreadable. Async-signal-safe (open, read, close).
 std::size_t statm_bytes(const char* path, int field) {
@@ -253,6 +261,7 @@ void watch_child(pid_t pid, StageBeacon& beacon, const WorkerLimits& limits, Wor
         res.stop = WorkerStop::memory;
     }
     if (now_ms() - beacon.start_ms.load() > limit_ms) res.stop = WorkerStop::time;
+    if (past_total_deadline(limits.total_seconds)) res.stop = WorkerStop::total_time;
     if (res.stop != WorkerStop::none) {
       res.stage = beacon.name;
       kill(pid, SIGKILL);
@@ -299,6 +308,18 @@ void publish_checkpoint(const std::string& text) {
   if (pwrite(fd, text.data(), text.size(), 0) != static_cast<ssize_t>(text.size())) return;
   g_beacon->checkpoint_size.store(static_cast<long long>(text.size()));
   g_beacon->checkpoint_slot.store(slot);
+}
+
+double seconds_since_start() {
+  return static_cast<double>(now_ms() - g_process_start_ms) / 1000.0;
+}
+
+std::string total_time_budget_reason(double total_seconds) {
+  char text[128];
+  std::snprintf(text, sizeof text,
+                "exceeded the total time budget of %g s (raise it with --total-seconds)",
+                total_seconds);
+  return text;
 }
 
 std::string fill_checkpoint(const std::string& checkpoint, const std::string& reason) {
@@ -359,8 +380,10 @@ class WatchdogThread {
  public:
   explicit WatchdogThread(const WorkerLimits& limits)
       : limit_ms_(static_cast<long long>(limits.stage_seconds * 1000.0) + 500),
+        total_seconds_(limits.total_seconds),
         max_rss_(limits.max_memory_bytes),
         time_reason_(time_budget_reason(limits.stage_seconds)),
+        total_reason_(total_time_budget_reason(limits.total_seconds)),
         memory_reason_(memory_budget_reason(limits.max_memory_bytes)),
         thread_([this] { watch(); }) {}
   ~WatchdogThread() {
@@ -379,6 +402,7 @@ class WatchdogThread {
     std::unique_lock<std::mutex> lock(g_process_mutex);
     for (int tick = 0; !done_; ++tick) {
       if (now_ms() - g_stage_start_ms.load() > limit_ms_) exit_with_process_stop(time_reason_);
+      if (past_total_deadline(total_seconds_)) exit_with_process_stop(total_reason_);
       if (max_rss_ > 0 && tick % 4 == 0 && statm_bytes("/proc/self/statm", 1) > max_rss_)
         exit_with_process_stop(memory_reason_);
       wake_.wait_for(lock, std::chrono::milliseconds(5));
@@ -386,8 +410,9 @@ class WatchdogThread {
   }
 
   const long long limit_ms_;
+  const double total_seconds_;
   const std::size_t max_rss_;
-  const std::string time_reason_, memory_reason_;
+  const std::string time_reason_, total_reason_, memory_reason_;
   bool done_ = false;  // guarded by g_process_mutex
   std::condition_variable wake_;
   std::thread thread_;  // last: starts once the members above are ready

@@ -34,9 +34,19 @@ void publish_checkpoint(const std::string& text);
 struct WorkerLimits {
   double stage_seconds = 60;         // hard deadline per stage (plus a grace period)
   std::size_t max_memory_bytes = 0;  // address-space limit of the child (0: none)
+  // The whole run, counted from this process's start, ends within this many seconds (0: no
+  // limit): the stop comes kTotalMarginMs early, to leave time for the partial report.
+  double total_seconds = 0;
 };
+constexpr long long kTotalMarginMs = 300;
 
-enum class WorkerStop { none, time, memory };
+enum class WorkerStop { none, time, memory, total_time };
+
+// Seconds since this process started (the origin of WorkerLimits::total_seconds).
+double seconds_since_start();
+
+// "exceeded the total time budget of S s (raise it with --total-seconds)".
+std::string total_time_budget_reason(double total_seconds);
 
 struct WorkerResult {
   int exit_code = 0;

@@ -113,6 +113,27 @@ timed_check "watchdog stop diagnostic" grep -q "stage 'frame' exceeded its time 
 timed_check "watchdog stop keeps the rank" grep -q "generic rank 8 of n = 8" "$tmp/out"
 timed_check "watchdog stop marks the stage" grep -q "frame: stopped: exceeded its time budget of 1 s" "$tmp/out"
 
+# The total time budget ends the whole run within it, whatever the stages' own budgets, with
+# the completed stages' results; it is checked by the watchdog thread (check) and the forked
+# worker (the main job, where it admits no fallback rerun).
+start=$(date +%s)
+"$bin" check "$tmp/expchain.sym" --total-seconds 2 --rank-method symbolic >"$tmp/out" 2>"$tmp/err"
+code=$?
+elapsed=$(( $(date +%s) - start ))
+check "total budget exit code 1" test $code -eq 1
+timed_check "total budget diagnostic" grep -q "stage 'frame' exceeded the total time budget of 2 s (raise it with --total-seconds)" "$tmp/err"
+check "total budget ends the run within it (${elapsed}s)" test $elapsed -le 3
+timed_check "total budget stop keeps the rank" grep -q "generic rank 8 of n = 8" "$tmp/out"
+start=$(date +%s)
+"$bin" "$tmp/expchain.sym" -o "$tmp/job_total" --total-seconds 2 >"$tmp/out" 2>"$tmp/err"
+code=$?
+elapsed=$(( $(date +%s) - start ))
+check "main job total budget exit code 1" test $code -eq 1
+check "main job total budget diagnostic" grep -q "exceeded the total time budget of 2 s" "$tmp/err"
+check "main job total budget: no fallback rerun" sh -c "! grep -q 'note:' '$tmp/err'"
+check "main job total budget within it (${elapsed}s)" test $elapsed -le 3
+check "main job total budget writes nothing" test ! -e "$tmp/job_total"
+
 # Memory budget: an exploding model ends with the memory diagnostic and exit 1, promptly, in
 # the worker and in-process, with the completed stages' results.
 start=$(date +%s)
