@@ -66,11 +66,14 @@ WorkerResult run_in_worker(const std::function<int()>& job, const WorkerLimits& 
 int run_in_process(const std::function<int()>& job, std::size_t max_memory_bytes);
 
 // Runs job() in this process under the same limits as run_in_worker, enforced by a watchdog
-// thread instead of a parent process: at a time or resident-set stop it prints the last
-// checkpoint (with the reason) and "obsynth: error: stage 'X' <reason>", and ends the process
-// with exit 1; memory exhaustion is handled as in run_in_process. For jobs that a stop ends
-// anyway (check, simulate) this saves the fork, 1-2 ms of a 5 ms check; a caller that goes on
-// after a stop (the main job's fallbacks) needs run_in_worker.
+// thread instead of a parent process. At a time (stage or total) or resident-set stop the
+// thread prints the last checkpoint (with the reason) and "obsynth: error: stage 'X'
+// <reason>", and ends the process with exit 1; memory exhaustion is handled as in
+// run_in_process. The thread never interrupts GiNaC (which cannot be interrupted and is not
+// thread-safe): like the parent's SIGKILL it ends the process, touching only atomics, the
+// guarded stage name and checkpoint, and write(). For jobs that a stop ends anyway (check,
+// simulate) this saves the fork, 1-2 ms of a 5 ms check; a caller that goes on after a stop
+// (the main job's fallbacks) needs run_in_worker.
 int run_watched(const std::function<int()>& job, const WorkerLimits& limits);
 
 // The checkpoint with every kStopReasonMarker replaced by reason.
