@@ -4,8 +4,8 @@
 
 #include <cmath>
 #include <limits>
-#include "../../bench/handwritten_seed003.hpp"
 
+#include "../../bench/handwritten_seed003.hpp"
 #include "obsynth/numeric.hpp"
 #include "obsynth/observer.hpp"
 #include "obsynth/status.hpp"
