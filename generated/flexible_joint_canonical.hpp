@@ -183,15 +183,19 @@ class FlexibleJointCanonical {
   /// One step of length dt with u and y held over it (zero-order hold), exact for the
   /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
   /// with c = B b for a constant B: w <- Phi w + (Gamma B) b, Phi and Gamma B recomputed only
-  /// when dt changes.
+  /// when dt changes. On a non-finite zh or estimate the step is rejected (state and estimate
+  /// kept, Status::non_finite).
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
     if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
     typename F::Basis b;
     F::step_basis(u, y, b);  // constant over the step
     const State w = exact_.apply(zh_, b);
-    if (!obsynth::all_finite(w)) return status_ = obsynth::Status::non_finite;
+    State x;
+    F::T_inverse(w, x);
+    if (!obsynth::all_finite(w, x)) return status_ = obsynth::Status::non_finite;
     zh_ = w;
-    return status_ = update_estimate();
+    xh_ = x;
+    return status_ = obsynth::Status::ok;
   }
 
   const State& estimate() const noexcept { return xh_; }
@@ -234,9 +238,9 @@ class FlexibleJointCanonical {
     return exact_.prepare(A, B, dt);
   }
 
-  State xh_;
   State zh_;
   obsynth::ExactLinearStep<Scalar, n, 3> exact_;  ///< Phi(dt), Gamma(dt) B of the last dt
+  State xh_;
   obsynth::Status status_ = obsynth::Status::ok;
 };
 

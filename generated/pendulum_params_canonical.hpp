@@ -174,15 +174,19 @@ class PendulumParamsCanonical {
 
   /// One step of length dt with u and y held over it (zero-order hold), exact for the
   /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
-  /// Phi and Gamma recomputed only when dt changes.
+  /// Phi and Gamma recomputed only when dt changes. On a non-finite zh or estimate the step is
+  /// rejected (state and estimate kept, Status::non_finite).
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
     if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
     State c;
     F::step_constant(u, y, prm_, c);  // constant over the step
     const State w = exact_.apply(zh_, c);
-    if (!obsynth::all_finite(w)) return status_ = obsynth::Status::non_finite;
+    State x;
+    F::T_inverse(w, prm_, x);
+    if (!obsynth::all_finite(w, x)) return status_ = obsynth::Status::non_finite;
     zh_ = w;
-    return status_ = update_estimate();
+    xh_ = x;
+    return status_ = obsynth::Status::ok;
   }
 
   const State& estimate() const noexcept { return xh_; }
@@ -223,9 +227,9 @@ class PendulumParamsCanonical {
     return exact_.prepare(A, dt);
   }
 
-  State xh_;
   State zh_;
   obsynth::ExactLinearStep<Scalar, n> exact_;  ///< Phi(dt), Gamma(dt) of the last dt
+  State xh_;
   Params prm_{};
   obsynth::Status status_ = obsynth::Status::ok;
 };

@@ -117,27 +117,20 @@ class ExactLinearStep {
     dt_ = dt;
     return true;
   }
-  /// w(t + dt) from w(t) and the held input: one pass over the columns,
-  /// r += M_j w_j + G_j c_j (G = Gamma or Gamma B), starting from w (increment form) or from
-  /// the first column. Written out rather than as M_ * w + Gamma_ * c: from N = 8 on, Eigen
-  /// evaluates a fixed-size matrix-vector product by a call into its general GEMV kernel (one
-  /// call per product, with run-time sizes and strides), while these loops have compile-time
-  /// bounds, are unrolled and vectorised by the compiler, and fuse both products and the
-  /// increment into one accumulation.
+  /// w(t + dt) from w(t) and the held input: w + (E w + G c) in single precision (w added last,
+  /// once: the increment keeps its full relative precision; adding the columns to w one by one
+  /// would round against w once per column), M w + G c otherwise (G = Gamma or Gamma B).
+  /// Coefficient-based products (lazyProduct): unrolled with compile-time sizes, scalar or
+  /// packet code as Eigen sees fit, and never a call into Eigen's general GEMV kernel (which a
+  /// plain fixed-size matrix-vector product becomes from N = 8 on, with run-time sizes and
+  /// strides). M w and G c are summed apart and added at the end, so G c (known only after the
+  /// step constant) is off the step-to-step dependency chain through w.
   Vec apply(const Vec& w, const In& c) const noexcept {
-    Vec r;
-    int j0 = 0;
     if constexpr (kIncrement) {
-      r = w;
+      return w + (M_.lazyProduct(w) + Gamma_.lazyProduct(c));
     } else {
-      r = M_.col(0) * w(0) + Gamma_.col(0) * c(0);  // not 0 + ...: the compiler keeps a + 0.0
-      j0 = 1;
+      return M_.lazyProduct(w) + Gamma_.lazyProduct(c);
     }
-    constexpr int common = N < K ? N : K;
-    for (int j = j0; j < common; ++j) r += M_.col(j) * w(j) + Gamma_.col(j) * c(j);
-    for (int j = common; j < N; ++j) r += M_.col(j) * w(j);
-    for (int j = common; j < K; ++j) r += Gamma_.col(j) * c(j);
-    return r;
   }
 
  private:

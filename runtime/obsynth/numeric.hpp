@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <type_traits>
 
 #include "obsynth/eigen.hpp"
 
@@ -35,16 +36,80 @@ inline bool is_finite(Scalar x) noexcept {
   }
 }
 
-/// true when every coefficient of an Eigen expression is finite.
+namespace detail {
+/// The IEEE-754 bit layout of float and double for the branch-free finiteness test:
+/// |x|'s bits (bits & magnitude) are >= the bits of +Inf exactly when x is Inf or NaN, so
+/// (bits & magnitude) + step, with step = 2^(mantissa bits), reaches the sign bit (top) exactly
+/// then; no finite value's sum does. OR-ing these sums over many values tests them all at once.
+template <class Scalar, class = void>
+struct finite_bits {
+  static constexpr bool available = false;
+};
+template <class Scalar>
+struct finite_bits<Scalar, std::enable_if_t<std::numeric_limits<Scalar>::is_iec559 &&
+                                            sizeof(Scalar) == sizeof(std::uint32_t)>> {
+  static constexpr bool available = true;
+  using U = std::uint32_t;
+  static constexpr U magnitude = UINT32_C(0x7fffffff);
+  static constexpr U step = UINT32_C(0x00800000);
+  static constexpr U top = UINT32_C(0x80000000);
+};
+template <class Scalar>
+struct finite_bits<Scalar, std::enable_if_t<std::numeric_limits<Scalar>::is_iec559 &&
+                                            sizeof(Scalar) == sizeof(std::uint64_t)>> {
+  static constexpr bool available = true;
+  using U = std::uint64_t;
+  static constexpr U magnitude = UINT64_C(0x7fffffffffffffff);
+  static constexpr U step = UINT64_C(0x0010000000000000);
+  static constexpr U top = UINT64_C(0x8000000000000000);
+};
+
+/// OR over the coefficients of m of (bits & magnitude) + step: top is set iff one is not finite.
 template <class Derived>
-inline bool all_finite(const Eigen::MatrixBase<Derived>& m) noexcept {
+inline typename finite_bits<typename Derived::Scalar>::U nonfinite_flags(
+    const Eigen::MatrixBase<Derived>& m) noexcept {
   using Scalar = typename Derived::Scalar;
+  using B = finite_bits<Scalar>;
+  typename B::U acc = 0;
   for (Eigen::Index j = 0; j < m.cols(); ++j) {
     for (Eigen::Index i = 0; i < m.rows(); ++i) {
-      if (!is_finite<Scalar>(m.coeff(i, j))) return false;
+      const Scalar x = m.coeff(i, j);
+      typename B::U bits = 0;
+      std::memcpy(&bits, &x, sizeof bits);
+      acc |= (bits & B::magnitude) + B::step;
+    }
+  }
+  return acc;
+}
+
+template <class Derived>
+inline bool all_finite_loop(const Eigen::MatrixBase<Derived>& m) noexcept {
+  for (Eigen::Index j = 0; j < m.cols(); ++j) {
+    for (Eigen::Index i = 0; i < m.rows(); ++i) {
+      if (!std::isfinite(m.coeff(i, j))) return false;
     }
   }
   return true;
+}
+}  // namespace detail
+
+/// true when every coefficient of the Eigen expressions given (one or more, of one scalar type)
+/// is finite. For float and double: one branch-free pass over all of them (the bit test of
+/// is_finite, OR-ed; the usual case, all finite, needs no early exit), robust under
+/// -ffinite-math-only like is_finite.
+template <class Derived, class... More>
+inline bool all_finite(const Eigen::MatrixBase<Derived>& m,
+                       const Eigen::MatrixBase<More>&... more) noexcept {
+  using Scalar = typename Derived::Scalar;
+  static_assert((std::is_same_v<Scalar, typename More::Scalar> && ...),
+                "all_finite: one scalar type for all arguments");
+  using B = detail::finite_bits<Scalar>;
+  if constexpr (B::available) {
+    const typename B::U acc = (detail::nonfinite_flags(m) | ... | detail::nonfinite_flags(more));
+    return (acc & B::top) == 0;
+  } else {
+    return detail::all_finite_loop(m) && (detail::all_finite_loop(more) && ...);
+  }
 }
 
 /// Infinity norm (max |v_i|) of a vector; 0 for an empty vector.

@@ -165,9 +165,9 @@ const char* kStepExact = R"(
   if (!(dt == o->dt) && !discretise(o, dt)) return o->status = {{P}}_non_finite;
   {{step_constant}}(u, y{{PRM}}, c); /* constant over the step */
   for (i = 0; i < N; ++i) {
-    Scalar acc = o->w[i];
+    Scalar acc = {{zero}}; /* the increment E w + Gamma c, added to w once */
     for (j = 0; j < N; ++j) acc += o->E[i * N + j] * o->w[j] + o->Gamma[i * N + j] * c[j];
-    w[i] = acc;
+    w[i] = o->w[i] + acc;
   }
   if (!all_finite(w, N)) return o->status = {{P}}_non_finite;
   for (i = 0; i < N; ++i) o->w[i] = w[i];
@@ -182,10 +182,10 @@ const char* kStepExactBasis = R"(
   if (!(dt == o->dt) && !discretise(o, dt)) return o->status = {{P}}_non_finite;
   {{step_basis}}(u, y{{PRM}}, b); /* constant over the step; c = B b */
   for (i = 0; i < N; ++i) {
-    Scalar acc = o->w[i];
+    Scalar acc = {{zero}}; /* the increment E w + (Gamma B) b, added to w once */
     for (j = 0; j < N; ++j) acc += o->E[i * N + j] * o->w[j];
     for (j = 0; j < K; ++j) acc += o->Gamma[i * K + j] * b[j];
-    w[i] = acc;
+    w[i] = o->w[i] + acc;
   }
   if (!all_finite(w, N)) return o->status = {{P}}_non_finite;
   for (i = 0; i < N; ++i) o->w[i] = w[i];
@@ -855,13 +855,15 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
 std::string step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b) {
   const bool exact = s.update == UpdateKind::linear_exact && !s.rk4_for_linear;
   if (exact && !s.input_map.empty())
-    return render_template(
-        kStepExactBasis,
-        {{"P", b.prefix()}, {"step_basis", b.fn(s.roles.step_basis)}, {"PRM", prm}});
+    return render_template(kStepExactBasis, {{"P", b.prefix()},
+                                             {"step_basis", b.fn(s.roles.step_basis)},
+                                             {"PRM", prm},
+                                             {"zero", b.lit(0)}});
   if (exact)
-    return render_template(
-        kStepExact,
-        {{"P", b.prefix()}, {"step_constant", b.fn(s.roles.step_constant)}, {"PRM", prm}});
+    return render_template(kStepExact, {{"P", b.prefix()},
+                                        {"step_constant", b.fn(s.roles.step_constant)},
+                                        {"PRM", prm},
+                                        {"zero", b.lit(0)}});
   const bool linear = s.update == UpdateKind::linear_exact;
   return render_template(kStepRk4,
                          {{"P", b.prefix()},

@@ -2,7 +2,11 @@
 // Copyright (c) obsynth authors
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
+
 #include "../../bench/handwritten_seed003.hpp"
+#include "obsynth/numeric.hpp"
 #include "obsynth/observer.hpp"
 #include "obsynth/status.hpp"
 
@@ -103,3 +107,38 @@ TEST(Status, NamesAreStable) {
 }
 
 }  // namespace
+
+namespace {
+
+// all_finite over one or several vectors against std::isfinite on every value (an oracle that
+// shares no code with the bit test): every combination of the IEEE-754 edge cases, float,
+// double, and long double (the std::isfinite fallback).
+template <class S>
+int all_finite_mismatches() {
+  using L = std::numeric_limits<S>;
+  const S values[] = {S(0),           -S(0),          L::denorm_min(), -L::denorm_min(),
+                      L::min(),       L::max(),       -L::max(),       L::infinity(),
+                      -L::infinity(), L::quiet_NaN(), -L::quiet_NaN(), L::signaling_NaN(),
+                      S(1),           S(-3.5)};
+  int bad = 0;
+  for (S a : values)
+    for (S b : values)
+      for (S c : values) {
+        const Eigen::Matrix<S, 2, 1> v(a, b);
+        Eigen::Matrix<S, 1, 1> w;
+        w << c;
+        const bool ab = std::isfinite(a) && std::isfinite(b);
+        bad += obsynth::all_finite(v) != ab;
+        bad += obsynth::all_finite(v, w) != (ab && std::isfinite(c));
+        bad += obsynth::all_finite(w, v, w) != (ab && std::isfinite(c));
+      }
+  return bad;
+}
+
+}  // namespace
+
+TEST(Numeric, AllFiniteMatchesIsfiniteOnEdgeCases) {
+  EXPECT_EQ(all_finite_mismatches<float>(), 0);
+  EXPECT_EQ(all_finite_mismatches<double>(), 0);
+  EXPECT_EQ(all_finite_mismatches<long double>(), 0);
+}
