@@ -158,9 +158,24 @@ static int discretise({{P}}_observer* o, Scalar dt) {
 }
 )";
 
+// The end of an exact step: commit w, then compute the estimate from it ...
+const char* kCommitThenEstimate = R"(  if (!all_finite(w, N)) return o->status = {{P}}_non_finite;
+  for (i = 0; i < N; ++i) o->w[i] = w[i];
+  return o->status = update_estimate(o);
+)";
+
+// ... or, with a closed-form estimate, as the C++ step does: the estimate first, then one test
+// of both, so that a non-finite value in either keeps the state and the estimate.
+const char* kEstimateThenCommit = R"(  {{estimate}}(w{{PRM}}, x);
+  if (!all_finite(w, N) || !all_finite(x, {{P}}_n)) return o->status = {{P}}_non_finite;
+  for (i = 0; i < N; ++i) o->w[i] = w[i];
+  for (i = 0; i < {{P}}_n; ++i) o->xh[i] = x[i];
+  return o->status = {{P}}_ok;
+)";
+
 const char* kStepExact = R"(
 {{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
-  Scalar c[N], w[N];
+  Scalar c[N], w[N]{{x_decl}};
   int i, j;
   if (!(dt == o->dt) && !discretise(o, dt)) return o->status = {{P}}_non_finite;
   {{step_constant}}(u, y{{PRM}}, c); /* constant over the step */
@@ -169,15 +184,12 @@ const char* kStepExact = R"(
     for (j = 0; j < N; ++j) acc += o->E[i * N + j] * o->w[j] + o->Gamma[i * N + j] * c[j];
     w[i] = o->w[i] + acc;
   }
-  if (!all_finite(w, N)) return o->status = {{P}}_non_finite;
-  for (i = 0; i < N; ++i) o->w[i] = w[i];
-  return o->status = update_estimate(o);
-}
+{{commit}}}
 )";
 
 const char* kStepExactBasis = R"(
 {{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
-  Scalar b[K], w[N];
+  Scalar b[K], w[N]{{x_decl}};
   int i, j;
   if (!(dt == o->dt) && !discretise(o, dt)) return o->status = {{P}}_non_finite;
   {{step_basis}}(u, y{{PRM}}, b); /* constant over the step; c = B b */
@@ -187,10 +199,7 @@ const char* kStepExactBasis = R"(
     for (j = 0; j < K; ++j) acc += o->Gamma[i * K + j] * b[j];
     w[i] = o->w[i] + acc;
   }
-  if (!all_finite(w, N)) return o->status = {{P}}_non_finite;
-  for (i = 0; i < N; ++i) o->w[i] = w[i];
-  return o->status = update_estimate(o);
-}
+{{commit}}}
 )";
 
 // The discretisation's extra text when c = B b: B, and Gamma B into o->Gamma.
@@ -376,10 +385,12 @@ const char* kCorrection = R"(  {
   return 1;
 )";
 
-const char* kLifecycle = R"(
+const char* kUpdateEstimate = R"(
 static {{P}}_status update_estimate({{P}}_observer* o) {
 {{estimate_body}}}
+)";
 
+const char* kLifecycle = R"({{update_estimate}}
 {{P}}_status {{P}}_reset({{P}}_observer* o, const Scalar* xh0) {
   int i;
   for (i = 0; i < {{P}}_n; ++i) o->xh[i] = xh0[i];
@@ -852,18 +863,38 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
                                                  {"block_checks", checks}});
 }
 
+// The exact step tests state and estimate together when the estimate is a function of the
+// state (as the C++ step does); update_estimate is then not emitted (strict C flags reject an
+// unused static function).
+bool fused_exact_step(const ObserverSpec& s) {
+  return s.update == UpdateKind::linear_exact && !s.rk4_for_linear &&
+         s.estimate == EstimateKind::function;
+}
+
 std::string step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b) {
   const bool exact = s.update == UpdateKind::linear_exact && !s.rk4_for_linear;
-  if (exact && !s.input_map.empty())
-    return render_template(kStepExactBasis, {{"P", b.prefix()},
-                                             {"step_basis", b.fn(s.roles.step_basis)},
-                                             {"PRM", prm},
-                                             {"zero", b.lit(0)}});
-  if (exact)
+  if (exact) {
+    const bool fused = fused_exact_step(s);
+    const std::string commit =
+        fused ? render_template(
+                    kEstimateThenCommit,
+                    {{"P", b.prefix()}, {"estimate", b.fn(s.roles.estimate)}, {"PRM", prm}})
+              : render_template(kCommitThenEstimate, {{"P", b.prefix()}});
+    const std::string x_decl = fused ? fmt::format(", x[{}_n]", b.prefix()) : "";
+    if (!s.input_map.empty())
+      return render_template(kStepExactBasis, {{"P", b.prefix()},
+                                               {"step_basis", b.fn(s.roles.step_basis)},
+                                               {"PRM", prm},
+                                               {"zero", b.lit(0)},
+                                               {"x_decl", x_decl},
+                                               {"commit", commit}});
     return render_template(kStepExact, {{"P", b.prefix()},
                                         {"step_constant", b.fn(s.roles.step_constant)},
                                         {"PRM", prm},
-                                        {"zero", b.lit(0)}});
+                                        {"zero", b.lit(0)},
+                                        {"x_decl", x_decl},
+                                        {"commit", commit}});
+  }
   const bool linear = s.update == UpdateKind::linear_exact;
   return render_template(kStepRk4,
                          {{"P", b.prefix()},
@@ -1121,8 +1152,14 @@ std::string c_lifecycle_and_step(const Model& m, const ObserverSpec& s, CBuilder
   if (exact) init_body += fmt::format("  o->dt = {};\n", b.lit(0));
   std::vector<std::string> zeros(m.n(), b.lit(0));
   if (jets) src += jets_support_text(s, b, opt.precision);
+  const std::string update_estimate =
+      fused_exact_step(s)
+          ? ""
+          : render_template(
+                kUpdateEstimate,
+                {{"P", b.prefix()}, {"estimate_body", estimate_body(s, prm, b, opt.precision)}});
   src += render_template(kLifecycle, {{"P", b.prefix()},
-                                      {"estimate_body", estimate_body(s, prm, b, opt.precision)},
+                                      {"update_estimate", update_estimate},
                                       {"reset_body", reset_body},
                                       {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
                                       {"init_body", init_body}});
