@@ -239,6 +239,9 @@ const char* kStepLinearExactBasis =
 // The exact steps when the estimate is a closed-form function of w (no Newton): w and
 // x = estimate(w) are computed first and tested together, so that a non-finite value in either
 // keeps both the observer state and the estimate (one branch-free test instead of two loops).
+// Without an input map the new state is stored before the estimate reads it, and the old one
+// restored on a rejection: computed into a local first, GCC kept it vectorised and rebuilt its
+// entries in scalar code for the estimate (float n = 2: 1.04 of the expert step, now 0.97).
 const char* kStepLinearExactFused =
     R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
   /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
@@ -248,11 +251,14 @@ const char* kStepLinearExactFused =
     if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
     State c;
     F::{{step_constant}}(u, y{{P}}, c);  // constant over the step
-    const State w = exact_.apply({{w}}_, c);
+    const State before = {{w}}_;  // the new state is stored at once, restored on a rejection
+    {{w}}_ = exact_.apply(before, c);
     State x;
-    F::{{estimate}}(w{{P}}, x);
-    if (!obsynth::all_finite(w, x)) return status_ = obsynth::Status::non_finite;
-    {{w}}_ = w;
+    F::{{estimate}}({{w}}_{{P}}, x);
+    if (!obsynth::all_finite({{w}}_, x)) {
+      {{w}}_ = before;
+      return status_ = obsynth::Status::non_finite;
+    }
     xh_ = x;
     return status_ = obsynth::Status::ok;
   }
