@@ -150,11 +150,14 @@ class VanderpolCanonical {
     if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
     State c;
     F::step_constant(u, y, c);  // constant over the step
-    const State w = exact_.apply(zh_, c);
+    const State before = zh_;  // the new state is stored at once, restored on a rejection
+    zh_ = exact_.apply(before, c);
     State x;
-    F::T_inverse(w, x);
-    if (!obsynth::all_finite(w, x)) return status_ = obsynth::Status::non_finite;
-    zh_ = w;
+    F::T_inverse(zh_, x);
+    if (!obsynth::all_finite(zh_, x)) {
+      zh_ = before;
+      return status_ = obsynth::Status::non_finite;
+    }
     xh_ = x;
     return status_ = obsynth::Status::ok;
   }
