@@ -57,6 +57,22 @@ constexpr bool kSanitized = false;
 #define SKIP_WITHOUT_ADDRESS_SPACE_LIMIT() \
   if (kSanitized) GTEST_SKIP() << "no address-space limit under AddressSanitizer"
 
+// In stage "greedy": lifts the address-space limit (the watchdogs lower only the soft one), so
+// that only the resident-set guard is left, then touches 3x the budget and waits to be stopped.
+[[noreturn]] void grow_resident_set_past_the_limit() {
+  publish_stage("greedy");
+  rlimit rl{};
+  getrlimit(RLIMIT_AS, &rl);
+  rl.rlim_cur = rl.rlim_max;
+  setrlimit(RLIMIT_AS, &rl);
+  std::vector<char*> kept;
+  for (std::size_t total = 0; total < 3 * budget; total += 4 * MiB) {
+    kept.push_back(static_cast<char*>(std::malloc(4 * MiB)));
+    std::memset(kept.back(), 1, 4 * MiB);
+  }
+  for (;;) pause();
+}
+
 // Takes address space until malloc fails; returns the blocks (never touched, so never resident).
 std::vector<void*> exhaust_address_space() {
   std::vector<void*> blocks;
@@ -222,17 +238,7 @@ TEST(Worker, ResidentSetGuardStopsAChildThatLiftedItsLimit) {
   SKIP_WITHOUT_ADDRESS_SPACE_LIMIT();
   const WorkerResult r = run_in_worker(
       [] {
-        publish_stage("greedy");
-        rlimit rl{};
-        getrlimit(RLIMIT_AS, &rl);
-        rl.rlim_cur = rl.rlim_max;  // the worker lowers only the soft limit
-        setrlimit(RLIMIT_AS, &rl);
-        std::vector<char*> kept;
-        for (std::size_t total = 0; total < 3 * budget; total += 4 * MiB) {
-          kept.push_back(static_cast<char*>(std::malloc(4 * MiB)));
-          std::memset(kept.back(), 1, 4 * MiB);
-        }
-        for (;;) pause();
+        grow_resident_set_past_the_limit();
         return 0;
       },
       {30, budget});
@@ -288,17 +294,7 @@ TEST(WorkerDeathTest, WatchedResidentSetGuard) {
       {
         run_watched(
             [] {
-              publish_stage("greedy");
-              rlimit rl{};
-              getrlimit(RLIMIT_AS, &rl);
-              rl.rlim_cur = rl.rlim_max;  // as above: only the resident-set guard is left
-              setrlimit(RLIMIT_AS, &rl);
-              std::vector<char*> kept;
-              for (std::size_t total = 0; total < 3 * budget; total += 4 * MiB) {
-                kept.push_back(static_cast<char*>(std::malloc(4 * MiB)));
-                std::memset(kept.back(), 1, 4 * MiB);
-              }
-              for (;;) pause();
+              grow_resident_set_past_the_limit();
               return 0;
             },
             {30, budget});
