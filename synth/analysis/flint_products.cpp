@@ -140,8 +140,8 @@ Poly FlintProducts::dot_difference(const std::vector<Handle>& a, const std::vect
     return out;
   }
   fmpq_mpoly_t acc, term;
-  for (const auto& hs : {a, b, c, d})
-    for (Handle h : hs) im.flint(h);
+  for (const std::vector<Handle>* hs : {&a, &b, &c, &d})  // convert once, without copies
+    for (Handle h : *hs) im.flint(h);
   const auto ctx = im.ctx;
   fmpq_mpoly_init(acc, ctx);
   fmpq_mpoly_init(term, ctx);
