@@ -16,6 +16,18 @@
 
 namespace obsynth {
 
+const char* guarantee_name(Guarantee g) {
+  switch (g) {
+    case Guarantee::rigorous:
+      return "rigorous";
+    case Guarantee::partial:
+      return "partial";
+    case Guarantee::none:
+      break;
+  }
+  return "none";
+}
+
 std::string Verdict::text() const {
   return fmt::format("{}", fmt::join(reasons, "; "));
 }

@@ -12,11 +12,22 @@
 
 namespace obsynth {
 
+// How strongly a design's own certificate guarantees convergence on this model. `--method auto`
+// ranks the designs that apply by it first, then by cost (registry order).
+enum class Guarantee {
+  none,      // the design applies, but its certificate proves nothing here (or has none)
+  partial,   // proved on a sub-box only, or a bound from samples (labelled "sampled")
+  rigorous,  // a proven enclosure over the whole domain box
+};
+const char* guarantee_name(Guarantee g);
+
 // Whether a design's theorem applies to an analysed model, and why (or why not).
 struct Verdict {
   bool applies = false;
   std::vector<std::string> reasons;
-  std::string text() const;  // reasons joined with "; "
+  Guarantee guarantee = Guarantee::none;
+  std::string guarantee_text;  // one line: what is proved, where, and how (rigorous / sampled)
+  std::string text() const;    // reasons joined with "; "
 };
 
 struct Design {
