@@ -1,5 +1,9 @@
 #include "front/model.hpp"
 
+#include <fmt/format.h>
+
+#include "front/fresh_names.hpp"
+
 namespace obsynth {
 
 std::vector<GiNaC::symbol> Model::free_params() const {
@@ -37,11 +41,52 @@ bool Model::feedthrough() const {
   return false;
 }
 
+ExVec Model::measured_outputs() const {
+  ExVec y = h;
+  for (std::size_t i = 0; i < output_offset.size() && i < y.size(); ++i) y[i] += output_offset[i];
+  return y;
+}
+
 GiNaC::exmap Model::nominal_inputs() const {
   GiNaC::exmap out;
   for (std::size_t i = 0; i < inputs.size(); ++i)
     out[inputs[i]] = i < nominal.size() ? GiNaC::ex(nominal[i]) : GiNaC::ex(0);
   return out;
+}
+
+// fresh_names.hpp
+
+bool has_name(const Model& m, const std::string& name) {
+  for (const auto* list : {&m.states, &m.inputs})
+    for (const auto& s : *list)
+      if (s.get_name() == name) return true;
+  for (const auto& p : m.params)
+    if (p.name == name || p.symbol.get_name() == name) return true;
+  return false;
+}
+
+GiNaC::symbol fresh_symbol(const Model& m, std::string stem) {
+  while (has_name(m, stem)) stem += "_";
+  return GiNaC::symbol(stem);
+}
+
+std::vector<GiNaC::symbol> fresh_symbols(const Model& m, std::string stem, std::size_t count,
+                                         std::size_t first) {
+  const auto taken = [&](const std::string& s) {
+    for (std::size_t k = first; k < first + count; ++k)
+      if (has_name(m, fmt::format("{}{}", s, k))) return true;
+    return false;
+  };
+  while (taken(stem)) stem += "_";
+  std::vector<GiNaC::symbol> out;
+  for (std::size_t k = first; k < first + count; ++k)
+    out.emplace_back(fmt::format("{}{}", stem, k));
+  return out;
+}
+
+std::vector<GiNaC::symbol> measurement_symbols(const Model& m) {
+  if (m.p() == 1) return {fresh_symbol(m, "y")};
+  return fresh_symbols(m, "y", m.p());
 }
 
 }  // namespace obsynth

@@ -43,6 +43,9 @@ struct Model {
   ExVec f;  // drift, g(x,u0) = 0 split off
   ExVec g;  // input part, zero at u = u0 (0 unless nominal)
   ExVec h;  // outputs h(x) or h(x,u) (direct feedthrough)
+  // A separable feedthrough y = h0(x) + k(u) is analysed as h = h0(x) with output_offset = k(u)
+  // (set by analyse(), empty otherwise): every design then observes y - k(u).
+  ExVec output_offset;
   // The nominal input u0 (one value per input) at which a field given as `F` was split:
   // f = F(x,u0), g = F(x,u) - F(x,u0). Empty: u0 = 0 (design.md §1). nominal_note says how u0
   // was chosen (a `nominal` line, or automatically because F is undefined at u = 0).
@@ -65,8 +68,10 @@ struct Model {
   Interval box(const GiNaC::symbol& s) const;
   // f + g
   ExVec field() const;
-  // Some output depends on an input (y = h(x,u)).
+  // Some output depends on an input (y = h(x,u)); h0(x) + k(u) split off does not count.
   bool feedthrough() const;
+  // The measured outputs: h, plus output_offset when the feedthrough was split off.
+  ExVec measured_outputs() const;
   // u -> u0 (0 when no nominal input was set).
   GiNaC::exmap nominal_inputs() const;
 };

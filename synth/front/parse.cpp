@@ -27,16 +27,6 @@ constexpr long kMaxEvaluationBits = 1L << 24;  // exact evaluation of whole expr
 const char* const kFunctions[] = {"sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "atan"};
 const char* const kKeywords[] = {"model", "states", "inputs", "params",  "f",     "g",
                                  "h",     "F",      "domain", "nominal", "option"};
-// Names the analysis uses for its own symbols (output, canonical coordinates, time).
-bool is_reserved_name(const std::string& s) {
-  if (s == "y" || s == "t") return true;
-  if (s.size() > 1 && (s[0] == 'z' || s[0] == 'y') &&
-      std::all_of(s.begin() + 1, s.end(),
-                  [](char c) { return std::isdigit(static_cast<unsigned char>(c)); }))
-    return true;
-  return false;
-}
-
 std::size_t edit_distance(const std::string& a, const std::string& b) {
   std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
   for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
@@ -85,8 +75,9 @@ class Lexer {
         continue;
       }
       if (c == '\n') {
-        // Newlines inside brackets continue the statement.
-        if (open.empty() && !out.empty() && out.back().kind != Tok::newline)
+        // Newlines inside brackets, and after a ',', continue the statement.
+        if (open.empty() && !out.empty() && out.back().kind != Tok::newline &&
+            !ends_with_comma(out))
           out.push_back({Tok::newline, "\\n", line_, col_});
         advance();
         continue;
@@ -131,6 +122,10 @@ class Lexer {
   }
 
  private:
+  static bool ends_with_comma(const std::vector<Token>& out) {
+    return !out.empty() && out.back().kind == Tok::op && out.back().text == ",";
+  }
+
   // A number literal at (l, k): digits and dots, then an exponent if one follows.
   Token number(int l, int k) {
     std::string s;
@@ -225,13 +220,15 @@ std::vector<ModelOption> take_option_lines(std::string& src, const std::string& 
   std::vector<ModelOption> out;
   std::size_t start = 0;
   int line = 1;
-  int depth = 0;  // inside a bracketed list an "option" word is an expression
+  int depth = 0;           // inside a bracketed list an "option" word is an expression
+  bool continues = false;  // so it is after a line that ends with ',' (the list goes on)
   while (start <= src.size()) {
     std::size_t end = src.find('\n', start);
     if (end == std::string::npos) end = src.size();
     std::size_t i = start;
     while (i < end && (src[i] == ' ' || src[i] == '\t')) ++i;
-    const bool is_option = depth == 0 && end - i > 6 && src.compare(i, 6, "option") == 0 &&
+    const bool is_option = depth == 0 && !continues && end - i > 6 &&
+                           src.compare(i, 6, "option") == 0 &&
                            (src[i + 6] == ' ' || src[i + 6] == '\t');
     if (is_option) {
       std::size_t stop = src.find('#', i);
@@ -267,11 +264,14 @@ std::vector<ModelOption> take_option_lines(std::string& src, const std::string& 
       out.push_back({name, value, loc});
       for (std::size_t q = start; q < end; ++q) src[q] = ' ';
     } else {
+      char last = 0;  // the line's last character outside comments and blanks
       for (std::size_t q = i; q < end; ++q) {
         if (src[q] == '#') break;
         if (src[q] == '[' || src[q] == '(') ++depth;
         if ((src[q] == ']' || src[q] == ')') && depth > 0) --depth;
+        if (src[q] != ' ' && src[q] != '\t' && src[q] != '\r') last = src[q];
       }
+      if (last) continues = last == ',';
     }
     start = end + 1;
     ++line;
@@ -375,6 +375,28 @@ class Parser {
       fail(peek(), fmt::format("expected '{}' {}, found {}", c, what, describe(peek())));
     return next();
   }
+  static bool is_keyword(const std::string& s) {
+    return std::find(std::begin(kKeywords), std::end(kKeywords), s) != std::end(kKeywords);
+  }
+
+  // A ',' between the items of a statement's list. A line that ends with ',' continues on the
+  // next line (the lexer drops that line break), so what follows must be the next item: not
+  // the end of the file, nor a statement keyword on a later line (a stray trailing ',').
+  bool accept_list_comma(const std::string& stmt) {
+    if (!accept_op(',')) return false;
+    check_item_follows(toks_[i_ - 1], stmt);
+    return true;
+  }
+  void check_item_follows(const Token& comma, const std::string& stmt) const {
+    const Token& t = peek();
+    if (t.kind == Tok::newline || t.kind == Tok::end)
+      fail(comma, fmt::format("the '{}' list ends with ',': expected another item after it", stmt));
+    if (t.line > comma.line && t.kind == Tok::ident && is_keyword(t.text))
+      fail(comma, fmt::format("the '{}' line ends with ',', so it continues on line {}, but that "
+                              "line starts a '{}' statement; remove the trailing ','",
+                              stmt, t.line, t.text));
+  }
+
   void expect_end_of_statement(const char* stmt) {
     if (peek().kind == Tok::newline) {
       ++i_;
@@ -413,6 +435,8 @@ class Parser {
     expect_end_of_statement("model");
   }
 
+  // y, t, z1, D, I, Pi, ... are ordinary names here: nothing below reads GiNaC's constants,
+  // and the stages name their own symbols around the model's (front/fresh_names.hpp).
   void check_new_name(const Token& t) {
     const std::string& s = t.text;
     if (is_supported_function(s) || s == "pow" || s == "abs")
@@ -422,12 +446,6 @@ class Parser {
       fail(t, fmt::format("'{}' is a keyword and cannot name a symbol", s));
     if (s == "f" || s == "g" || s == "h" || s == "F")
       fail(t, fmt::format("'{}' names a vector field and cannot name a symbol", s));
-    if (is_reserved_name(s))
-      fail(t, fmt::format("'{}' is reserved (y, y1.., z1.., t name the output, canonical "
-                          "coordinates and time in reports)",
-                          s));
-    if (s == "I" || s == "Pi" || s == "Euler" || s == "Catalan" || s == "D")
-      fail(t, fmt::format("'{}' is reserved by the expression syntax", s));
     auto it = names_.find(s);
     if (it != names_.end())
       fail(t, fmt::format("duplicate name '{}': already declared as a {} at {}:{}", s,
@@ -440,7 +458,10 @@ class Parser {
     bool any = false;
     while (peek().kind != Tok::newline && peek().kind != Tok::end) {
       const Token& t = next();
-      if (t.kind == Tok::op && t.text == "," && any) continue;
+      if (t.kind == Tok::op && t.text == "," && any) {
+        check_item_follows(t, kw.text);
+        continue;
+      }
       if (t.kind != Tok::ident)
         fail(t, fmt::format("expected a name in '{}', found {}", kw.text, describe(t)));
       check_new_name(t);
@@ -468,7 +489,7 @@ class Parser {
       }
       names_.emplace(t.text, Declared{Declared::param, p.symbol, loc(t)});
       model_.params.push_back(p);
-    } while (accept_op(','));
+    } while (accept_list_comma("params"));
     expect_end_of_statement("params");
   }
 
@@ -576,7 +597,7 @@ class Parser {
         fail(lo_t,
              fmt::format("empty interval for '{}': lower bound must be below the upper", t.text));
       model_.domain[t.text] = Interval{lo, hi};
-    } while (accept_op(','));
+    } while (accept_list_comma("domain"));
     expect_end_of_statement("domain");
   }
 
@@ -602,7 +623,7 @@ class Parser {
       const numeric v =
           numeric_value(expression(), at, fmt::format("the nominal value of '{}'", t.text));
       nominal_->push_back({it->second.sym, v, loc(at)});
-    } while (accept_op(','));
+    } while (accept_list_comma("nominal"));
     expect_end_of_statement("nominal");
   }
 

@@ -2,6 +2,19 @@
 // recursive-descent parser building GiNaC expressions directly, with real source positions,
 // exact rationals for decimals, a function whitelist and a nesting cap.
 //
+// Line breaks end a statement, except inside brackets (a bracketed list may span lines) and
+// after a ',': a line that ends with ',' continues on the next, so any list (states, inputs,
+// params, domain, nominal) may be wrapped after a comma:
+//   domain x1 in [-2, 2],
+//          x2 in [-2, 2]
+// A trailing ',' followed by a new statement, or by the end of the file, is a diagnostic at
+// the ','.
+//
+// Names: any identifier but the statement keywords, f g h F and the function names. Names the
+// analysis uses for its own symbols (the output y, canonical coordinates z1.., time t) and
+// GiNaC's constant names (I, Pi, Euler, Catalan) are the user's to take: the stages' own
+// symbols give way (front/fresh_names.hpp) and the emitters escape C/C++ identifiers.
+//
 // Extensions of design.md §2 (issue 8):
 //   h = [ x1 + u ]          outputs may depend on the inputs (direct feedthrough); they must be
 //                           defined at the nominal input, where the drift analysis reads them.
