@@ -388,31 +388,156 @@ numeric term_scale(const ex& e, const GiNaC::exmap& pt, int digits) {
 }
 }  // namespace
 
-ZeroVerdict zero_test(const ex& e, const SampleBoxes& boxes, const ZeroTestOptions& opt) {
-  if (e.is_zero()) return ZeroVerdict::proved;
+namespace {
+
+constexpr int kDecades = 12;                // scaled points: box fractions 10^-1 .. 10^-12
+constexpr std::size_t kMaxArguments = 8;    // arguments given points of their own
+constexpr std::size_t kMaxVisits = 100000;  // nodes visited when collecting them
+
+// A fraction in [10^-d, 10^(1-d)), with a large prime denominator.
+numeric decade_fraction(int d, std::uint64_t& state) {
+  const long p = 1000003;
+  const long j = static_cast<long>(splitmix(state) % static_cast<std::uint64_t>(p));
+  return (1 + numeric(9 * j, p)) / numeric(10).power(d);
+}
+
+// The box's point nearest 0, moved a fraction of the box towards one of its ends.
+numeric towards_box(const Interval& b, const numeric& fraction, std::uint64_t& state) {
+  const bool straddles = !b.lo.is_positive() && !b.hi.is_negative();
+  const numeric anchor = straddles ? numeric(0) : b.lo.is_positive() ? b.lo : b.hi;
+  const bool up = anchor == b.lo || (anchor != b.hi && (splitmix(state) & 1));
+  return up ? anchor + (b.hi - anchor) * fraction : anchor - (anchor - b.lo) * fraction;
+}
+
+std::vector<GiNaC::exmap> decade_points(const std::vector<GiNaC::symbol>& symbols,
+                                        const SampleBoxes& boxes, std::uint64_t& state) {
+  std::vector<GiNaC::exmap> out;
+  for (int d = 1; d <= kDecades; ++d) {
+    GiNaC::exmap pt;
+    for (const auto& s : symbols)
+      pt[s] = towards_box(boxes.box(s), decade_fraction(d, state), state);
+    out.push_back(pt);
+  }
+  return out;
+}
+
+bool is_steep_function(const ex& e) {
+  if (!is_a<GiNaC::function>(e)) return false;
+  const std::string name = ex_to<GiNaC::function>(e).get_name();
+  return name == "sin" || name == "cos" || name == "tan" || name == "tanh" || name == "exp" ||
+         name == "atan" || name == "log";
+}
+
+// Distinct arguments of the functions above, innermost last; stops after kMaxVisits nodes (a
+// shared subtree is visited once per occurrence).
+void collect_arguments(const ex& e, GiNaC::exset& seen, std::vector<ex>& args,
+                       std::size_t& visits) {
+  if (++visits > kMaxVisits || args.size() >= kMaxArguments) return;
+  if (is_steep_function(e) && e.nops() == 1 && seen.insert(e.op(0)).second) args.push_back(e.op(0));
+  for (std::size_t i = 0; i < e.nops(); ++i) collect_arguments(e.op(i), seen, args, visits);
+}
+
+// base with s moved so that the argument a (linear in s) takes a value of order one; false when
+// that value of s lies outside its box or cannot be computed.
+bool argument_point(const ex& a, const GiNaC::symbol& s, const GiNaC::exmap& base,
+                    const SampleBoxes& boxes, std::uint64_t& state, int digits, GiNaC::exmap& out) {
+  const ex slope_ex = a.diff(s);
+  if (slope_ex.has(s)) return false;
+  GiNaC::exmap at_zero = base;
+  at_zero[s] = 0;
+  numeric slope, offset;
+  if (!evaluate_real(slope_ex, base, digits, slope) || slope.is_zero() ||
+      !evaluate_real(a, at_zero, digits, offset))
+    return false;
+  const numeric target = (splitmix(state) & 1 ? 1 : -1) * decade_fraction(1, state) * 3;
+  DigitsGuard guard(digits);
+  const numeric v = (target - offset) / slope;
+  const Interval b = boxes.box(s);
+  if (v < b.lo || v > b.hi) return false;
+  out = base;
+  out[s] = v;
+  return true;
+}
+
+}  // namespace
+
+std::vector<GiNaC::exmap> scaled_points(const ex& e, const std::vector<GiNaC::symbol>& symbols,
+                                        const SampleBoxes& boxes, std::uint64_t seed) {
+  std::uint64_t state = seed ^ 0xdecade5ULL;
+  std::vector<GiNaC::exmap> out = decade_points(symbols, boxes, state);
+  if (symbols.empty()) return out;
+  GiNaC::exset seen;
+  std::vector<ex> args;
+  std::size_t visits = 0;
+  collect_arguments(e, seen, args, visits);
+  const GiNaC::exmap base = sample_points(symbols, boxes, 3, seed ^ 0xa5a5ULL).back();
+  const int digits = 20;
+  for (const ex& a : args)
+    for (const auto& s : symbols) {
+      GiNaC::exmap pt;
+      if (a.has(s) && argument_point(a, s, base, boxes, state, digits, pt)) out.push_back(pt);
+    }
+  return out;
+}
+
+ZeroTestResult zero_test_detailed(const ex& e, const SampleBoxes& boxes,
+                                  const ZeroTestOptions& opt) {
+  ZeroTestResult r;
+  if (e.is_zero()) {
+    r.verdict = ZeroVerdict::proved;
+    return r;
+  }
   const auto syms = symbols_in(e);
-  const auto points = sample_points(syms, boxes, opt.points, opt.seed);
   const numeric tol = numeric(10).power(numeric(-(opt.digits / 2)));
-  int valid = 0;
-  bool all_zero = true;
+  // True when e is clearly nonzero at pt (then pt is the witness); counts the zero points.
+  auto nonzero_at = [&](const GiNaC::exmap& pt) {
+    numeric v;
+    if (!evaluate_real(e, pt, opt.digits, v)) return false;
+    if (GiNaC::abs(v) > tol * term_scale(e, pt, opt.digits)) {
+      r.witness = pt;
+      r.witness_value = v;
+      return true;
+    }
+    ++r.zero_points;
+    return false;
+  };
   bool tried_proof = false;
   // One point first: a clearly nonzero value settles it without symbolic work.
-  for (std::size_t k = 0; k < points.size(); ++k) {
-    numeric v;
-    if (!evaluate_real(e, points[k], opt.digits, v)) continue;
-    ++valid;
-    if (GiNaC::abs(v) > tol * term_scale(e, points[k], opt.digits)) {
-      all_zero = false;
-      break;
-    }
-    if (!tried_proof) {
+  for (const auto& pt : sample_points(syms, boxes, opt.points, opt.seed)) {
+    if (nonzero_at(pt)) return r;
+    if (!tried_proof && r.zero_points == 1) {
       tried_proof = true;
-      if (proved_zero(e)) return ZeroVerdict::proved;
+      if (proved_zero(e)) {
+        r.verdict = ZeroVerdict::proved;
+        return r;
+      }
     }
   }
-  if (!all_zero) return ZeroVerdict::nonzero;
-  if (!tried_proof && proved_zero(e)) return ZeroVerdict::proved;
-  return valid > 0 ? ZeroVerdict::numeric : ZeroVerdict::nonzero;
+  if (!tried_proof && proved_zero(e)) {
+    r.verdict = ZeroVerdict::proved;
+    return r;
+  }
+  // Not proved: before calling it numerically zero, look where the expression has its scale.
+  // The witness is the clearly nonzero point where it is largest: what a user would look at.
+  bool found = false;
+  for (const auto& pt : scaled_points(e, syms, boxes, opt.seed)) {
+    numeric v;
+    if (!evaluate_real(e, pt, opt.digits, v)) continue;
+    if (GiNaC::abs(v) <= tol * term_scale(e, pt, opt.digits)) {
+      ++r.zero_points;
+    } else if (!found || GiNaC::abs(v) > GiNaC::abs(r.witness_value)) {
+      found = true;
+      r.witness = pt;
+      r.witness_value = v;
+    }
+  }
+  const bool numeric_zero = !found && r.zero_points > 0;
+  r.verdict = numeric_zero ? ZeroVerdict::numeric : ZeroVerdict::nonzero;
+  return r;
+}
+
+ZeroVerdict zero_test(const ex& e, const SampleBoxes& boxes, const ZeroTestOptions& opt) {
+  return zero_test_detailed(e, boxes, opt).verdict;
 }
 
 }  // namespace obsynth

@@ -2,7 +2,8 @@
 //   proved  - symbolic normalisation (after a sound rewrite of sin/cos/tan/tanh/exp into
 //             rational functions of base atoms) gives exactly 0;
 //   numeric - not proved, but zero at every sampled point (Digits >= 40, random rationals
-//             with large prime denominators inside the model's domain box);
+//             with large prime denominators inside the model's domain box, then points at the
+//             expression's own scales, see scaled_points): evidence, never a proof;
 //   nonzero - some sampled point gives a value that is clearly not zero.
 #pragma once
 
@@ -45,6 +46,26 @@ bool proved_zero(const GiNaC::ex& e);
 
 ZeroVerdict zero_test(const GiNaC::ex& e, const SampleBoxes& boxes,
                       const ZeroTestOptions& opt = {});
+
+// The verdict with its evidence: how many points it vanished at, or where it did not.
+struct ZeroTestResult {
+  ZeroVerdict verdict = ZeroVerdict::nonzero;
+  int zero_points = 0;           // points where the value was zero within rounding
+  GiNaC::exmap witness;          // nonzero: a point where the value is clearly not zero
+  GiNaC::numeric witness_value;  // the value there
+};
+ZeroTestResult zero_test_detailed(const GiNaC::ex& e, const SampleBoxes& boxes,
+                                  const ZeroTestOptions& opt = {});
+
+// Points at the scales of e, tried before a numeric verdict: uniform points miss where a steep
+// function is not degenerate (tanh(100 w) sech^2(100 w) on w in [-800, 800] is zero within
+// rounding outside |w| < 0.5). For each decade 10^-1 .. 10^-12 of the box, one point with every
+// symbol that fraction of the box away from the box's point nearest 0; and, for each argument
+// of sin, cos, tan, tanh, exp, atan or log that is linear in a symbol, a point where the
+// argument is of order one.
+std::vector<GiNaC::exmap> scaled_points(const GiNaC::ex& e,
+                                        const std::vector<GiNaC::symbol>& symbols,
+                                        const SampleBoxes& boxes, std::uint64_t seed);
 
 // Evaluates e at the given exact point with `digits` decimal digits; returns false when the
 // value is undefined or not real there.
