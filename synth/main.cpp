@@ -32,6 +32,7 @@ using namespace obsynth;
 
 struct CommonOptions {
   double stage_seconds = 60.0;
+  double canonical_seconds = kCanonicalStageSeconds;
   double total_seconds = 60.0;
   std::size_t max_expression_size = 2000000;
   std::size_t max_memory_bytes = default_memory_budget();
@@ -64,6 +65,11 @@ void add_common(CLI::App* app, CommonOptions& c) {
   app->add_option("--stage-seconds", c.stage_seconds, "time budget per analysis stage, in seconds")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  app->add_option("--canonical-seconds", c.canonical_seconds,
+                  "time budget of each canonical-form stage (frame, conditions, diffeomorphism; "
+                  "at most --stage-seconds): auto and all go on without them after a stop")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   app->add_option("--total-seconds", c.total_seconds,
                   "time budget of the whole run, in seconds: it ends within it (with the results "
                   "of the stages completed so far, exit 1)")
@@ -90,6 +96,7 @@ void add_common(CLI::App* app, CommonOptions& c) {
 AnalysisOptions analysis_options(const CommonOptions& c) {
   AnalysisOptions o;
   o.budget.stage_seconds = c.stage_seconds;
+  o.budget.canonical_stage_seconds = c.canonical_seconds;
   o.budget.max_expression_size = c.max_expression_size;
   o.budget.max_memory_bytes = c.max_memory_bytes;
   o.on_stage = publish_stage;
@@ -121,6 +128,7 @@ void print_stop(const std::string& stage, const std::string& reason) {
 // budget ends the run).
 struct JobStop {
   std::string stage, reason;
+  std::string checkpoint;  // the partial report the worker left (reason filled in)
 };
 int guarded(const CommonOptions& c, const std::function<int()>& job,
             std::optional<JobStop>* stopped = nullptr) {
@@ -149,20 +157,24 @@ int guarded(const CommonOptions& c, const std::function<int()>& job,
   if (c.in_process) return run_in_process(body, c.max_memory_bytes);
   // A stop that ends the process needs no second process: a watchdog thread prints the
   // checkpoint and the diagnostic itself. Only a caller that goes on after it needs the fork.
-  const WorkerLimits limits{c.stage_seconds, c.max_memory_bytes, c.total_seconds};
+  const WorkerLimits limits{c.stage_seconds, c.canonical_seconds, c.max_memory_bytes,
+                            c.total_seconds};
   if (!stopped) return run_watched(body, limits);
   const WorkerResult r = run_in_worker(body, limits);
   if (r.stop != WorkerStop::none) {
-    const std::string reason = r.stop == WorkerStop::time ? time_budget_reason(c.stage_seconds)
+    const std::string reason = r.stop == WorkerStop::time
+                                   ? stage_time_budget_reason(r.stage, c.stage_seconds,
+                                                              c.canonical_seconds)
                                : r.stop == WorkerStop::total_time
                                    ? total_time_budget_reason(c.total_seconds)
                                    : memory_budget_reason(c.max_memory_bytes);
-    std::fputs(fill_checkpoint(r.checkpoint, reason).c_str(), stdout);
-    std::fflush(stdout);
+    const std::string checkpoint = fill_checkpoint(r.checkpoint, reason);
     if (stopped && r.stop != WorkerStop::total_time) {  // the total budget admits no rerun
-      *stopped = JobStop{r.stage, reason};
+      *stopped = JobStop{r.stage, reason, checkpoint};  // the caller prints it, or reruns
       return 1;
     }
+    std::fputs(checkpoint.c_str(), stdout);
+    std::fflush(stdout);
     print_stop(r.stage, reason);
     return 1;
   }
@@ -238,7 +250,7 @@ struct CheckCommand {
 struct SimulateCommand {
   std::string model, method = "canonical", u = "0", x0, xhat0, out, sampling = "continuous";
   double t_end = 10, dt = 1e-3;
-  std::vector<std::string> params;
+  std::vector<std::string> params, plant_params;
   DesignOptions design;
   CommonOptions common;
 };
@@ -295,6 +307,9 @@ CLI::App* add_simulate(CLI::App& app, SimulateCommand& c) {
       ->required();
   add_design_options(sim, c.design);
   add_param_option(sim, c.params);
+  sim->add_option("--plant-param", c.plant_params,
+                  "a free parameter's value in the plant alone, name=value (repeatable); the "
+                  "observer keeps its own (--param, else its run-time default)");
   add_common(sim, c.common);
   return sim;
 }
@@ -335,14 +350,20 @@ int list_methods() {
 // A budget stop still prints the results of the completed stages (through checkpoints when
 // the worker has to be killed), then the diagnostic, exit 1: the report is partial. A
 // complete analysis also gets the design verdicts.
-int run_check(const CheckCommand& c) {
-  return guarded(c.common, [&] {
+// canonical_stop: a budget stopped a canonical-form stage in an earlier run; this one skips
+// those stages (with that reason) and reports everything else.
+int check_body(const CheckCommand& c, const std::string& canonical_stop) {
+  {
     const Model m = load_bound_model(c.model, c.params);
     ReportOptions ro;
     ro.timings = !c.no_timings;
     const ReportFormat format = report_format(c.format);
     AnalysisOptions ao = analysis_options(c.common);
     ao.keep_partial = true;
+    if (!canonical_stop.empty()) {
+      ao.canonical_form = false;
+      ao.canonical_skipped = canonical_stop;
+    }
     ao.checkpoint_reason = kStopReasonMarker;
     PrintCache printed;  // checkpoints and the final report print each expression once
     ao.on_checkpoint = [&](const Analysis& partial) {
@@ -351,6 +372,17 @@ int run_check(const CheckCommand& c) {
     };
     const Analysis a = analyse(m, ao);
     publish_checkpoint("");
+    if (const StageOutcome* s = a.stopped_stage();
+        s && canonical_stop.empty() && is_canonical_form_stage(s->name)) {
+      // An in-process stop (expression size): the same fallback as the worker's time stop.
+      const std::string why = fmt::format("stage '{}' {}", s->name, s->reason);
+      std::fprintf(stderr, "obsynth: note: %s; the report goes on without the canonical form\n",
+                   why.c_str());
+      const int rerun = check_body(c, why);
+      if (rerun != 0) return rerun;
+      print_stop(s->name, s->reason);
+      return 1;
+    }
     publish_stage("report");
     PrintCache::Use use(printed);
     const StageOutcome* stopped = a.stopped_stage();
@@ -383,7 +415,29 @@ int run_check(const CheckCommand& c) {
       return 1;
     }
     return 0;
-  });
+  }
+}
+
+// A time or memory stop in a canonical-form stage does not cost the rest of the report: the
+// analysis runs again without those stages and reports every design that does not need them,
+// then the diagnostic, exit 1 (the report is partial). Other stops end with the checkpoint.
+int run_check(const CheckCommand& c) {
+  std::optional<JobStop> stop;
+  const int code = guarded(c.common, [&] { return check_body(c, ""); }, &stop);
+  if (!stop) return code;
+  if (!is_canonical_form_stage(stop->stage)) {
+    std::fputs(stop->checkpoint.c_str(), stdout);
+    std::fflush(stdout);
+    print_stop(stop->stage, stop->reason);
+    return 1;
+  }
+  const std::string why = fmt::format("stage '{}' {}", stop->stage, stop->reason);
+  std::fprintf(stderr, "obsynth: note: %s; the report goes on without the canonical form\n",
+               why.c_str());
+  const int rerun = guarded(c.common, [&] { return check_body(c, why); });
+  if (rerun != 0) return rerun;
+  print_stop(stop->stage, stop->reason);
+  return 1;
 }
 
 int run_simulate(const SimulateCommand& c) {
@@ -399,12 +453,16 @@ int run_simulate(const SimulateCommand& c) {
     so.t_end = c.t_end;
     so.dt = c.dt;
     so.sampling = c.sampling == "zoh" ? Sampling::zoh : Sampling::continuous;
-    const Model m = load_bound_model(c.model, c.params);
+    const Model unbound = load_model(c.model);
+    const Model m = bind_parameters(unbound, c.params);
+    so.plant_params = c.plant_params;
+    so.unbound_model = &unbound;
     AnalysisOptions ao = analysis_options(c.common);
     ao.canonical_form = need_canonical_form(split_list(c.method));
     const Analysis a = analyse(m, ao);
     const SimulationResult r = simulate(a, so);
-    const std::string stem = cxx_identifier(m.name) + "_" + c.method;
+    if (!r.explanation.empty()) std::fprintf(stderr, "obsynth: note: %s\n", r.explanation.c_str());
+    const std::string stem = cxx_identifier(m.name) + "_" + r.method;
     write_output_dir(c.out, {{stem + ".csv", r.csv}, {stem + ".svg", r.svg}});
     std::printf("wrote %s/%s.csv and %s.svg\n%s\n", c.out.c_str(), stem.c_str(), stem.c_str(),
                 r.summary.c_str());
@@ -414,10 +472,6 @@ int run_simulate(const SimulateCommand& c) {
     }
     return 0;
   });
-}
-
-bool is_canonical_form_stage(const std::string& stage) {
-  return stage == "frame" || stage == "conditions" || stage == "diffeomorphism";
 }
 
 // auto and all may pick a design that does not need the canonical form (the stages after the
@@ -459,6 +513,7 @@ int main_job_body(const MainJob& c, const std::string& canonical_stop,
   while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
   for (const auto& f : s.files) std::printf("wrote %s/%s\n", dir.c_str(), f.name.c_str());
   if (!s.explanation.empty()) std::printf("%s\n", s.explanation.c_str());
+  for (const auto& w : s.warnings) std::fprintf(stderr, "obsynth: warning: %s\n", w.c_str());
   return 0;
 }
 
@@ -504,6 +559,8 @@ int run_main_job(const MainJob& c) {
       std::fprintf(stderr, "obsynth: note: %s; auto tries the next design\n", why.c_str());
       excluded.push_back({design, "stopped: " + why});
     } else {
+      std::fputs(stop->checkpoint.c_str(), stdout);
+      std::fflush(stdout);
       print_stop(stop->stage, stop->reason);
       return 1;
     }

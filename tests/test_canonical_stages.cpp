@@ -16,6 +16,7 @@
 #include "analysis/flint_mpoly.hpp"
 #include "analysis/flint_products.hpp"
 #include "app/report.hpp"
+#include "designs/registry.hpp"
 #include "emit/dag.hpp"
 #include "front/parse.hpp"
 #include "support/expect.hpp"
@@ -307,6 +308,116 @@ TEST(FlintProducts, LargeProductsInFlintMatchExpand) {
   const Poly r = flint.dot_difference({ha}, {hb}, {hc}, {ha});
   const ex expected = GiNaC::expand(a * b - c * a);
   EXPECT_TRUE(GiNaC::expand(ring->to_ex(r) - expected).is_zero());
+}
+
+// Issue 17 item 6: a numeric verdict is never taken for a proof.
+
+std::string text_report(const Analysis& a) {
+  ReportOptions ro;
+  ro.timings = false;
+  return render_report(a, ReportFormat::text, ro);
+}
+
+// Evaluates e at the point with GiNaC's evalf at 50 digits (not obsynth's zero test).
+double evalf_at(const ex& e, const GiNaC::exmap& at) {
+  const long saved = GiNaC::Digits;
+  GiNaC::Digits = 50;
+  const ex v = GiNaC::evalf(e.subs(at));
+  GiNaC::Digits = saved;
+  return GiNaC::ex_to<numeric>(v).to_double();
+}
+
+// C2 of the DC motor with friction tanh(100 w), w in [-800, 800], is (5000/9) tanh(100 w)
+// sech^2(100 w) (hand derivation in the model's header): zero within rounding on all but
+// 0.03 % of the box, 201.906 at w = 0.005. It fails, with a witness point.
+TEST(NumericVerdicts, SteepFrictionBracketFailsWithAWitness) {
+  const Analysis a =
+      analyse(load_model(std::string(OBSYNTH_SOURCE_DIR) + "/tests/models/dc_motor_tanh.sym"));
+  const CanonicalForm& cf = a.canonical;
+  const GiNaC::symbol w = a.model.states[1];
+  const ex th = GiNaC::tanh(100 * w);
+  const ex hand = numeric(5000, 9) * th * (1 - th * th);
+  EXPECT_NEAR(evalf_at(hand, {{w, numeric(1, 200)}}), 201.906, 1e-3);
+  ASSERT_EQ(cf.drift.size(), 1u);
+  const BracketCheck& c2 = cf.drift[0];
+  ASSERT_EQ(c2.verdict, ZeroVerdict::nonzero);
+  EXPECT_FALSE(cf.linearizable);
+  // The residual is the hand-derived bracket: [0, hand] at w = 0.005 and at the witness.
+  ASSERT_EQ(c2.residual.size(), 2u);
+  EXPECT_NEAR(evalf_at(c2.residual[1], {{w, numeric(1, 200)}}), 201.906, 1e-3);
+  EXPECT_NEAR(evalf_at(c2.residual[0], {{w, numeric(1, 200)}}), 0, 1e-12);
+  ASSERT_EQ(c2.witness.count(w), 1u);
+  const double at_witness = evalf_at(hand, c2.witness);
+  EXPECT_GT(std::abs(at_witness), 1e-6);
+  EXPECT_NEAR(evalf_at(c2.residual[1], c2.witness), at_witness, 1e-9 * std::abs(at_witness));
+  const std::string text = text_report(a);
+  EXPECT_NE(text.find("FAILS (nonzero)"), std::string::npos) << text;
+  EXPECT_NE(text.find("=> NOT linearizable"), std::string::npos) << text;
+  EXPECT_NE(text.find("nonzero at w = "), std::string::npos) << text;
+  EXPECT_FALSE(find_design("canonical")->applies(a).applies);
+}
+
+// C2 = [0, d^2 phi / dx2^2] for f = [x2, phi] and h = x1; with
+// phi = -x1 - x2 + x2^2 (atan(e^x2) + atan(e^-x2) - pi/2) it is zero (the bracket is 0 for
+// every x2, as atan e^a + atan e^-a = pi/2), but no rewrite proves it: numeric only.
+TEST(NumericVerdicts, NumericZeroNeverConcludesLinearizable) {
+  const Model m = parse_model(
+      "model atan_identity\nstates x1 x2\n"
+      "f = [ x2, -x1 - x2 + x2^2*(atan(exp(x2)) + atan(exp(-x2)) - 2*atan(1)) ]\n"
+      "h = [ x1 ]\ndomain x1 in [-2, 2], x2 in [-2, 2]\n",
+      "atan_identity.sym");
+  const Analysis a = analyse(m);
+  const CanonicalForm& cf = a.canonical;
+  ASSERT_EQ(cf.drift.size(), 1u);
+  // Independent oracle: the residual vanishes at a hand-chosen point, by evalf.
+  ASSERT_EQ(cf.drift[0].residual.size(), 2u);
+  const GiNaC::exmap at{{m.states[0], numeric(3, 7)}, {m.states[1], numeric(-5, 4)}};
+  EXPECT_NEAR(evalf_at(cf.drift[0].residual[1], at), 0, 1e-30);
+  EXPECT_EQ(cf.drift[0].verdict, ZeroVerdict::numeric);
+  EXPECT_GT(cf.drift[0].zero_points, 0);
+  const std::string text = text_report(a);
+  EXPECT_NE(
+      text.find(fmt::format("unproven (numerically zero at {} points)", cf.drift[0].zero_points)),
+      std::string::npos)
+      << text;
+  EXPECT_EQ(text.find("=> linearizable"), std::string::npos) << text;
+  EXPECT_EQ(text.find("holds (numeric)"), std::string::npos) << text;
+  ReportOptions ro;
+  ro.timings = false;
+  const auto j = nlohmann::json::parse(render_report(a, ReportFormat::json, ro));
+  EXPECT_FALSE(j["linearizable"].get<bool>());
+  EXPECT_EQ(j["linearizability"], "unproven");
+  for (const char* method : {"canonical", "perfect"}) {
+    const Verdict v = find_design(method)->applies(a);
+    EXPECT_NE(v.guarantee, Guarantee::rigorous) << method;
+  }
+}
+
+// The designs read the verdicts as given: seed 003 with every condition proved is rigorous;
+// the same analysis with C2 only numerically zero is offered, partial, and says so.
+TEST(NumericVerdicts, CanonicalDesignsAreRigorousOnlyWhenProved) {
+  Analysis a = analyse(load_model(model_path("slawinski17")));
+  for (const char* method : {"canonical", "perfect"}) {
+    const Verdict v = find_design(method)->applies(a);
+    EXPECT_TRUE(v.applies) << method;
+    EXPECT_EQ(v.guarantee, Guarantee::rigorous) << method << ": " << v.guarantee_text;
+  }
+  EXPECT_NE(text_report(a).find("=> linearizable by output injection"), std::string::npos);
+  ASSERT_EQ(a.canonical.drift.size(), 1u);
+  a.canonical.drift[0].verdict = ZeroVerdict::numeric;
+  a.canonical.drift[0].zero_points = 23;
+  for (const char* method : {"canonical", "perfect"}) {
+    const Verdict v = find_design(method)->applies(a);
+    EXPECT_TRUE(v.applies) << method;
+    EXPECT_EQ(v.guarantee, Guarantee::partial) << method;
+    EXPECT_NE(v.guarantee_text.find("numeric"), std::string::npos) << v.guarantee_text;
+    EXPECT_NE(v.text().find("[tau_1, tau_2] = 0 (numerically zero at 23 points)"),
+              std::string::npos)
+        << v.text();
+  }
+  const std::string text = text_report(a);
+  EXPECT_NE(text.find("unproven (numerically zero at 23 points)"), std::string::npos) << text;
+  EXPECT_EQ(text.find("=> linearizable"), std::string::npos) << text;
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // High-gain and Kalman-like theta observers (seed 002) and the strong persistence check.
 // Oracles are derived by hand in the comments (not with the code under test).
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -651,6 +652,156 @@ TEST(KalmanThetaOutOfX, LorenzAndCstrConverge) {
   const auto cs = run(model("cstr"), "kalman-theta", "0.5*sin(t)", {0.5, 2}, {0.2, 2.5}, 20);
   ASSERT_TRUE(cs.diverged.empty()) << cs.diverged;
   for (std::size_t i = 0; i < 2; ++i) EXPECT_LT(final_error(cs, i), 1e-8) << i;
+}
+
+}  // namespace
+
+namespace {
+
+// ---- issue 17 item 9: a pendulum with unknown damping (tests/models/pendulum_damping.sym) ----
+
+const GiNaC::numeric kW2(981, 100);  // g / l
+
+SimulationResult run_dt(const Model& m, const std::string& u, std::vector<double> x0,
+                        std::vector<double> xh0, double t_end, double dt, DesignOptions d = {}) {
+  SimulationOptions o;
+  o.method = "kalman-theta";
+  o.design = std::move(d);
+  o.u_text = u;
+  o.x0 = std::move(x0);
+  o.xhat0 = std::move(xh0);
+  o.t_end = t_end;
+  o.dt = dt;
+  return simulate(analyse(m), o);
+}
+
+// The largest root of p on [lo, hi] where p(lo) and p(hi) differ in sign (bisection).
+template <class P>
+double root(P p, double lo, double hi) {
+  const bool rising = p(hi) > 0;
+  for (int k = 0; k < 200; ++k) {
+    const double mid = (lo + hi) / 2;
+    ((p(mid) > 0) == rising ? hi : lo) = mid;
+  }
+  return (lo + hi) / 2;
+}
+
+// By hand (the model's header): z = (x1, x2, -w2 sin x1 - x2 x3), x = (z1, z2, -(z3 + w2 sin
+// z1) / z2), a = (1, 1), phi = (0, u, -w2 z2 cos z1 + (z3 + w2 sin z1)(z3 + u) / z2).
+TEST(PendulumDamping, FormByHand) {
+  const Model m = test_model("pendulum_damping");
+  const GiNaC::ex x1 = m.states[0], x2 = m.states[1], x3 = m.states[2], u = m.inputs[0];
+  std::string why;
+  EXPECT_FALSE(triangular_in_x(m, &why).has_value());
+  const auto t = triangular_form(m, &why);
+  ASSERT_TRUE(t.has_value()) << why;
+  const GiNaC::ex z1 = t->z[0], z2 = t->z[1], z3 = t->z[2];
+  expect_same(t->z_of_x, {x1, x2, -kW2 * GiNaC::sin(x1) - x2 * x3}, "z_of_x");
+  expect_same(t->x_of_z, {z1, z2, -(z3 + kW2 * GiNaC::sin(z1)) / z2}, "x_of_z");
+  expect_same(t->a, {1, 1}, "a");
+  expect_same(t->phi,
+              {0, u, -kW2 * z2 * GiNaC::cos(z1) + (z3 + kW2 * GiNaC::sin(z1)) * (z3 + u) / z2},
+              "phi");
+}
+
+// The persistence check is right: A is the constant shift, so alpha(theta) is the largest root
+// of l^3 - 19 l^2 + 36 l - 12 for every theta once Psi has reached its limit (the header's
+// derivation), and every input is strongly persistent. What fails is the Theorem's other
+// hypothesis, and the verdict now says so: d phi_3 / d z3 = (u - w2 sin x1 - 2 x2 x3) / x2
+// (-471.3 at x = (0.5, 0.01, 0.5), u = 0) has no bound near x2 = 0, inside the box.
+TEST(PendulumDamping, PersistenceHoldsButPhiIsNotLipschitz) {
+  const Model m = test_model("pendulum_damping");
+  PersistenceOptions o;
+  o.input_text = "sin(t)";
+  o.horizon = 20;
+  o.thetas = {2, 5, 20};
+  const auto p = check_persistence(m, o);
+  ASSERT_TRUE(p.applicable) << p.reason;
+  EXPECT_TRUE(p.persistent) << p.verdict;
+  const double alpha = root([](double l) { return l * l * l - 19 * l * l + 36 * l - 12; }, 10, 20);
+  EXPECT_NEAR(alpha, 16.91, 0.01);
+  for (const auto& b : p.by_theta) EXPECT_NEAR(b.alpha, alpha, 1e-3 * alpha) << b.theta;
+  EXPECT_EQ(p.lipschitz.kind, PhiLipschitz::fails) << p.lipschitz.text;
+  EXPECT_NE(p.verdict.find("Theorem does not apply"), std::string::npos) << p.verdict;
+  EXPECT_NE(p.lipschitz.text.find("x2 = 0"), std::string::npos) << p.lipschitz.text;
+  const double x1 = 0.5, x2 = 0.01, x3 = 0.5;
+  EXPECT_NEAR((0 - 9.81 * std::sin(x1) - 2 * x2 * x3) / x2, -471.3, 0.05);
+}
+
+// On today's main kalman-theta "applies" here, yet from a 20 % initial error (x0 = (1, 0.5,
+// 0.5), xh0 = (0.8, 0.6, 0.6)) its closed loop leaves the finite numbers, with and without
+// input (measured: t = 7.07 for u = 0, 5.71 for u = sin t; theta dt = 0.005). The simulation is
+// the oracle; the verdict must refuse and name the failing entry and the pole.
+TEST(PendulumDamping, KalmanThetaRefusedWhereItsClosedLoopDiverges) {
+  const Model m = test_model("pendulum_damping");
+  for (const char* u : {"0", "sin(t)"}) {
+    const auto r = run_dt(m, u, {1, 0.5, 0.5}, {0.8, 0.6, 0.6}, 10, 1e-3);
+    EXPECT_NE(r.diverged.find("left the finite numbers"), std::string::npos) << u;
+  }
+  const Verdict v = find_design("kalman-theta")->applies(analyse(m));
+  EXPECT_FALSE(v.applies) << v.text();
+  EXPECT_NE(v.text().find("not Lipschitz in z on the domain box"), std::string::npos) << v.text();
+  EXPECT_NE(v.text().find("d phi_3/d z"), std::string::npos) << v.text();
+  EXPECT_NE(v.text().find("denominator z2"), std::string::npos) << v.text();
+  EXPECT_NE(v.text().find("max |.| ="), std::string::npos) << v.text();  // the measured growth
+  // Built on request, the report says the same and claims no convergence.
+  const ObserverSpec s = find_design("kalman-theta")->build(analyse(m), {});
+  EXPECT_NE(row(s, "convergence").find("NOT covered"), std::string::npos) << row(s, "convergence");
+  EXPECT_NE(row(s, "guarantee").find("none"), std::string::npos) << row(s, "guarantee");
+  EXPECT_EQ(s.summary.find("converges"), std::string::npos) << s.summary;
+}
+
+// The same plant on a box where x2 stays away from 0 (x2 in [1/2, 6]): there z2 = x2 never
+// vanishes, phi is Lipschitz on the box, a = (1, 1) makes every input strongly persistent, and
+// the design applies with a partial guarantee (the Theorem's theta threshold is not explicit).
+TEST(PendulumDamping, AppliesWhereTheBoxAvoidsRest) {
+  std::string text = read_model("../tests/models/pendulum_damping");
+  const std::string box = "x2 in [-6, 6]";
+  ASSERT_NE(text.find(box), std::string::npos);
+  text.replace(text.find(box), box.size(), "x2 in [1/2, 6]");
+  const Verdict v = find_design("kalman-theta")->applies(analyse(parse_model(text, "pd.sym")));
+  EXPECT_TRUE(v.applies) << v.text();
+  EXPECT_EQ(v.guarantee, Guarantee::partial) << v.guarantee_text;
+  EXPECT_NE(v.guarantee_text.find("not make explicit"), std::string::npos) << v.guarantee_text;
+}
+
+// Guarantee levels: never rigorous (no explicit theta threshold); none when a depends on u
+// (dufour4: a = u, persistence depends on the input), partial for kt_lie3 (a = (1, 1), phi
+// without denominators, x_of_z's 1 + z1^2 > 0); Lorenz in z = (h, L_f h, L_f^2 h) has phi_3
+// with the denominator z1 = x1, zero inside its box: refused.
+TEST(PendulumDamping, GuaranteeLevelsOfOtherModels) {
+  const Verdict d = find_design("kalman-theta")->applies(analyse(model("dufour4")));
+  EXPECT_TRUE(d.applies) << d.text();
+  EXPECT_EQ(d.guarantee, Guarantee::none);
+  EXPECT_NE(d.guarantee_text.find("strongly persistent input"), std::string::npos);
+  const Verdict k = find_design("kalman-theta")->applies(analyse(test_model("kt_lie3")));
+  EXPECT_TRUE(k.applies) << k.text();
+  EXPECT_EQ(k.guarantee, Guarantee::partial) << k.guarantee_text;
+  const Verdict l = find_design("kalman-theta")->applies(analyse(model("lorenz")));
+  EXPECT_FALSE(l.applies) << l.text();
+  EXPECT_NE(l.text().find("x1 = 0"), std::string::npos) << l.text();
+}
+
+// The largest safe sample period. With A = 0 along a direction C^T C does not feed,
+// S' = -theta S, and the last RK4 stage is (1 - h + h^2/2 - h^3/4) S, h = theta dt: S stays
+// positive definite in every stage only for h < h*, the root of that cubic (1.2956). The report
+// states dt < h* / theta; the closed loop of seed 002's example (4) with u = 1 (a = 1, phi = 0)
+// at theta = 50 converges just below it and is rejected (S not positive definite) just above.
+TEST(PendulumDamping, SafeSamplePeriodOfTheStep) {
+  const double h = root([](double x) { return 1 - x + x * x / 2 - x * x * x / 4; }, 1, 1.5);
+  EXPECT_NEAR(h, 1.2956, 1e-4);
+  const Model m = model("dufour4");
+  DesignOptions d;
+  d.values["theta"] = "50";
+  const ObserverSpec s = find_design("kalman-theta")->build(analyse(m), d);
+  EXPECT_NE(row(s, "largest safe sample period").find(fmt::format("dt < {:.4g}", h / 50)),
+            std::string::npos)
+      << row(s, "largest safe sample period");
+  const auto below = run_dt(m, "1", {1, 1}, {0.8, 0.8}, 10, 0.98 * h / 50, d);
+  ASSERT_TRUE(below.diverged.empty()) << below.diverged;
+  EXPECT_LT(final_error(below, 0) + final_error(below, 1), 1e-9);
+  const auto above = run_dt(m, "1", {1, 1}, {0.8, 0.8}, 10, 1.02 * h / 50, d);
+  EXPECT_NE(above.diverged.find("S is not positive definite"), std::string::npos) << above.diverged;
 }
 
 }  // namespace

@@ -170,9 +170,31 @@ void run_stages(const Model& m, const AnalysisOptions& opt, Budget& budget, Anal
     analyse_canonical(m, a.observability, budget, opt.canonical, &a.canonical);
 }
 
+
+// y = h(x, u) with h(x, u) - h(x, u0) free of x: h0 = h(x, u0), k(u) = h(x, u) - h0 (a battery's
+// terminal voltage OCV(soc) - v1 - R0 i). Every design then observes y - k(u) = h0(x).
+Model split_output_offset(const Model& m) {
+  if (!m.feedthrough() || !m.output_offset.empty()) return m;
+  const GiNaC::exmap u0 = m.nominal_inputs();
+  ExVec h0, k;
+  for (const auto& e : m.h) {
+    const GiNaC::ex base = e.subs(u0);
+    const GiNaC::ex rest = (e - base).expand();
+    for (const auto& x : m.states)
+      if (!rest.diff(x).normal().is_zero()) return m;  // not separable: h(x, u) stays
+    h0.push_back(base);
+    k.push_back(rest);
+  }
+  Model out = m;
+  out.h = h0;
+  out.output_offset = k;
+  return out;
+}
+
 }  // namespace
 
-Analysis analyse(const Model& m, const AnalysisOptions& opt) {
+Analysis analyse(const Model& given, const AnalysisOptions& opt) {
+  const Model m = split_output_offset(given);
   Analysis a;
   a.model = m;
   StageLog log(a, opt);

@@ -1,12 +1,45 @@
 #include "analysis/budget.hpp"
 
+#include <algorithm>
+
 #include <fmt/format.h>
 #include <unistd.h>
 
 #include <cln/exception.h>
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <new>
+
+namespace {
+
+// The open WorkScope of this thread. Constant-initialised (no TLS wrapper call on every
+// allocation, usable before dynamic initialisation).
+struct WorkCounter {
+  std::uint64_t count = 0, limit = 0;
+  bool active = false;
+};
+// Past the limit, one throw per this many allocations: a destructor that allocates while the
+// exception unwinds must not throw again (std::terminate), a caller that swallowed it soon does.
+constexpr std::uint64_t kWorkRethrowEvery = 16;
+thread_local WorkCounter t_work;
+
+}  // namespace
+
+// The replaceable global allocation function, counting for WorkScope. libstdc++'s array and
+// nothrow forms call this one; the default operator delete calls free(), which matches.
+void* operator new(std::size_t size) {
+  if (t_work.active && ++t_work.count > t_work.limit &&
+      (t_work.count - t_work.limit - 1) % kWorkRethrowEvery == 0)
+    throw obsynth::WorkBudgetExceeded();
+  if (size == 0) size = 1;
+  for (;;) {
+    if (void* p = std::malloc(size)) return p;
+    std::new_handler handler = std::get_new_handler();
+    if (!handler) throw std::bad_alloc();
+    handler();
+  }
+}
 
 namespace obsynth {
 
@@ -14,6 +47,28 @@ BudgetExceeded::BudgetExceeded(const std::string& stage, const std::string& reas
     : UserError(SourceLoc{}, fmt::format("stage '{}' {}", stage, reason)),
       stage_(stage),
       reason_(reason) {}
+
+bool is_canonical_form_stage(const std::string& stage) {
+  return stage == "frame" || stage == "conditions" || stage == "diffeomorphism";
+}
+
+double stage_time_limit(const std::string& stage, double stage_seconds,
+                        double canonical_stage_seconds) {
+  if (is_canonical_form_stage(stage) && canonical_stage_seconds > 0)
+    return std::min(stage_seconds, canonical_stage_seconds);
+  return stage_seconds;
+}
+
+std::string stage_time_budget_reason(const std::string& stage, double stage_seconds,
+                                     double canonical_stage_seconds) {
+  const double limit = stage_time_limit(stage, stage_seconds, canonical_stage_seconds);
+  if (limit < stage_seconds)
+    return fmt::format(
+        "exceeded its time budget of {:g} s (a canonical-form stage; raise it with "
+        "--canonical-seconds)",
+        limit);
+  return time_budget_reason(stage_seconds);
+}
 
 std::string time_budget_reason(double stage_seconds) {
   return fmt::format("exceeded its time budget of {:g} s (raise it with --stage-seconds)",
@@ -74,6 +129,25 @@ std::size_t default_memory_budget() {
   return static_cast<std::size_t>(pages) * static_cast<std::size_t>(page) / 2;
 }
 
+WorkScope::WorkScope(std::uint64_t max_allocations)
+    : saved_count_(t_work.count), saved_limit_(t_work.limit), saved_active_(t_work.active) {
+  t_work = WorkCounter{0, max_allocations, true};
+}
+
+WorkScope::~WorkScope() {
+  const std::uint64_t inner = t_work.count;
+  t_work = WorkCounter{saved_count_, saved_limit_, saved_active_};
+  if (saved_active_) t_work.count += inner;  // an enclosing scope pays for the inner one too
+}
+
+std::uint64_t WorkScope::used() const {
+  return t_work.count;
+}
+
+bool WorkScope::exceeded() const {
+  return t_work.count > t_work.limit;
+}
+
 void Budget::begin(const std::string& stage) {
   if (!stage_.empty()) end();
   stage_ = stage;
@@ -92,8 +166,10 @@ void Budget::end() {
 
 void Budget::check(std::size_t expression_size) const {
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  if (!stage_.empty() && s > limits_.stage_seconds)
-    throw BudgetExceeded(stage_, time_budget_reason(limits_.stage_seconds));
+  if (!stage_.empty() &&
+      s > stage_time_limit(stage_, limits_.stage_seconds, limits_.canonical_stage_seconds))
+    throw BudgetExceeded(stage_, stage_time_budget_reason(stage_, limits_.stage_seconds,
+                                                          limits_.canonical_stage_seconds));
   if (expression_size > limits_.max_expression_size)
     throw BudgetExceeded(
         stage_, fmt::format("exceeded its expression-size budget: an expression has {} nodes, "

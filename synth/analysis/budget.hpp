@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <exception>
 #include <functional>
 #include <map>
@@ -18,8 +19,15 @@
 
 namespace obsynth {
 
+// The canonical-form stages: `auto` can do without them, so they get a budget well inside the
+// total one (a stall there must leave time for the designs that do not need them).
+bool is_canonical_form_stage(const std::string& stage);
+constexpr double kCanonicalStageSeconds = 15.0;
+
 struct BudgetLimits {
   double stage_seconds = 60.0;                // per stage
+  // Each canonical-form stage: min(this, stage_seconds).
+  double canonical_stage_seconds = kCanonicalStageSeconds;
   std::size_t max_expression_size = 2000000;  // nodes in one stored expression
   std::size_t max_memory_bytes = 0;  // the process's address-space limit (0: none set); the
                                      // worker applies it, diagnostics quote it
@@ -37,8 +45,15 @@ class BudgetExceeded : public UserError {
   std::string stage_, reason_;
 };
 
+// The time budget of one stage, in seconds.
+double stage_time_limit(const std::string& stage, double stage_seconds,
+                        double canonical_stage_seconds);
+
 // Reasons, as they follow "stage 'X' " in diagnostics and reports.
 std::string time_budget_reason(double stage_seconds);
+// The reason for `stage`, quoting its own limit and the option that raises it.
+std::string stage_time_budget_reason(const std::string& stage, double stage_seconds,
+                                     double canonical_stage_seconds);
 std::string memory_budget_reason(std::size_t max_memory_bytes);  // 0: "ran out of memory"
 
 // An allocation failed: std::bad_alloc, or CLN's "Out of virtual memory." exception.
@@ -79,6 +94,32 @@ class Budget {
   std::string stage_;
   std::chrono::steady_clock::time_point start_;
   std::map<std::string, double> timings_;
+};
+
+// A deterministic work budget: the allocations made by operator new on this thread while a
+// WorkScope is open. A choice between code paths made on it (the automatic rank method: the
+// symbolic chain, or the jets when it costs too much) is a pure function of the model: the same
+// on a loaded and a quiet machine, which a wall-clock share is not. Past the limit a counted
+// allocation throws WorkBudgetExceeded, again every 16 allocations (a caller that
+// swallows one cannot run on unbounded); GiNaC calls that cannot be interrupted by a cooperative
+// check are interrupted this way.
+class WorkBudgetExceeded : public std::bad_alloc {
+ public:
+  const char* what() const noexcept override { return "work budget exceeded"; }
+};
+
+class WorkScope {
+ public:
+  explicit WorkScope(std::uint64_t max_allocations);
+  ~WorkScope();  // restores the enclosing scope's counter (scopes nest)
+  WorkScope(const WorkScope&) = delete;
+  WorkScope& operator=(const WorkScope&) = delete;
+  std::uint64_t used() const;  // allocations counted so far in this scope
+  bool exceeded() const;       // past the limit (a throw may have been swallowed)
+
+ private:
+  std::uint64_t saved_count_, saved_limit_;
+  bool saved_active_;
 };
 
 // Times a stage for the lifetime of the object.

@@ -6,6 +6,7 @@
 #include "analysis/diffeomorphism.hpp"
 #include "analysis/frame.hpp"
 #include "analysis/inverse.hpp"
+#include "front/fresh_names.hpp"
 
 namespace obsynth {
 
@@ -44,7 +45,8 @@ CanonicalForm analyse_canonical(const Model& m, const Observability& ob, Budget&
   CanonicalForm local;
   CanonicalForm& cf = progress ? *progress : local;
   const std::size_t n = m.n();
-  for (std::size_t i = 0; i < n; ++i) cf.z.push_back(GiNaC::symbol(fmt::format("z{}", i + 1)));
+  cf.z = fresh_symbols(m, "z", n);
+  cf.y = fresh_symbol(m, "y");
   if (m.p() != 1) {
     cf.not_applicable = fmt::format(
         "the canonical-form stages (r, frame, brackets, T, l) are single-output for now; this "

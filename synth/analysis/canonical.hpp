@@ -25,6 +25,8 @@ struct BracketCheck {
   ExVec residual;             // the bracket itself, simplified (zero when it holds)
   std::string residual_note;  // why residual is empty: too large to print, or decided by exact
                               // evaluation at random points (conditions.cpp)
+  int zero_points = 0;        // numeric verdict: sample points where every component vanished
+  GiNaC::exmap witness;       // nonzero verdict: a point where the bracket is clearly nonzero
   bool holds() const { return verdict != ZeroVerdict::nonzero; }
 };
 
@@ -52,7 +54,7 @@ struct CanonicalForm {
   std::vector<BracketCheck> input;                // [g, tau_j], j = 1..n-1            (C3)
   Completeness complete = Completeness::unknown;  // C4
   std::string complete_reason;
-  bool linearizable = false;  // C1, C2, C3 hold
+  bool linearizable = false;  // C1, C2, C3 not refuted (proved, or only numerically zero)
 
   GiNaC::symbol y{"y"};          // output symbol of l(u, y)
   std::vector<GiNaC::symbol> z;  // canonical coordinates z1..zn

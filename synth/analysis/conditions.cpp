@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <functional>
 #include <map>
 #include <memory>
@@ -23,11 +24,19 @@ ZeroVerdict worst(ZeroVerdict a, ZeroVerdict b) {
   return static_cast<int>(a) > static_cast<int>(b) ? a : b;
 }
 
-ZeroVerdict vector_verdict(const ExVec& v, const SampleBoxes& boxes, const ZeroTestOptions& opt) {
-  ZeroVerdict w = ZeroVerdict::proved;
+// The worst verdict over the components, with the evidence: the points where every numeric
+// component vanished (the fewest), or the first clearly nonzero component's witness.
+ZeroTestResult vector_verdict(const ExVec& v, const SampleBoxes& boxes,
+                              const ZeroTestOptions& opt) {
+  ZeroTestResult w;
+  w.verdict = ZeroVerdict::proved;
   for (const auto& e : v) {
-    w = worst(w, zero_test(e, boxes, opt));
-    if (w == ZeroVerdict::nonzero) break;
+    ZeroTestResult r = zero_test_detailed(e, boxes, opt);
+    if (r.verdict == ZeroVerdict::nonzero) return r;
+    if (r.verdict == ZeroVerdict::numeric)
+      w.zero_points = w.verdict == ZeroVerdict::numeric ? std::min(w.zero_points, r.zero_points)
+                                                        : r.zero_points;
+    w.verdict = worst(w.verdict, r.verdict);
   }
   return w;
 }
@@ -310,6 +319,7 @@ class BracketChecker {
     const std::size_t size = field_size_[a] + field_size_[b];
     if (screen_.nonzero(a, b)) {
       out.verdict = ZeroVerdict::nonzero;
+      out.witness = screen_.point();
       // The residual itself, unless its symbolic form would be unreasonably large.
       if (size <= kLargeOperands)
         out.residual = bracket(a, b);
@@ -321,6 +331,7 @@ class BracketChecker {
     }
     if (fr_.ring && size > kLargeOperands && exact_.zero(a, b)) {
       out.verdict = ZeroVerdict::numeric;
+      out.zero_points = ExactScreen::kPoints;
       out.residual_note = fmt::format(
           "zero at {} random integer points in exact arithmetic (operands have {} nodes; "
           "Schwartz-Zippel: error probability below (degree / 2^32)^{})",
@@ -328,7 +339,10 @@ class BracketChecker {
       return out;
     }
     out.residual = bracket(a, b);
-    out.verdict = vector_verdict(out.residual, boxes_, opt_.zero);
+    ZeroTestResult r = vector_verdict(out.residual, boxes_, opt_.zero);
+    out.verdict = r.verdict;
+    out.zero_points = r.zero_points;
+    out.witness = std::move(r.witness);
     return out;
   }
 
@@ -408,6 +422,60 @@ void check_conditions(const Model& m, FrameRing& fr, Budget& budget, const Canon
   }
   cf.linearizable = ok;
   check_completeness(m, fr, cf);
+}
+
+bool conditions_proved(const CanonicalForm& cf) {
+  auto proved = [](const BracketCheck& b) { return b.verdict == ZeroVerdict::proved; };
+  return std::all_of(cf.drift.begin(), cf.drift.end(), proved) &&
+         std::all_of(cf.input.begin(), cf.input.end(), proved);
+}
+
+namespace {
+std::string bracket_name(const BracketCheck& b) {
+  return b.i == 0 ? fmt::format("[g, tau_{}] = 0", b.j)
+                  : fmt::format("[tau_{}, tau_{}] = 0", b.i, b.j);
+}
+}  // namespace
+
+std::vector<std::string> unproven_steps(const CanonicalForm& cf) {
+  std::vector<std::string> out;
+  for (const auto* list : {&cf.drift, &cf.input})
+    for (const auto& b : *list)
+      if (b.verdict == ZeroVerdict::numeric)
+        out.push_back(
+            fmt::format("{} (numerically zero at {} points)", bracket_name(b), b.zero_points));
+  auto map_step = [&](Availability kind, ZeroVerdict v, const char* what) {
+    if (kind == Availability::symbolic && v == ZeroVerdict::numeric)
+      out.push_back(fmt::format("{} (numerically only)", what));
+  };
+  map_step(cf.T_kind, cf.T_verdict, "dT/dx [tau] = I");
+  map_step(cf.T_inverse_kind, cf.T_inverse_verdict, "T^-1 steps solve T(x) = z");
+  map_step(cf.l_kind, cf.l_verdict, "l(u, y) free of x");
+  return out;
+}
+
+std::string bracket_verdict_text(const BracketCheck& b) {
+  switch (b.verdict) {
+    case ZeroVerdict::proved:
+      return "holds (proved)";
+    case ZeroVerdict::numeric:
+      return fmt::format("unproven (numerically zero at {} points)", b.zero_points);
+    case ZeroVerdict::nonzero:
+      break;
+  }
+  return "FAILS (nonzero)";
+}
+
+std::string witness_text(const Model& m, const BracketCheck& b) {
+  std::vector<std::string> parts;
+  for (const auto& s : m.all_symbols()) {
+    const auto it = b.witness.find(s);
+    if (it == b.witness.end()) continue;
+    DigitsGuard guard(17);
+    const double v = GiNaC::ex_to<numeric>(GiNaC::evalf(it->second)).to_double();
+    parts.push_back(fmt::format("{} = {:.6g}", s.get_name(), v));
+  }
+  return fmt::format("{}", fmt::join(parts, ", "));
 }
 
 }  // namespace obsynth

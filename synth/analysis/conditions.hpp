@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "analysis/budget.hpp"
 #include "analysis/canonical.hpp"
@@ -15,5 +16,22 @@ namespace obsynth {
 // the ring's fields when the frame lives in the ring.
 void check_conditions(const Model& m, FrameRing& fr, Budget& budget, const CanonicalOptions& opt,
                       CanonicalForm& cf);
+
+// C2 and C3 all proved: only then is the model proved linearizable (cf.linearizable also admits
+// brackets that are only numerically zero).
+bool conditions_proved(const CanonicalForm& cf);
+
+// What the canonical form rests on without a proof: the brackets and the checks of T, T^-1 and
+// l(u, y) whose verdict is only numeric, e.g. "[tau_1, tau_2] = 0 (numerically zero at 31
+// points)". Empty when everything computed is proved.
+std::vector<std::string> unproven_steps(const CanonicalForm& cf);
+
+// A bracket's verdict for reports: "holds (proved)", "unproven (numerically zero at N points)",
+// "FAILS (nonzero)".
+std::string bracket_verdict_text(const BracketCheck& b);
+
+// The witness of a failing bracket in the model's symbol order, e.g. "w = 0.00494, cur = 3.1";
+// empty when there is none.
+std::string witness_text(const Model& m, const BracketCheck& b);
 
 }  // namespace obsynth

@@ -4,14 +4,8 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <chrono>
-#include <csignal>
-#include <cstdio>
+#include <limits>
 #include <new>
-#include <thread>
-
-#include <sys/wait.h>
-#include <unistd.h>
 #include <optional>
 #include <set>
 
@@ -363,72 +357,20 @@ void ginac_lie_chain(const Model& m, const Budget* budget, std::vector<ExVec>& l
   }
 }
 
-// Whether GiNaC's Lie chain completes within `seconds`, tried in a child process: one
-// normal() of a swelling expression cannot be interrupted (21 s for the second derivative of
-// tests/models/ident_mm.sym), so a budget checked between calls cannot hand over in time.
-bool ginac_chain_completes(const Model& m, double seconds) {
-  std::fflush(nullptr);
-  const pid_t pid = fork();
-  if (pid < 0) return true;  // no probe: run it here, under the budget
-  if (pid == 0) {
-    int status = 0;
-    try {
-      std::vector<ExVec> lie;
-      std::vector<ExMatrix> grads(m.p());
-      ginac_lie_chain(m, nullptr, lie, grads);
-    } catch (...) {
-      status = 1;
-    }
-    _exit(status);
-  }
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-  int status = 0;
-  while (waitpid(pid, &status, WNOHANG) == 0) {
-    if (std::chrono::steady_clock::now() > deadline) {
-      kill(pid, SIGKILL);
-      waitpid(pid, &status, 0);
-      return false;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
-}
-
-// The Lie chain and its gradients (rows of O per output), in the ring when possible. In
-// automatic mode its own budget is a share of the stage's, so that the jets can take over; the
-// GiNaC chain is first tried in a child process with that deadline.
+// The Lie chain and its gradients (rows of O per output), in the ring when possible. Its own
+// budget stops it on size (deterministic); in automatic mode it has no clock of its own, so that
+// no wall-clock limit chooses between it and the jets (the work budget does, see
+// symbolic_or_fallback).
 void lie_chain(const Model& m, Budget& budget, const ObservabilityOptions& opt, Observability& ob,
                std::vector<ExMatrix>& grads, RingRows& ring_rows, bool expressions) {
   StageScope stage(budget, "lie");
-  BudgetLimits share = budget.limits();
-  const bool automatic = opt.rank_method == RankMethod::automatic;
-  if (automatic) share.stage_seconds *= opt.symbolic_share;
-  Budget own(share);
+  BudgetLimits limits = budget.limits();
+  if (opt.rank_method == RankMethod::automatic)
+    limits.stage_seconds = std::numeric_limits<double>::infinity();
+  Budget own(limits);
   own.begin("lie");
   if (lie_chain_in_ring(m, own, ob.lie, grads, ring_rows, expressions)) return;
-  if (automatic && !ginac_chain_completes(m, share.stage_seconds))
-    throw UserError(SourceLoc{}, fmt::format("not complete within {:g} s", share.stage_seconds));
   ginac_lie_chain(m, &own, ob.lie, grads);
-}
-
-// The symbolic Lie chain into ob and grads. Under the automatic rank method, a chain that
-// exceeds its time, size or memory budget gives the reason to fall back to the jets rank
-// instead (nullopt: it completed).
-std::optional<std::string> lie_chain_or_fallback(const Model& m, Budget& budget,
-                                                 const ObservabilityOptions& opt, Observability& ob,
-                                                 std::vector<ExMatrix>& grads, RingRows& ring_rows,
-                                                 bool expressions) {
-  try {
-    lie_chain(m, budget, opt, ob, grads, ring_rows, expressions);
-  } catch (const UserError& e) {  // the time or size budget of the symbolic chain
-    if (opt.rank_method != RankMethod::automatic) throw;
-    const std::string why = e.diagnostics().empty() ? e.what() : e.diagnostics()[0].message;
-    return fmt::format("the symbolic Lie derivatives exceeded their budget ({})", why);
-  } catch (const std::bad_alloc&) {
-    if (opt.rank_method != RankMethod::automatic) throw;
-    return std::string("the symbolic Lie derivatives ran out of memory");
-  }
-  return std::nullopt;
 }
 
 // The rank, det and adj(O) e_n of a triangular O from its diagonal entries (O[k][cols[k]]):
@@ -624,20 +566,53 @@ Observability& rank_and_determinant(const Model& m, Budget& budget, const Observ
   return keep_ring(ob, ring_rows);
 }
 
+// The symbolic analysis: Lie chain, then O's rank, indices and det.
+Observability& symbolic_observability(const Model& m, Budget& budget,
+                                      const ObservabilityOptions& opt, Observability& ob,
+                                      bool expressions) {
+  ob.n = m.n();
+  ob.p = m.p();
+  std::vector<ExMatrix> grads(ob.p);
+  RingRows ring_rows;
+  lie_chain(m, budget, opt, ob, grads, ring_rows, expressions);
+  return rank_and_determinant(m, budget, opt, ob, grads, ring_rows);
+}
+
+// Automatic: the symbolic analysis within its work budget (opt.symbolic_work allocations),
+// else the reason to decide the rank from the jets (nullopt: it completed). Only counted work
+// and sizes choose; a time budget that runs out ends the stage as it would without the jets.
+std::optional<std::string> symbolic_or_fallback(const Model& m, Budget& budget,
+                                                const ObservabilityOptions& opt, Observability& ob,
+                                                bool expressions) {
+  try {
+    WorkScope work(opt.symbolic_work);
+    symbolic_observability(m, budget, opt, ob, expressions);
+    if (!work.exceeded()) return std::nullopt;
+    throw WorkBudgetExceeded();  // thrown inside, swallowed by a caller on the way
+  } catch (const WorkBudgetExceeded&) {
+    return fmt::format(
+        "the symbolic Lie derivatives and O exceeded their work budget ({} allocations)",
+        opt.symbolic_work);
+  } catch (const BudgetExceeded& e) {
+    if (e.stage() != "lie") throw;  // the chain's own budget stops on size only (lie_chain)
+    return fmt::format("the symbolic Lie derivatives exceeded their budget ({})", e.reason());
+  } catch (const std::bad_alloc&) {
+    return std::string("the symbolic Lie derivatives ran out of memory");
+  }
+}
+
 Observability& observability_into(const Model& m, Budget& budget, const ObservabilityOptions& opt,
                                   Observability& ob, bool expressions) {
   if (opt.rank_method == RankMethod::jets)
     return ob = observability_from_jets(m, budget, opt,
                                         "the jets rank was requested (--rank-method jets)");
-  ob.n = m.n();
-  ob.p = m.p();
-  std::vector<ExMatrix> grads(ob.p);
-  RingRows ring_rows;
-  if (const auto why = lie_chain_or_fallback(m, budget, opt, ob, grads, ring_rows, expressions)) {
+  if (opt.rank_method == RankMethod::symbolic)
+    return symbolic_observability(m, budget, opt, ob, expressions);
+  if (const auto why = symbolic_or_fallback(m, budget, opt, ob, expressions)) {
     ob = Observability{};  // progress reports during the jets see no half-built chain
     return ob = observability_from_jets(m, budget, opt, *why);
   }
-  return rank_and_determinant(m, budget, opt, ob, grads, ring_rows);
+  return ob;
 }
 
 }  // namespace

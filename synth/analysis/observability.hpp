@@ -27,9 +27,10 @@ struct ObservabilityOptions {
   int float_digits = 60;  // for entries with transcendental functions
   std::uint64_t seed = 0x0b5e7;
   RankMethod rank_method = RankMethod::automatic;
-  // automatic: the symbolic Lie chain's share of the stage time budget; past it the jets
-  // decide the rank (the rest of the budget covers one uninterruptible GiNaC call).
-  double symbolic_share = 0.25;
+  // automatic: the work budget (allocations, budget.hpp WorkScope) of the symbolic chain and
+  // O's rank; past it the jets decide the rank. Work, not time: the same model takes the same
+  // path on any machine under any load.
+  std::uint64_t symbolic_work = 5000000;
   JetsOptions jets;
 };
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "analysis/observability.hpp"
 #include "analysis/triangular_form.hpp"
 #include "emit/dag.hpp"
 #include "front/parse.hpp"
@@ -50,6 +51,84 @@ std::optional<TriangularInX> triangular_in_x(const Model& m, std::string* why) {
   }
   if (why) why->clear();
   return t;
+}
+
+namespace {
+
+// A witness of how fast |J| grows near the zero set of its denominator factor f (in x): when
+// f is linear in one variable s with its root r in the box, the largest |J| over 16 sampled
+// points of the box with s moved to r + 1 % and r + 0.01 % of s's box width (towards the
+// inside). Growth by ~100x between the two is the 1 / distance of a pole. Empty otherwise.
+std::string growth_near_zero(const ex& J, const ex& f, const Model& m, const SampleBoxes& boxes) {
+  const auto vars = symbols_in(f);
+  if (vars.size() != 1 || !f.info(GiNaC::info_flags::rational_polynomial)) return "";
+  const GiNaC::symbol& s = vars[0];
+  const ex p = GiNaC::expand(f);
+  if (p.degree(s) != 1) return "";
+  const GiNaC::numeric r =
+      -GiNaC::ex_to<GiNaC::numeric>(p.coeff(s, 0)) / GiNaC::ex_to<GiNaC::numeric>(p.coeff(s, 1));
+  const Interval b = boxes.box(s);
+  if (r < b.lo || r > b.hi) return "";
+  const auto points = sample_points(m.all_symbols(), boxes, 16, 0x6b74);
+  std::vector<std::string> parts;
+  for (const GiNaC::numeric& fraction : {GiNaC::numeric(1, 100), GiNaC::numeric(1, 10000)}) {
+    GiNaC::numeric d = (b.hi - b.lo) * fraction;
+    if (r + d > b.hi) d = -d;
+    double worst = 0;
+    for (auto pt : points) {
+      pt[s] = r + d;
+      GiNaC::numeric v;
+      if (evaluate_real(J, pt, 30, v)) worst = std::max(worst, std::abs(v.to_double()));
+    }
+    parts.push_back(
+        fmt::format("max |.| = {:.3g} at {} = {:.4g}", worst, s.get_name(), (r + d).to_double()));
+  }
+  return fmt::format(" ({} box points with {} moved near the zero {}: {})", points.size(),
+                     s.get_name(), to_string(r), fmt::join(parts, ", "));
+}
+
+}  // namespace
+
+PhiLipschitz phi_lipschitz_on_box(const Model& m, const std::vector<GiNaC::symbol>& z,
+                                  const ExVec& phi, const ExVec& z_of_x) {
+  GiNaC::exmap at_x;
+  for (std::size_t i = 0; i < z_of_x.size() && i < z.size(); ++i) at_x[z[i]] = z_of_x[i];
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  std::vector<std::string> unknown;
+  std::size_t entries = 0;
+  for (std::size_t i = 0; i < phi.size(); ++i)
+    for (std::size_t j = 0; j < z.size(); ++j) {
+      const ex J = GiNaC::normal(phi[i].diff(z[j]));
+      if (J.is_zero()) continue;
+      ++entries;
+      for (const auto& f : dependent_factors(GiNaC::denom(J), z)) {
+        const ex fx = f.subs(at_x);
+        const BoxZeros zb = zeros_in_box(fx, boxes);
+        if (zb.kind == BoxZeros::never) continue;
+        const std::string entry = fmt::format("d phi_{}/d z{} = {}", i + 1, j + 1, to_string(J));
+        if (zb.kind == BoxZeros::unknown) {
+          unknown.push_back(fmt::format("{}: denominator {} not proved nonzero ({})", entry,
+                                        to_string(f), zb.detail));
+          continue;
+        }
+        const std::string where =
+            z_of_x.empty() ? std::string() : fmt::format(", i.e. {} = 0 in x", to_string(fx));
+        return {PhiLipschitz::fails,
+                fmt::format("phi is not Lipschitz in z on the domain box: {} has the denominator "
+                            "{}, which vanishes in the box{} ({}); no Lipschitz constant holds "
+                            "there{}",
+                            entry, to_string(f), where, zb.detail,
+                            growth_near_zero(J.subs(at_x), fx, m, boxes))};
+      }
+    }
+  if (!unknown.empty())
+    return {PhiLipschitz::unknown,
+            fmt::format("phi Lipschitz in z on the domain box not proved: {}",
+                        fmt::join(unknown, "; "))};
+  return {PhiLipschitz::proved,
+          fmt::format("phi is Lipschitz in z on the domain box: the {} nonzero entries of "
+                      "d phi/d z have no denominator vanishing there (proved)",
+                      entries)};
 }
 
 namespace {
@@ -268,12 +347,14 @@ PersistenceResult check_persistence(const Model& m, const PersistenceOptions& op
   std::string why;
   auto form = triangular_in_x(m, &why);
   std::string where = "in x";
+  if (form) r.lipschitz = phi_lipschitz_on_box(m, m.states, form->phi, {});
   if (!form) {
     // The triangular form in other coordinates (z a permutation of x, or z = (h, L_f h, ...)):
     // only A(u) enters Psi, Gamma and the Gramian.
     std::string why_t;
     if (const auto t = triangular_form(m, &why_t)) {
       form = TriangularInX{t->a, t->phi};
+      r.lipschitz = phi_lipschitz_on_box(m, t->z, t->phi, t->z_of_x);
       where = t->coordinates == TriangularForm::Coordinates::states
                   ? "in the states reordered"
                   : fmt::format("in the coordinates z = (h, L_f h, ...) = [{}]",
@@ -310,6 +391,14 @@ PersistenceResult check_persistence(const Model& m, const PersistenceOptions& op
                 "check along the input, sampled in t and theta)",
                 r.t0, r.horizon, num(r.by_theta.front().theta), num(r.by_theta.back().theta))
           : "not strongly persistent (numerical check along the input): " + failure_text(r);
+  // Persistence is a property of A(u) alone; the Theorem also needs phi Lipschitz, and without
+  // it no input makes the observer converge by the Theorem.
+  if (r.lipschitz.kind == PhiLipschitz::fails)
+    r.verdict += "; but seed 002's Theorem does not apply to this model whatever the input: " +
+                 r.lipschitz.text;
+  else if (r.lipschitz.kind == PhiLipschitz::unknown)
+    r.verdict += "; seed 002's Theorem also needs phi Lipschitz in z, which is not proved: " +
+                 r.lipschitz.text;
   return r;
 }
 
@@ -342,6 +431,10 @@ nlohmann::ordered_json persistence_json(const PersistenceResult& r) {
     j["condition_i"] = r.condition_i;
     j["condition_ii"] = r.condition_ii;
     j["strongly_persistent"] = r.persistent;
+    j["phi_lipschitz"] = r.lipschitz.kind == PhiLipschitz::proved  ? "proved"
+                         : r.lipschitz.kind == PhiLipschitz::fails ? "fails"
+                                                                   : "unknown";
+    j["phi_lipschitz_text"] = r.lipschitz.text;
   } else {
     j["strongly_persistent"] = nullptr;
   }
@@ -415,6 +508,7 @@ std::string render_persistence(const PersistenceResult& r, const std::string& fo
     if (md) out += "\n";
     line("condition i)", r.condition_i ? "holds (sampled)" : "fails");
     line("condition ii)", r.condition_ii ? "holds (sampled)" : "fails");
+    line("phi Lipschitz in z (the Theorem's other hypothesis)", r.lipschitz.text);
   }
   line("verdict", r.verdict);
   return out;

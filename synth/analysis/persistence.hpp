@@ -32,6 +32,22 @@ struct TriangularInX {
 // nullopt with `why` set when the model is not in that form in x.
 std::optional<TriangularInX> triangular_in_x(const Model& m, std::string* why);
 
+// The Theorem's other hypothesis: phi(u, z) Lipschitz in z. On the compact domain box a phi
+// that is continuously differentiable there is Lipschitz on it (the usual reading of "globally
+// Lipschitz" for a plant that stays in its box), so what can fail is a denominator of some
+// d phi_i / d z_j that vanishes in the box (taken back to x through z_of_x):
+//  proved  - every z-dependent denominator factor proved nonzero on the box (zeros_in_box);
+//  fails   - one vanishes in the box (proved): phi is undefined there and, near that set, its
+//            derivative was measured growing like 1 / distance (`text` gives the numbers);
+//  unknown - neither proved.
+struct PhiLipschitz {
+  enum Kind { proved, fails, unknown } kind = unknown;
+  std::string text;  // what was proved, or the failing entry, where and by how much
+};
+// z: the form's coordinates, phi in them; z_of_x empty when z are the states themselves.
+PhiLipschitz phi_lipschitz_on_box(const Model& m, const std::vector<GiNaC::symbol>& z,
+                                  const ExVec& phi, const ExVec& z_of_x);
+
 struct PersistenceOptions {
   std::string input_text;  // comma-separated expressions in t, one per input
   double horizon = 20;
@@ -59,7 +75,8 @@ struct PersistenceResult {
   double window_gramian_min_eig = 0;  // min over windows [t - window, t], t in [t0, horizon]
   bool condition_i = false, condition_ii = false;
   bool persistent = false;
-  std::string verdict;  // one sentence, says "sampled"
+  PhiLipschitz lipschitz;  // the Theorem's other hypothesis, whatever the input
+  std::string verdict;     // one sentence, says "sampled"
 };
 
 PersistenceResult check_persistence(const Model& m, const PersistenceOptions& opt);

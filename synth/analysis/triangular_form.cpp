@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "analysis/inverse.hpp"
+#include "front/fresh_names.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
 
@@ -145,12 +146,6 @@ namespace {
 
 // ---- the form ------------------------------------------------------------------------------
 
-std::vector<GiNaC::symbol> z_symbols(std::size_t n) {
-  std::vector<GiNaC::symbol> z;
-  for (std::size_t i = 0; i < n; ++i) z.emplace_back(fmt::format("z{}", i + 1));
-  return z;
-}
-
 void finish(TriangularForm& t, std::size_t n) {
   t.A.assign(n, ExVec(n, ex(0)));
   for (std::size_t i = 0; i + 1 < n; ++i) t.A[i][i + 1] = t.a[i];
@@ -216,7 +211,7 @@ std::optional<TriangularForm> in_states(const Model& m, const ExVec& F, std::siz
     used[k] = true;
   }
   t.phi_x.push_back(F[t.order.back()]);
-  t.z = z_symbols(n);
+  t.z = fresh_symbols(m, "z", n);
   GiNaC::exmap to_z;
   t.x_of_z.assign(n, ex(0));
   for (std::size_t i = 0; i < n; ++i) {
@@ -243,7 +238,7 @@ std::optional<TriangularForm> in_lie_coordinates(const Model& m, const ExVec& F,
     for (std::size_t k = 1; k < n; ++k)
       t.z_of_x.push_back(simplify(lie_derivative(t.z_of_x.back(), m.f, x)));
   }
-  t.z = z_symbols(n);
+  t.z = fresh_symbols(m, "z", n);
   const auto steps = triangular_elimination(t.z_of_x, x, t.z);
   if (!steps) {
     why =

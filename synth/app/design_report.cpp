@@ -37,8 +37,13 @@ nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScop
                               d.name)));
       continue;
     }
-    const Verdict v = d.applies(a);
-    j.push_back({{"method", d.name}, {"applies", v.applies}, {"reasons", v.reasons}});
+    const Verdict v = design_verdict(d, a, scope.searches);
+    nlohmann::ordered_json e = {{"method", d.name}, {"applies", v.applies}, {"reasons", v.reasons}};
+    if (v.applies) {
+      e["guarantee"] = guarantee_name(v.guarantee);
+      if (!v.guarantee_text.empty()) e["guarantee_reason"] = v.guarantee_text;
+    }
+    j.push_back(e);
   }
   for (const auto& name : planned_methods())
     j.push_back({{"method", name},

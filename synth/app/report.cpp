@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <map>
 
+#include "analysis/conditions.hpp"
 #include "symbolic/expr_print.hpp"
 
 namespace obsynth {
@@ -66,8 +67,33 @@ std::string timings_text(const Analysis& a) {
   return fmt::format("{}", fmt::join(t, ", "));
 }
 
-const char* holds_word(bool h) {
-  return h ? "holds" : "FAILS";
+// ": residual [...] (nonzero at x = ...)" for a failing bracket, "" otherwise.
+std::string failure_text(const Model& m, const BracketCheck& b) {
+  if (b.holds()) return "";
+  const std::string at = witness_text(m, b);
+  return fmt::format(": residual {}{}", residual_text(b),
+                     at.empty() ? "" : fmt::format(" (nonzero at {})", at));
+}
+
+// The conclusion of C1-C3: proved, unproven (some bracket only numerically zero), or refuted.
+std::string linearizable_text(const CanonicalForm& cf) {
+  if (!cf.linearizable) return "NOT linearizable by output injection";
+  if (conditions_proved(cf)) return "linearizable by output injection";
+  return "linearizability by output injection unproven: a bracket is only numerically zero";
+}
+
+// A verdict on T, T^-1 or l(u, y): "proved", "unproven (numerically zero at the sampled
+// points)" or "nonzero".
+std::string map_verdict_text(ZeroVerdict v) {
+  return v == ZeroVerdict::numeric ? "unproven (numerically zero at the sampled points)"
+                                   : verdict_name(v);
+}
+
+// A bracket's evidence: the points a numeric zero vanished at, a failure's witness point.
+void add_evidence_json(const Model& m, const BracketCheck& b, ordered_json& out) {
+  if (!b.residual_note.empty()) out["residual_note"] = b.residual_note;
+  if (b.verdict == ZeroVerdict::numeric) out["zero_points"] = b.zero_points;
+  if (!b.witness.empty()) out["witness"] = witness_text(m, b);
 }
 
 std::string rank_method(const Observability& ob) {
@@ -95,8 +121,8 @@ ordered_json inverse_steps_json(const Model& m, const CanonicalForm& cf) {
 std::vector<std::string> inverse_steps_text(const Model& m, const CanonicalForm& cf) {
   std::vector<std::string> lines;
   for (const auto& s : cf.T_inverse_steps)
-    lines.push_back(fmt::format("{} = {}   (from T_{} = z{})", m.states[s.state].get_name(),
-                                to_string(s.value), s.equation + 1, s.equation + 1));
+    lines.push_back(fmt::format("{} = {}   (from T_{} = {})", m.states[s.state].get_name(),
+                                to_string(s.value), s.equation + 1, cf.z[s.equation].get_name()));
   return lines;
 }
 
@@ -398,14 +424,14 @@ ordered_json conditions_json(const Analysis& a) {
                      {"holds", b.holds()},
                      {"verdict", verdict_name(b.verdict)},
                      {"residual", residual_json(b)}});
-    if (!b.residual_note.empty()) drift.back()["residual_note"] = b.residual_note;
+    add_evidence_json(a.model, b, drift.back());
   }
   for (const auto& b : cf.input) {
     input.push_back({{"j", b.j},
                      {"holds", b.holds()},
                      {"verdict", verdict_name(b.verdict)},
                      {"residual", residual_json(b)}});
-    if (!b.residual_note.empty()) input.back()["residual_note"] = b.residual_note;
+    add_evidence_json(a.model, b, input.back());
   }
   c["observable"] = a.observability.generic_rank == a.observability.n;
   c["drift"] = drift;
@@ -431,7 +457,12 @@ void add_canonical_json(const Analysis& a, ordered_json& j) {
     j["frame"] = nullptr;
   }
   j["conditions"] = conditions_json(a);
-  j["linearizable"] = app && cf.linearizable;
+  // Only a proof concludes; numerically zero brackets leave linearizability unproven.
+  j["linearizable"] = app && cf.linearizable && conditions_proved(cf);
+  j["linearizability"] = !app                    ? ordered_json(nullptr)
+                         : !cf.linearizable      ? ordered_json("refuted")
+                         : conditions_proved(cf) ? ordered_json("proved")
+                                                 : ordered_json("unproven");
   j["base_point"] = cf.base_point.empty() ? ordered_json(nullptr) : expr_list(cf.base_point);
   auto map_entry = [&](const char* key, Availability kind, const ExVec& v, ZeroVerdict verdict,
                        const std::string& note) {
@@ -554,10 +585,11 @@ void text_diffeomorphism(const Analysis& a, SectionMarks& marks, const LineWrite
     line("");
     line("Canonical form (output last)");
     for (std::size_t i = 0; i < cf.l.size(); ++i)
-      line(fmt::format("  z{}' = {}{}", i + 1, i == 0 ? "" : fmt::format("z{} + ", i),
-                       to_string(cf.l[i])));
-    line(fmt::format("  y = z{}{}", cf.l.size(), cf.base_point.empty() ? "" : " + h(x0)"));
-    line(fmt::format("  l(u, y) free of x: {}", verdict_name(cf.l_verdict)));
+      line(fmt::format("  {}' = {}{}", cf.z[i].get_name(),
+                       i == 0 ? "" : cf.z[i - 1].get_name() + " + ", to_string(cf.l[i])));
+    line(fmt::format("  {} = {}{}", cf.y.get_name(), cf.z.back().get_name(),
+                     cf.base_point.empty() ? "" : " + h(x0)"));
+    line(fmt::format("  l(u, y) free of x: {}", map_verdict_text(cf.l_verdict)));
   } else {
     line(fmt::format("  l: {}", cf.l_note));
   }
@@ -578,19 +610,15 @@ void text_canonical(const Analysis& a, SectionMarks& marks, const LineWriter& li
     marks.mark("conditions");
     line(fmt::format("  C1 rank O = n                 holds"));
     for (const auto& b : cf.drift)
-      line(fmt::format("  C2 [tau_{}, tau_{}] = 0{:>{}}{} ({}){}", b.i, b.j, "",
-                       9 - std::to_string(b.i).size() - std::to_string(b.j).size(),
-                       holds_word(b.holds()), verdict_name(b.verdict),
-                       b.holds() ? "" : fmt::format(": residual {}", residual_text(b))));
+      line(fmt::format("  C2 [tau_{}, tau_{}] = 0{:>{}}{}{}", b.i, b.j, "",
+                       11 - std::to_string(b.i).size() - std::to_string(b.j).size(),
+                       bracket_verdict_text(b), failure_text(a.model, b)));
     for (const auto& b : cf.input)
-      line(fmt::format("  C3 [g, tau_{}] = 0{:>{}}{} ({}){}", b.j, "",
-                       14 - std::to_string(b.j).size(), holds_word(b.holds()),
-                       verdict_name(b.verdict),
-                       b.holds() ? "" : fmt::format(": residual {}", residual_text(b))));
+      line(fmt::format("  C3 [g, tau_{}] = 0{:>{}}{}{}", b.j, "", 14 - std::to_string(b.j).size(),
+                       bracket_verdict_text(b), failure_text(a.model, b)));
     line(fmt::format("  C4 completeness               {}: {}", completeness_name(cf.complete),
                      cf.complete_reason));
-    line(cf.linearizable ? "  => linearizable by output injection"
-                         : "  => NOT linearizable by output injection");
+    line("  => " + linearizable_text(cf));
     if (cf.linearizable) text_diffeomorphism(a, marks, line);
   }
 }
@@ -665,14 +693,12 @@ void markdown_conditions(const Analysis& a, SectionMarks& marks, const LineWrite
   line("| C1: rank $O = n$ | holds | |");
   for (const auto& b : cf.drift)
     line(fmt::format(
-        "| C2: $[\\tau_{{{}}}, \\tau_{{{}}}] = 0$ | {} ({}) | {} |", b.i, b.j,
-        holds_word(b.holds()), verdict_name(b.verdict),
+        "| C2: $[\\tau_{{{}}}, \\tau_{{{}}}] = 0$ | {} | {} |", b.i, b.j, bracket_verdict_text(b),
         b.holds() ? ""
                   : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
   for (const auto& b : cf.input)
     line(fmt::format(
-        "| C3: $[g, \\tau_{{{}}}] = 0$ | {} ({}) | {} |", b.j, holds_word(b.holds()),
-        verdict_name(b.verdict),
+        "| C3: $[g, \\tau_{{{}}}] = 0$ | {} | {} |", b.j, bracket_verdict_text(b),
         b.holds() ? ""
                   : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
   line(fmt::format("| C4: completeness | {} | {} |", completeness_name(cf.complete),
@@ -693,8 +719,7 @@ void markdown_canonical(const Analysis& a, SectionMarks& marks, const LineWriter
     line("");
     markdown_conditions(a, marks, line);
     line("");
-    line(cf.linearizable ? "**Linearizable by output injection.**"
-                         : "**Not linearizable by output injection.**");
+    line("**" + linearizable_text(cf) + ".**");
     marks.mark("diffeomorphism");
     if (cf.T_kind == Availability::symbolic) {
       line("");
@@ -782,13 +807,13 @@ std::string render_latex(const Analysis& a) {
                        b.holds() ? "= 0"
                                  : (b.residual.empty() ? std::string("\\neq 0")
                                                        : "= " + vec_latex(b.residual) + " \\neq 0"),
-                       verdict_name(b.verdict)));
+                       latex_text(bracket_verdict_text(b))));
     for (const auto& b : cf.input)
       line(fmt::format("  \\item $[g, \\tau_{{{}}}] {}$ ({})", b.j,
                        b.holds() ? "= 0"
                                  : (b.residual.empty() ? std::string("\\neq 0")
                                                        : "= " + vec_latex(b.residual) + " \\neq 0"),
-                       verdict_name(b.verdict)));
+                       latex_text(bracket_verdict_text(b))));
     line(fmt::format("  \\item completeness: {}", completeness_name(cf.complete)));
     line("\\end{itemize}");
     marks.mark("diffeomorphism");

@@ -16,6 +16,7 @@
 #include "emit/dag.hpp"
 #include "front/parse.hpp"
 #include "obsynth/differentiator.hpp"
+#include "symbolic/expr_print.hpp"
 
 namespace obsynth {
 
@@ -214,11 +215,22 @@ class SpecObserver {
       w_.assign(next.data(), next.data() + next.size());
     } else {
       const Vec before = w_;
-      rk4([&](double, const Vec& w) { return derivative(w, u, y); }, 0, dt, w_);
+      // Equal RK4 sub-steps no longer than the design's max_substep, as the generated step.
+      const std::size_t steps = substeps(dt);
+      for (std::size_t k = 0; k < steps; ++k)
+        rk4([&](double, const Vec& w) { return derivative(w, u, y); }, 0,
+            dt / static_cast<double>(steps), w_);
       check_blocks();
       if (!rejected_.empty()) w_ = before;  // the generated step keeps its state too
     }
     update_estimate();
+  }
+  // ceil(dt / max_substep), 1..4096 (ObserverSpec::max_substep; 1 when it is 0).
+  std::size_t substeps(double dt) const {
+    if (!(s_.max_substep > 0)) return 1;
+    const double ratio = dt / s_.max_substep.to_double();
+    if (!(ratio > 1)) return 1;
+    return ratio >= 4096 ? 4096 : static_cast<std::size_t>(std::ceil(ratio));
   }
   // Why the last step or derivative was rejected (empty: it was not).
   const std::string& rejected() const { return rejected_; }
@@ -463,12 +475,106 @@ Plant make_plant(const Model& m, const std::string& u_text, const GiNaC::exmap& 
     throw UserError(SourceLoc{},
                     fmt::format("--u needs {} expression{} in t (one per input), got {}", m.m(),
                                 m.m() == 1 ? "" : "s", u_of_t.size()));
-  ExVec field = m.field(), h = m.h;
+  ExVec field = m.field(), h = m.measured_outputs();
   for (auto& e : field) e = e.subs(params);
   for (auto& e : h) e = e.subs(params);
   const auto xn = names_of(m.states);
   return {NumericFunction(field, concat_names(xn, names_of(m.inputs))),
           NumericFunction(h, concat_names(xn, names_of(m.inputs))), NumericFunction(u_of_t, {"t"})};
+}
+
+// One --plant-param assignment, checked against the model as read: only a free parameter (no
+// value in the model file) can differ between plant and observer.
+std::pair<const Param*, GiNaC::numeric> plant_assignment(const Model& source,
+                                                         const std::string& text) {
+  const auto eq = text.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw UserError(SourceLoc{}, fmt::format("--plant-param '{}': expected name=value", text));
+  const std::string name = text.substr(0, eq), value = text.substr(eq + 1);
+  std::vector<std::string> free;
+  for (const auto& p : source.params) {
+    if (p.name == name && p.value)
+      throw UserError(SourceLoc{},
+                      fmt::format("--plant-param {}: '{}' is not a free parameter (the model file "
+                                  "gives it the value {}); only free parameters can differ "
+                                  "between plant and observer",
+                                  name, name, to_string(*p.value)));
+    if (p.name == name)
+      return {&p, parse_real_number(value, fmt::format("--plant-param {}={}", name, value))};
+    if (!p.value) free.push_back(p.name);
+  }
+  throw UserError(
+      SourceLoc{},
+      fmt::format("--plant-param {}: the model has no parameter '{}' "
+                  "(its free parameters: {})",
+                  name, name, free.empty() ? "none" : fmt::format("{}", fmt::join(free, ", "))));
+}
+
+// The plant's model and parameter values: the observer's values (its run-time defaults and the
+// --param bindings), with the --plant-param assignments in their place. `note` lists the values
+// that differ from the observer's.
+struct PlantParameters {
+  const Model* model;
+  GiNaC::exmap values;
+  std::string note;
+};
+
+// The observer's parameter values by name (symbols may differ between copies of a model).
+std::map<std::string, GiNaC::numeric> observer_parameters(const Model& analysed,
+                                                          const GiNaC::exmap& runtime) {
+  std::map<std::string, GiNaC::numeric> by_name;
+  for (const auto& p : analysed.params) {
+    const Interval box = analysed.box(p.symbol);
+    by_name[p.name] = p.value ? *p.value : (box.lo + box.hi) / 2;
+  }
+  for (const auto& [sym, v] : runtime)
+    by_name[GiNaC::ex_to<GiNaC::symbol>(sym).get_name()] = GiNaC::ex_to<GiNaC::numeric>(v);
+  return by_name;
+}
+
+std::string outside_box_note(const Model& source, const std::string& name,
+                             const GiNaC::numeric& v) {
+  const auto box = source.domain.find(name);
+  if (box == source.domain.end() || (v >= box->second.lo && v <= box->second.hi)) return "";
+  return fmt::format(", outside the box [{}, {}] the analysis holds on", to_string(box->second.lo),
+                     to_string(box->second.hi));
+}
+
+// The --plant-param assignments, checked (names, values, repeats) against the model as read.
+std::vector<std::pair<const Param*, GiNaC::numeric>> plant_assignments(
+    const Model& source, const SimulationOptions& opt) {
+  std::vector<std::pair<const Param*, GiNaC::numeric>> out;
+  for (const auto& text : opt.plant_params) {
+    out.push_back(plant_assignment(source, text));
+    for (std::size_t i = 0; i + 1 < out.size(); ++i)
+      if (out[i].first == out.back().first)
+        throw UserError(SourceLoc{},
+                        fmt::format("--plant-param {}: given twice", out.back().first->name));
+  }
+  return out;
+}
+
+const Model& plant_source(const Model& analysed, const SimulationOptions& opt) {
+  return opt.unbound_model ? *opt.unbound_model : analysed;
+}
+
+PlantParameters plant_parameters(const Model& analysed, const SimulationOptions& opt,
+                                 const GiNaC::exmap& runtime) {
+  const Model& source = plant_source(analysed, opt);
+  const auto observer = observer_parameters(analysed, runtime);
+  auto plant = observer;
+  std::vector<std::string> notes;
+  for (const auto& [param, value] : plant_assignments(source, opt)) {
+    plant[param->name] = value;
+    notes.push_back(fmt::format("{} = {:g} (observer: {:g}{})", param->name, value.to_double(),
+                                observer.at(param->name).to_double(),
+                                outside_box_note(source, param->name, value)));
+  }
+  PlantParameters out{&source, {}, ""};
+  if (!notes.empty()) out.note = fmt::format("plant parameters: {}", fmt::join(notes, "; "));
+  for (const auto& p : source.params)
+    if (!p.value) out.values[p.symbol] = plant.at(p.name);
+  return out;
 }
 
 struct Recorder {
@@ -565,8 +671,31 @@ GiNaC::exmap parameter_values(const ObserverSpec& s) {
   return at;
 }
 
-void render_outputs(const Model& m, const SimulationOptions& opt, SimulationResult& res,
-                    std::size_t steps) {
+// The domain box of each state (Model::box: the declared one, else the default).
+std::vector<StateBox> state_boxes(const Model& m) {
+  std::vector<StateBox> out;
+  for (const auto& x : m.states) {
+    const Interval b = m.box(x);
+    out.push_back({b.lo.to_double(), b.hi.to_double(), m.domain.count(x.get_name()) > 0});
+  }
+  return out;
+}
+
+// "the observer left the finite numbers at t = 0.7" out of the divergence diagnostic.
+std::string stop_label(const std::string& diverged) {
+  const std::string prefix = "simulate: ";
+  std::string s =
+      diverged.compare(0, prefix.size(), prefix) == 0 ? diverged.substr(prefix.size()) : diverged;
+  return s.substr(0, s.find(';'));
+}
+
+std::string method_line(const SimulationResult& res) {
+  return res.explanation.empty() ? fmt::format("observer: {}", res.method)
+                                 : fmt::format("observer: {} ({})", res.method, res.explanation);
+}
+
+void render_outputs(const Model& m, const SimulationOptions& opt, const std::string& plant_note,
+                    SimulationResult& res) {
   const std::size_t n = m.n();
   res.csv = csv_header(res.names);
   for (std::size_t i = 0; i < res.t.size(); ++i) {
@@ -576,19 +705,28 @@ void render_outputs(const Model& m, const SimulationOptions& opt, SimulationResu
     res.csv += "\n";
   }
   TrajectoryPlot plot{
-      fmt::format("{}: {} observer ({} sampling), u = {}", m.name, opt.method,
+      fmt::format("{}: {} observer{}, {} sampling, u = {}", m.name, res.method,
+                  res.explanation.empty() ? "" : " (chosen by auto)",
                   opt.sampling == Sampling::continuous ? "continuous" : "zero-order hold",
                   opt.u_text),
-      res.names, res.t, res.x, res.xh};
+      plant_note,
+      res.names,
+      res.t,
+      res.x,
+      res.xh,
+      state_boxes(m),
+      stop_label(res.diverged)};
   res.svg = render_svg(plot);
   double e0 = 0, e1 = 0;
   for (std::size_t k = 0; k < n; ++k) {
     e0 = std::max(e0, std::fabs(res.x.front()[k] - res.xh.front()[k]));
     e1 = std::max(e1, std::fabs(res.x.back()[k] - res.xh.back()[k]));
   }
-  res.summary = fmt::format("{} steps of {:g}: max |x - x_hat| {:.3e} at t = 0, {:.3e} at t = {:g}",
-                            res.t.size() - 1, opt.dt, e0, e1, res.t.back());
-  (void)steps;
+  res.summary = method_line(res) + "\n";
+  if (!plant_note.empty()) res.summary += plant_note + "\n";
+  res.summary +=
+      fmt::format("{} steps of {:g}: max |x - x_hat| {:.3e} at t = 0, {:.3e} at t = {:g}",
+                  res.t.size() - 1, opt.dt, e0, e1, res.t.back());
 }
 
 }  // namespace
@@ -596,18 +734,20 @@ void render_outputs(const Model& m, const SimulationOptions& opt, SimulationResu
 SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
   const Model& m = a.model;
   const std::size_t steps = step_count(opt, m.n());
-  std::string explanation;
-  const auto methods = resolve_methods(a, {opt.method}, explanation);
+  plant_assignments(plant_source(m, opt), opt);  // a bad --plant-param fails before any work
+  SimulationResult res;
+  const auto methods = resolve_methods(a, {opt.method}, res.explanation);
+  res.method = methods.front();
   DesignOptions design = opt.design;
   // A design with a fixed sample period gets --dt unless it was given.
-  if (const Design* d = find_design(methods.front()))
+  if (const Design* d = find_design(res.method))
     for (const auto& o : d->options)
       if (o.name == "sample-period" && !design.find(o.name))
         design.values[o.name] = fmt::format("{:.17g}", opt.dt);
-  const ObserverSpec spec = build_design(a, methods.front(), design);
+  const ObserverSpec spec = build_design(a, res.method, design);
   const GiNaC::exmap params = parameter_values(spec);
-  const Plant plant = make_plant(m, opt.u_text, params);
-  SimulationResult res;
+  const PlantParameters pp = plant_parameters(m, opt, params);
+  const Plant plant = make_plant(*pp.model, opt.u_text, pp.values);
   res.names = names_of(m.states);
   Recorder rec{res};
   if (spec.update == UpdateKind::jets) {
@@ -623,7 +763,7 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
   if (res.t.empty())
     throw UserError(SourceLoc{}, res.diverged.empty() ? "simulate: nothing recorded"
                                                       : res.diverged + " before the first sample");
-  render_outputs(m, opt, res, steps);
+  render_outputs(m, opt, pp.note, res);
   return res;
 }
 

@@ -24,9 +24,17 @@ struct SimulationOptions {
   double t_end = 10, dt = 1e-3;
   Sampling sampling = Sampling::continuous;
   double newton_tolerance = 1e-13;
+  // Values the plant takes for free parameters, "name=value" (--plant-param, repeatable); the
+  // observer keeps its own (the --param binding or its run-time default, the box centre).
+  std::vector<std::string> plant_params;
+  // The model as read, before the --param bindings (null: the analysis's model): lets the
+  // plant differ from the observer in a parameter that --param bound for the observer.
+  const Model* unbound_model = nullptr;
 };
 
 struct SimulationResult {
+  std::string method;       // the design that ran (auto resolved)
+  std::string explanation;  // why auto chose it; empty when the method was named
   std::vector<std::string> names;
   std::vector<double> t;
   std::vector<std::vector<double>> x, xh;

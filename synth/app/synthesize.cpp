@@ -10,6 +10,7 @@
 #include "app/worker.hpp"
 #include "designs/registry.hpp"
 #include "emit/emit_c.hpp"
+#include "symbolic/expr_print.hpp"
 
 namespace obsynth {
 
@@ -48,10 +49,48 @@ std::string not_observable_note(const Analysis& a) {
                      ui.reason.empty() ? "not computed" : ui.reason);
 }
 
+// One design auto may take: its verdict and registry position (its cost rank).
+struct Candidate {
+  const Design* design;
+  Verdict verdict;
+  std::size_t order;
+};
+
+// Stronger guarantee first, then cheaper (registry order).
+bool ranks_before(const Candidate& a, const Candidate& b) {
+  if (a.verdict.guarantee != b.verdict.guarantee) return a.verdict.guarantee > b.verdict.guarantee;
+  return a.order < b.order;
+}
+
+std::string guarantee_line(const Verdict& v) {
+  const std::string name = guarantee_name(v.guarantee);
+  if (v.guarantee_text.empty() || v.guarantee_text.rfind(name, 0) == 0)
+    return v.guarantee_text.empty() ? name : v.guarantee_text;
+  return fmt::format("{}: {}", name, v.guarantee_text);
+}
+
+std::string auto_explanation(const Candidate& best, const std::vector<Candidate>& others,
+                             const std::vector<std::string>& rejected) {
+  std::string text = fmt::format("auto: chose '{}' (guarantee {}) because {}", best.design->name,
+                                 guarantee_line(best.verdict), best.verdict.text());
+  std::vector<std::string> ranked;
+  for (const auto& c : others)
+    ranked.push_back(fmt::format("{} (guarantee {})", c.design->name, guarantee_line(c.verdict)));
+  if (!ranked.empty())
+    text += fmt::format(" (also applies, ranked below it: {})", fmt::join(ranked, "; "));
+  if (!rejected.empty()) text += fmt::format(" (rejected: {})", fmt::join(rejected, "; "));
+  return text;
+}
+
+// auto ranks the designs that apply by the guarantee their own certificate gives on this model
+// (rigorous over the domain > on a sub-box or sampled > none), then by cost (registry order).
 std::string choose_auto(const Analysis& a, std::string& explanation,
                         const std::vector<ExcludedDesign>& excluded) {
   std::vector<std::string> rejected;
-  for (const auto& d : design_registry()) {
+  std::vector<Candidate> applying;
+  const auto& registry = design_registry();
+  for (std::size_t i = 0; i < registry.size(); ++i) {
+    const Design& d = registry[i];
     if (!d.in_all) continue;  // by name only (large tables)
     const auto skip = std::find_if(excluded.begin(), excluded.end(),
                                    [&](const ExcludedDesign& e) { return e.method == d.name; });
@@ -59,14 +98,17 @@ std::string choose_auto(const Analysis& a, std::string& explanation,
       rejected.push_back(fmt::format("{}: it applies, but its build {}", d.name, skip->reason));
       continue;
     }
-    const Verdict v = d.applies(a);
-    if (v.applies) {
-      explanation = fmt::format("auto: chose '{}' because {}", d.name, v.text());
-      if (!rejected.empty())
-        explanation += fmt::format(" (rejected before it: {})", fmt::join(rejected, "; "));
-      return d.name;
-    }
-    rejected.push_back(fmt::format("{}: {}", d.name, v.text()));
+    Verdict v = design_verdict(d, a);
+    if (v.applies)
+      applying.push_back({&d, std::move(v), i});
+    else
+      rejected.push_back(fmt::format("{}: {}", d.name, v.text()));
+  }
+  if (!applying.empty()) {
+    std::stable_sort(applying.begin(), applying.end(), ranks_before);
+    explanation = auto_explanation(
+        applying.front(), std::vector<Candidate>(applying.begin() + 1, applying.end()), rejected);
+    return applying.front().design->name;
   }
   throw UserError(
       SourceLoc{a.model.file, 0, 0},
@@ -87,7 +129,7 @@ std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<st
     std::string name = m;
     if (m == "all") {
       for (const auto& d : design_registry())
-        if (d.in_all && d.applies(a).applies &&
+        if (d.in_all && design_verdict(d, a).applies &&
             std::find(methods.begin(), methods.end(), d.name) == methods.end())
           methods.push_back(d.name);
       continue;
@@ -127,10 +169,48 @@ DesignOptions with_model_options(const Model& m, const DesignOptions& given) {
   return out;
 }
 
+namespace {
+
+// y -> y - k(u) in every generated function that reads y (Model::output_offset).
+void observe_output_offset(ObserverSpec& s, const Model& m) {
+  for (auto& f : s.functions) {
+    GiNaC::exmap shift;
+    bool reads_u = false;
+    for (const auto& arg : f.args) {
+      reads_u = reads_u || arg.kind == FunctionArg::Kind::input;
+      if (arg.kind != FunctionArg::Kind::output) continue;
+      for (std::size_t i = 0; i < arg.symbols.size() && i < m.output_offset.size(); ++i)
+        shift[arg.symbols[i]] = arg.symbols[i] - m.output_offset[i];
+    }
+    if (shift.empty()) continue;
+    if (!reads_u)
+      throw UserError(SourceLoc{m.file, 0, 0},
+                      fmt::format("method '{}' cannot observe y - k(u) (direct feedthrough): its "
+                                  "function '{}' reads y but not u",
+                                  s.method, f.name));
+    for (auto& l : f.lets) l.value = l.value.subs(shift);
+    for (auto& e : f.outputs) e = e.subs(shift);
+    if (!f.doc.empty()) f.doc += " y enters as y - k(u) (direct feedthrough).";
+  }
+  s.report.push_back({"direct feedthrough",
+                      fmt::format("y = h0(x) + k(u) with k(u) = [{}]: the observer reads y - k(u)",
+                                  fmt::join(to_strings(m.output_offset), ", "))});
+}
+
+}  // namespace
+
 ObserverSpec build_design(const Analysis& a, const std::string& method, const DesignOptions& o) {
   const Design* d = find_design(method);
   OBSYNTH_ASSERT(d != nullptr, "build_design: unresolved method " + method);
-  return d->build(a, with_model_options(a.model, o));
+  if (!d->observes_output_offset || (a.model.feedthrough() && !d->accepts_feedthrough)) {
+    const Verdict v = design_verdict(*d, a);
+    if (!v.applies)
+      throw UserError(SourceLoc{a.model.file, 0, 0},
+                      fmt::format("method '{}' does not apply: {}", method, v.text()));
+  }
+  ObserverSpec s = d->build(a, with_model_options(a.model, o));
+  if (!a.model.output_offset.empty()) observe_output_offset(s, a.model);
+  return s;
 }
 
 namespace {
@@ -167,6 +247,21 @@ std::vector<std::pair<std::string, ObserverSpec>> build_chosen(
   }
 }
 
+// An observer whose own certificate proves nothing on this model is never emitted silently.
+std::vector<std::string> guarantee_warnings(const Analysis& a,
+                                            const std::vector<std::string>& chosen) {
+  std::vector<std::string> out;
+  for (const auto& method : chosen) {
+    const Verdict v = design_verdict(*find_design(method), a);
+    if (v.guarantee != Guarantee::none) continue;
+    out.push_back(fmt::format(
+        "the '{}' observer carries no convergence guarantee for this model{}; check it in "
+        "simulation (obsynth simulate) before you use it",
+        method, v.guarantee_text.empty() ? "" : ": " + v.guarantee_text));
+  }
+  return out;
+}
+
 }  // namespace
 
 Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
@@ -179,6 +274,9 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   std::vector<ExcludedDesign> excluded = opt.auto_excluded;
   const std::vector<std::pair<std::string, ObserverSpec>> specs =
       build_chosen(a, opt, excluded, s.chosen, s.explanation);
+  s.warnings = guarantee_warnings(a, s.chosen);
+  for (const auto& spec : specs) s.warnings.insert(s.warnings.end(), spec.second.warnings.begin(),
+                                                   spec.second.warnings.end());
   std::vector<GeneratedObserver> generated;
   for (const auto& [method, spec] : specs) {
     const bool c = opt.emit.language == Language::c;
@@ -207,7 +305,9 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   if (!every) scope.only = s.chosen;
   publish_stage("report");
   const auto verdicts = design_verdicts_json(a, scope);
-  std::string md = render_check(a, ReportFormat::markdown, ro, verdicts);
+  std::string md;
+  for (const auto& w : s.warnings) md += "> **Warning:** " + w + "\n\n";
+  md += render_check(a, ReportFormat::markdown, ro, verdicts);
   md += "\n## Generated observers\n\n";
   if (!s.explanation.empty()) md += s.explanation + ".\n\n";
   for (const auto& g : generated) md += "- " + g.summary + "\n";
@@ -223,6 +323,7 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   j["parameters"] = parameter_box_json(a.model);
   j["designs"] = verdicts;
   if (!s.explanation.empty()) j["auto"] = s.explanation;
+  if (!s.warnings.empty()) j["warnings"] = s.warnings;
   j["generated"] = generated_json(generated);
   const std::string stem = cxx_identifier(a.model.name);
   s.files.push_back({stem + "_report.md", md});

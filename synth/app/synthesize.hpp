@@ -30,10 +30,13 @@ struct Synthesis {
   std::vector<OutputFile> files;
   std::vector<std::string> chosen;  // methods emitted
   std::string explanation;          // why auto chose what it chose
+  // One per emitted observer whose own certificate proves nothing here (printed by the main
+  // job as warnings, at the top of the report).
+  std::vector<std::string> warnings;
 };
 
-// The methods to build: `auto` resolved through the registry (first design that applies, in
-// registry order, passing over `excluded`), names checked. `explanation` says why auto chose
+// The methods to build: `auto` resolved through the registry (of the designs that apply, the one
+// with the strongest guarantee, then the cheapest: registry order; passing over `excluded`), names checked. `explanation` says why auto chose
 // what it chose; `auto_choice`, when given, receives that choice.
 std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<std::string>& asked,
                                          std::string& explanation,

@@ -227,8 +227,15 @@ struct PidFd {
   int fd;
 };
 
+// The deadline of the named stage, with the grace period.
+long long stage_limit_ms(const WorkerLimits& limits, const char* stage) {
+  return static_cast<long long>(
+             stage_time_limit(stage, limits.stage_seconds, limits.canonical_stage_seconds) *
+             1000.0) +
+         500;
+}
+
 void watch_child(pid_t pid, StageBeacon& beacon, const WorkerLimits& limits, WorkerResult& res) {
-  const long long limit_ms = static_cast<long long>(limits.stage_seconds * 1000.0) + 500;
   const std::string statm = "/proc/" + std::to_string(pid) + "/statm";
   const PidFd pidfd(pid);
   for (int tick = 0;; ++tick) {
@@ -260,7 +267,8 @@ void watch_child(pid_t pid, StageBeacon& beacon, const WorkerLimits& limits, Wor
       if (limits.max_memory_bytes > 0 && rss > limits.max_memory_bytes)
         res.stop = WorkerStop::memory;
     }
-    if (now_ms() - beacon.start_ms.load() > limit_ms) res.stop = WorkerStop::time;
+    if (now_ms() - beacon.start_ms.load() > stage_limit_ms(limits, beacon.name))
+      res.stop = WorkerStop::time;
     if (past_total_deadline(limits.total_seconds)) res.stop = WorkerStop::total_time;
     if (res.stop != WorkerStop::none) {
       res.stage = beacon.name;
@@ -379,10 +387,9 @@ namespace {
 class WatchdogThread {
  public:
   explicit WatchdogThread(const WorkerLimits& limits)
-      : limit_ms_(static_cast<long long>(limits.stage_seconds * 1000.0) + 500),
+      : limits_(limits),
         total_seconds_(limits.total_seconds),
         max_rss_(limits.max_memory_bytes),
-        time_reason_(time_budget_reason(limits.stage_seconds)),
         total_reason_(total_time_budget_reason(limits.total_seconds)),
         memory_reason_(memory_budget_reason(limits.max_memory_bytes)),
         thread_([this] { watch(); }) {}
@@ -401,7 +408,9 @@ class WatchdogThread {
   void watch() {
     std::unique_lock<std::mutex> lock(g_process_mutex);
     for (int tick = 0; !done_; ++tick) {
-      if (now_ms() - g_stage_start_ms.load() > limit_ms_) exit_with_process_stop(time_reason_);
+      if (now_ms() - g_stage_start_ms.load() > stage_limit_ms(limits_, g_stage))
+        exit_with_process_stop(stage_time_budget_reason(g_stage, limits_.stage_seconds,
+                                                        limits_.canonical_stage_seconds));
       if (past_total_deadline(total_seconds_)) exit_with_process_stop(total_reason_);
       if (max_rss_ > 0 && tick % 4 == 0 && statm_bytes("/proc/self/statm", 1) > max_rss_)
         exit_with_process_stop(memory_reason_);
@@ -409,10 +418,10 @@ class WatchdogThread {
     }
   }
 
-  const long long limit_ms_;
+  const WorkerLimits limits_;
   const double total_seconds_;
   const std::size_t max_rss_;
-  const std::string time_reason_, total_reason_, memory_reason_;
+  const std::string total_reason_, memory_reason_;
   bool done_ = false;  // guarded by g_process_mutex
   std::condition_variable wake_;
   std::thread thread_;  // last: starts once the members above are ready

@@ -2,10 +2,16 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
 #include <map>
 #include <optional>
 
+#include "analysis/conditions.hpp"
 #include "designs/options.hpp"
+#include "front/fresh_names.hpp"
+#include "symbolic/zero_test.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
 
@@ -77,10 +83,107 @@ enum class Realisation { z, x };
 
 struct Choices {
   std::vector<numeric> poles, K;
+  std::string poles_reason;  // how the poles were chosen
+  double peaking = 1;        // predicted peaking of the scaled z error (predicted_peaking)
   Realisation realisation = Realisation::z;
   std::string realisation_reason;
   bool exact = true;  // z realisation: exact discretisation, else RK4
 };
+
+// The range of each z_i = T_i(x) over samples of the domain box (0 where T is not available).
+std::vector<double> z_ranges(const Analysis& a) {
+  const Model& m = a.model;
+  const ExVec& T = a.canonical.T;
+  std::vector<double> lo(T.size(), HUGE_VAL), hi(T.size(), -HUGE_VAL), range(m.n(), 0.0);
+  if (a.canonical.T_kind != Availability::symbolic || T.size() != m.n()) return range;
+  for (const auto& pt : sample_points(m.all_symbols(), SampleBoxes::from_model(m), 64, 0x7a3e)) {
+    for (std::size_t i = 0; i < T.size(); ++i) {
+      numeric v;
+      if (!evaluate_real(T[i], pt, 17, v)) continue;
+      lo[i] = std::min(lo[i], v.to_double());
+      hi[i] = std::max(hi[i], v.to_double());
+    }
+  }
+  for (std::size_t i = 0; i < T.size(); ++i)
+    if (hi[i] > lo[i] && std::isfinite(hi[i] - lo[i])) range[i] = hi[i] - lo[i];
+  return range;
+}
+
+// The model's time scale in the canonical form: z_{i-1} ~ d z_i / dt, so the ranges of z_1 ..
+// z_n over the box fall geometrically by omega: omega = (range z_1 / range z_n)^(1/(n-1)),
+// clamped to [1e-3, 1e4] rad/s; 1 when the ranges are not available.
+double time_scale(const std::vector<double>& range) {
+  const std::size_t n = range.size();
+  if (n < 2 || !(range.front() > 0) || !(range.back() > 0)) return 1;
+  const double w = std::pow(range.front() / range.back(), 1.0 / static_cast<double>(n - 1));
+  return std::isfinite(w) ? std::clamp(w, 1e-3, 1e4) : 1;
+}
+
+// Error poles -omega (2, 2.5, 3, ...), rounded to 3 significant digits (exact rationals).
+std::vector<numeric> scaled_poles(double omega, std::size_t n) {
+  std::vector<numeric> p;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double v = omega * (2 + 0.5 * static_cast<double>(k));
+    const double unit = std::pow(10.0, std::floor(std::log10(v)) - 2);
+    const long digits = std::lround(v / unit);
+    p.push_back(unit >= 1 ? -numeric(digits * std::lround(unit))
+                          : -numeric(digits, std::lround(1 / unit)));
+  }
+  return p;
+}
+
+// Largest amplification of an initial error measured in box units: max over t of the row-sum
+// norm of S^-1 exp(A_cl t) S, S = diag(range z_i), A_cl = A - K e_n^T (z_1' = -K_1 z_n, z_i' =
+// z_{i-1} - K_i z_n), by RK4 over ten slowest time constants.
+double predicted_peaking(const std::vector<numeric>& poles, const std::vector<numeric>& K,
+                         const std::vector<double>& range) {
+  const auto n = static_cast<Eigen::Index>(poles.size());
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (i > 0) A(i, i - 1) = 1;
+    A(i, n - 1) -= K[static_cast<std::size_t>(i)].to_double();
+  }
+  Eigen::VectorXd s(n);
+  for (Eigen::Index i = 0; i < n; ++i) s(i) = range[static_cast<std::size_t>(i)] > 0 ? range[static_cast<std::size_t>(i)] : 1;
+  A = s.cwiseInverse().asDiagonal() * A * s.asDiagonal();
+  double fast = 0, slow = HUGE_VAL;
+  for (const auto& q : poles) {
+    fast = std::max(fast, std::abs(q.to_double()));
+    slow = std::min(slow, std::abs(q.to_double()));
+  }
+  const double dt = 0.05 / fast;
+  Eigen::MatrixXd E = Eigen::MatrixXd::Identity(n, n);
+  double peak = 1;
+  for (double t = 0; t < 10 / slow; t += dt) {
+    const Eigen::MatrixXd k1 = A * E, k2 = A * (E + dt / 2 * k1), k3 = A * (E + dt / 2 * k2),
+                          k4 = A * (E + dt * k3);
+    E += dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
+    peak = std::max(peak, E.cwiseAbs().rowwise().sum().maxCoeff());
+  }
+  return peak;
+}
+
+// The "largest safe sample period" row: the exact step is stable at any period (Phi = e^{A_cl
+// dt}); RK4 needs dt max|pole| within its stability interval [-2.785, 0].
+std::string safe_period_text(const Choices& c) {
+  if (c.realisation == Realisation::z && c.exact)
+    return "any: the linear error dynamics are discretised exactly (Phi = exp(A_cl dt)); l(u, y) "
+           "is held over the step, so the period sets only how well u and y are sampled";
+  double fastest = 0;
+  for (const auto& q : c.poles) fastest = std::max(fastest, std::abs(q.to_double()));
+  return fmt::format("{:.3g} s (RK4 stability on the fastest error pole)", 2.785 / fastest);
+}
+
+// The "predicted peaking" report row.
+std::string peaking_text(double peaking) {
+  const std::string base = fmt::format(
+      "{:.3g}: an initial error of 20 % of the box (in each z_i, scaled by its range over the "
+      "box) grows to at most {:.3g} box widths before it decays (sampled ranges)",
+      peaking, 0.2 * peaking);
+  return 0.2 * peaking > 1 ? base + "; the estimate leaves the domain box on the way: choose "
+                                    "slower or better-spread poles (--poles)"
+                           : base;
+}
 
 std::vector<numeric> chosen_poles(const DesignOptions& o, std::size_t n) {
   std::vector<numeric> poles = real_list_option(o, "poles");
@@ -99,8 +202,20 @@ std::vector<numeric> chosen_poles(const DesignOptions& o, std::size_t n) {
 Choices choose(const Analysis& a, const DesignOptions& o) {
   const CanonicalForm& cf = a.canonical;
   Choices c;
-  c.poles = chosen_poles(o, a.model.n());
+  const std::vector<double> range = z_ranges(a);
+  if (o.find("poles")) {
+    c.poles = chosen_poles(o, a.model.n());
+    c.poles_reason = "--poles";
+  } else {
+    const double omega = time_scale(range);
+    c.poles = scaled_poles(omega, a.model.n());
+    c.poles_reason = fmt::format(
+        "default: -omega (2, 2.5, 3, ...) with the model's time scale omega = {:.3g} rad/s = "
+        "(range z_1 / range z_n)^(1/(n-1)) over the domain box (sampled)",
+        omega);
+  }
   c.K = gains_from_poles(c.poles);
+  c.peaking = predicted_peaking(c.poles, c.K, range);
   const bool T_closed = cf.T_kind == Availability::symbolic;
   const bool Tinv_closed = cf.T_inverse_kind == Availability::symbolic;
   if (const auto r = choice_option(o, "realisation", {"z", "x"})) {
@@ -119,12 +234,6 @@ Choices choose(const Analysis& a, const DesignOptions& o) {
   }
   c.exact = choice_option(o, "integrator", {"exact", "rk4"}).value_or("exact") == "exact";
   return c;
-}
-
-std::vector<GiNaC::symbol> numbered(const std::string& stem, std::size_t n) {
-  std::vector<GiNaC::symbol> s;
-  for (std::size_t i = 0; i < n; ++i) s.push_back(GiNaC::symbol(fmt::format("{}{}", stem, i + 1)));
-  return s;
 }
 
 GeneratedFunction fn(const std::string& name, const std::string& doc, std::vector<FunctionArg> args,
@@ -263,7 +372,7 @@ void build_z_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
   const CanonicalForm& cf = a.canonical;
   const std::size_t n = m.n();
   const ex y0 = output_at_base_point(a);
-  const auto zh = numbered("zh", n), cs = numbered("c", n);
+  const auto zh = fresh_symbols(m, "zh", n), cs = fresh_symbols(m, "c", n);
   ExVec step_constant, z_rhs;
   for (std::size_t i = 0; i < n; ++i) {
     step_constant.push_back(cf.l[i] + c.K[i] * (cf.y - y0));
@@ -374,9 +483,17 @@ void describe(const Analysis& a, const Choices& c, ObserverSpec& s) {
   s.constants.push_back({"poles", c.poles, "error poles of (A - K e_n^T)"});
   s.constants.push_back({"K", c.K, "output-injection gain, K_i = c_{i-1} of prod (s - pole)"});
   s.report = {{"realisation", fmt::format("{} ({})", zreal ? "z" : "x", c.realisation_reason)},
-              {"poles", numbers_text(c.poles)},
+              {"poles", numbers_text(c.poles) + " (" + c.poles_reason + ")"},
+              {"predicted peaking", peaking_text(c.peaking)},
               {"K", numbers_text(c.K)},
-              {"integrator", integrator}};
+              {"integrator", integrator},
+              {"largest safe sample period", safe_period_text(c)}};
+  if (0.2 * c.peaking > 1)
+    s.warnings.push_back(fmt::format(
+        "the canonical observer's predicted peaking is {:.3g}: from a 20 % initial error the "
+        "estimate may leave the domain box by {:.3g} box widths before it converges; choose "
+        "slower or better-spread poles (--poles)",
+        c.peaking, 0.2 * c.peaking));
   if (zreal)
     s.report.push_back(
         {"T^-1", newton ? "runtime Newton with [tau] as inverse Jacobian" : "closed form"});
@@ -390,10 +507,28 @@ Verdict applies(const Analysis& a) {
   Verdict v;
   v.reasons = canonical_form_failures(a);
   v.applies = v.reasons.empty();
-  if (v.applies)
+  if (!v.applies) return v;
+  const std::vector<std::string> unproven = unproven_steps(a.canonical);
+  if (unproven.empty()) {
     v.reasons.push_back(
         "the bracket conditions hold and l(u, y) is closed-form: the error dynamics in z are "
         "exactly linear");
+    v.guarantee = Guarantee::rigorous;
+    v.guarantee_text =
+        "rigorous: the error z - zh obeys e' = (A - K e_n^T) e exactly (brackets, T and l(u, y) "
+        "proved symbolically)";
+    return v;
+  }
+  const std::string list = fmt::format("{}", fmt::join(unproven, "; "));
+  v.reasons.push_back(fmt::format(
+      "no bracket condition is refuted and l(u, y) is closed-form, but unproven: {}; the error "
+      "dynamics in z are exactly linear only if these hold",
+      list));
+  v.guarantee = Guarantee::partial;
+  v.guarantee_text = fmt::format(
+      "partial (numeric): e' = (A - K e_n^T) e exactly only if what is numerically zero is "
+      "zero, not proved: {}",
+      list);
   return v;
 }
 

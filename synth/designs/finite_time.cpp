@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
+#include <optional>
 
 #include <Eigen/Dense>
 
@@ -136,6 +138,14 @@ struct Choices {
   bool nearest = true, window_mean = true, interpolate = true;
   double rate = 0;                 // --input-rate: |u'| of the ramps the sampled bound covers
   std::vector<std::string> notes;  // how defaults were chosen
+  // What the user fixed; the search (search_design) chooses the rest.
+  bool window_given = false, dt_given = false, poles_given = false, grid_given = false,
+       levels_given = false, power_given = false;
+  double target = 0.05;                  // --error-target: fraction of each state's box width
+  std::size_t budget_bytes = 256 << 10;  // --table-memory, counted at 4 bytes an entry (float)
+  std::vector<double> width;             // each state's box width
+  std::size_t candidates = 0;            // settings the search evaluated
+  double input_hi = 0;                   // the input's box is [level_lo, input_hi]
 };
 
 double dbl(const GiNaC::numeric& q) {
@@ -155,21 +165,33 @@ std::size_t count_for(double lo, double hi, double step, const std::string& what
   return static_cast<std::size_t>(r) + 1;
 }
 
-// The window T and the sample period dt: the delay line holds D = T / dt samples, a whole
-// number.
-void choose_window(const DesignOptions& o, Choices& c) {
-  if (const auto T = real_option(o, "window")) {
-    c.T = dbl(*T);
-    if (!(c.T > 0)) throw option_error("--window: T must be positive");
+// A window the search proposes: a whole number of given sample periods (at least one), or 100
+// samples when no sample period was given.
+void set_window(Choices& c, double T) {
+  if (c.dt_given) {
+    c.D = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(T / c.dt)));
+    c.T = c.dt * static_cast<double>(c.D);
   } else {
-    c.notes.push_back("window T = 1 (default; give --window)");
+    c.T = T;
+    c.dt = T / 100;
+    c.D = 100;
   }
+}
+
+// The window T and the sample period dt: the delay line holds D = T / dt samples, a whole
+// number. Without --window the search chooses T (search_window).
+void choose_window(const DesignOptions& o, Choices& c) {
   if (const auto dt = real_option(o, "sample-period")) {
     c.dt = dbl(*dt);
+    c.dt_given = true;
     if (!(c.dt > 0)) throw option_error("--sample-period must be positive");
-  } else {
-    c.dt = c.T / 100;
   }
+  const auto T = real_option(o, "window");
+  if (!T) return;
+  c.T = dbl(*T);
+  c.window_given = true;
+  if (!(c.T > 0)) throw option_error("--window: T must be positive");
+  if (!c.dt_given) c.dt = c.T / 100;
   const double D = c.T / c.dt;
   c.D = static_cast<std::size_t>(std::llround(D));
   if (c.D < 1 || std::fabs(D - static_cast<double>(c.D)) > 1e-6 * D)
@@ -180,22 +202,25 @@ void choose_window(const DesignOptions& o, Choices& c) {
   if (c.D > 1000000) throw option_error("the delay line would exceed 10^6 samples");
 }
 
+// Without --filter-poles: 2n + 1 filters (Kreisselmeier-Engel: generically enough for
+// injectivity), spread geometrically from -0.2/T to -20/T.
+void default_poles(Choices& c, std::size_t n) {
+  if (c.poles_given) return;
+  const std::size_t k = 2 * n + 1;
+  c.lambda.clear();
+  for (std::size_t i = 0; i < k; ++i)
+    c.lambda.push_back(-0.2 / c.T *
+                       std::pow(100.0, static_cast<double>(i) / static_cast<double>(k - 1)));
+}
+
 // The filter poles (the diagonal A), distinct and negative.
-void choose_filters(const DesignOptions& o, const Model& m, Choices& c) {
+void choose_filters(const DesignOptions& o, Choices& c) {
   for (const auto& q : real_list_option(o, "filter-poles")) {
     if (!q.is_negative())
       throw option_error(fmt::format("--filter-poles: {} is not negative", to_string(q)));
     c.lambda.push_back(dbl(q));
   }
-  if (c.lambda.empty()) {
-    // 2n + 1 filters (Kreisselmeier-Engel: generically enough for injectivity), spread
-    // geometrically from -0.2/T to -20/T.
-    const std::size_t k = 2 * m.n() + 1;
-    for (std::size_t i = 0; i < k; ++i)
-      c.lambda.push_back(-0.2 / c.T *
-                         std::pow(100.0, static_cast<double>(i) / static_cast<double>(k - 1)));
-    c.notes.push_back(fmt::format("{} filter poles geometric from -0.2/T to -20/T (default)", k));
-  }
+  c.poles_given = !c.lambda.empty();
   for (std::size_t i = 0; i < c.lambda.size(); ++i)
     for (std::size_t j = 0; j < i; ++j)
       if (c.lambda[i] == c.lambda[j])
@@ -204,21 +229,49 @@ void choose_filters(const DesignOptions& o, const Model& m, Choices& c) {
             "(A, b) controllable)");
 }
 
-// The state grid over the domain box: --grid-step, else about 2048 points in all.
+// Table entries of a setting: the maps q_k, the filter tables and the metric.
+std::size_t table_entries(const Choices& c) {
+  std::size_t N = 1;
+  for (auto k : c.count) N *= k;
+  const std::size_t pz = c.lambda.size();
+  return c.levels * N * pz + 3 * pz + pz * pz;
+}
+
+// Without --grid-step: the same number of points per state, as many as the table-memory budget
+// holds (4 bytes an entry). False when not even 3 per state fit.
+bool fill_grid(Choices& c) {
+  if (c.grid_given) return true;
+  const std::size_t n = c.lo.size(), pz = c.lambda.size();
+  const double entries = static_cast<double>(c.budget_bytes / 4) - 3.0 * pz - 1.0 * pz * pz;
+  const double points = entries / static_cast<double>(c.levels * pz);
+  std::size_t per_axis = points >= 1 ? static_cast<std::size_t>(std::floor(
+                                           std::pow(points, 1.0 / static_cast<double>(n)) + 1e-9))
+                                     : 0;
+  while (per_axis >= 3 && std::pow(static_cast<double>(per_axis), static_cast<double>(n)) > points)
+    --per_axis;
+  if (per_axis < 3) return false;
+  for (std::size_t s = 0; s < n; ++s) {
+    c.count[s] = per_axis;
+    c.step[s] = c.width[s] / static_cast<double>(per_axis - 1);
+  }
+  return true;
+}
+
+// The state grid over the domain box: --grid-step, else filled from the memory budget.
 void choose_grid(const DesignOptions& o, const Model& m, Choices& c) {
   const auto steps = real_list_option(o, "grid-step");
   if (steps.size() > 1 && steps.size() != m.n())
     throw option_error(fmt::format("--grid-step: give one step or one per state ({}), got {}",
                                    m.n(), steps.size()));
-  const std::size_t default_per_axis = std::max<std::size_t>(
-      3, static_cast<std::size_t>(std::floor(std::pow(2048.0, 1.0 / static_cast<double>(m.n())))));
+  c.grid_given = !steps.empty();
   for (std::size_t s = 0; s < m.n(); ++s) {
     const Interval b = m.box(m.states[s]);
     const double lo = dbl(b.lo), hi = dbl(b.hi);
     c.lo.push_back(lo);
+    c.width.push_back(hi - lo);
     if (steps.empty()) {
-      c.count.push_back(default_per_axis);
-      c.step.push_back((hi - lo) / static_cast<double>(default_per_axis - 1));
+      c.count.push_back(3);
+      c.step.push_back((hi - lo) / 2);
     } else {
       const double h = dbl(steps.size() == 1 ? steps[0] : steps[s]);
       if (!(h > 0)) throw option_error("--grid-step must be positive");
@@ -226,9 +279,6 @@ void choose_grid(const DesignOptions& o, const Model& m, Choices& c) {
       c.count.push_back(count_for(lo, hi, h, "--grid-step for " + m.states[s].get_name()));
     }
   }
-  if (steps.empty())
-    c.notes.push_back(fmt::format(
-        "{} grid points per state (default; --grid-step refines or coarsens)", default_per_axis));
 }
 
 // The input levels (one table each) over the input's box: --input-step, else 11 levels.
@@ -239,11 +289,12 @@ void choose_levels(const DesignOptions& o, const Model& m, Choices& c) {
   const double hi = dbl(b.hi);
   if (const auto mu = real_option(o, "input-step")) {
     c.level_step = dbl(*mu);
+    c.levels_given = true;
     if (!(c.level_step > 0)) throw option_error("--input-step must be positive");
   } else {
     c.level_step = hi > c.level_lo ? (hi - c.level_lo) / 10 : 1;
-    c.notes.push_back("11 input levels (default; --input-step)");
   }
+  c.input_hi = hi;
   c.levels = hi > c.level_lo ? count_for(c.level_lo, hi, c.level_step, "--input-step") : 1;
 }
 
@@ -258,8 +309,7 @@ void choose_kernel(const DesignOptions& o, Choices& c) {
     if (!p->is_pos_integer() || *p > 16)
       throw option_error("--weight-power: an integer 1..16 (1: eq. 15, n + 2: eq. 13)");
     c.power = static_cast<int>(p->to_int());
-  } else {
-    c.power = 1;
+    c.power_given = true;
   }
   // The level rule. Seed 004 switches the inverse with the sampled input, Q(., u(t)) = Q_k for
   // u_k <= u(t_i) < u_k+1 (sample-floor), and reports peaks where the inverse switches ("due to
@@ -295,13 +345,21 @@ void choose_kernel(const DesignOptions& o, Choices& c) {
     if (!k->is_pos_integer()) throw option_error("--backward-steps: a positive integer");
     c.backward_steps = static_cast<std::size_t>(k->to_long());
   }
+  if (const auto e = real_option(o, "error-target")) {
+    c.target = dbl(*e);
+    if (!(c.target > 0)) throw option_error("--error-target must be positive");
+  }
+  if (const auto b = real_option(o, "table-memory")) {
+    if (!(*b > 0)) throw option_error("--table-memory (KiB) must be positive");
+    c.budget_bytes = static_cast<std::size_t>(std::ceil(dbl(*b) * 1024));
+  }
 }
 
 Choices choose(const Analysis& a, const DesignOptions& o) {
   const Model& m = a.model;
   Choices c;
   choose_window(o, c);
-  choose_filters(o, m, c);
+  choose_filters(o, c);
   choose_grid(o, m, c);
   choose_levels(o, m, c);
   choose_kernel(o, c);
@@ -425,6 +483,10 @@ struct Tables {
   double min_separation = 0;      // min over levels and neighbours |q(x_i) - q(x_j)| / |x_i - x_j|
   std::vector<double> sep_where;  // where it is attained
   std::size_t tested = 0;
+  double relative_error = 0;  // max over the tests and states of |x_s - xh_s| / box width_s
+  // q at the test states per (input mean, ramp rate), in the metric: the kernel search reuses it.
+  mutable std::map<std::pair<double, double>, Eigen::MatrixXd> test_maps;
+  double bound() const { return std::max({level_error, between_error, ramp_error}); }
 };
 
 // Backward simulation from a grid point can leave the finite numbers (Van der Pol's limit
@@ -536,21 +598,29 @@ Eigen::MatrixXd rule_table(const Choices& c, const Tables& t, double v) {
 }
 
 // The largest inverse error at the test states Y with u over the window the ramp of mean nu and
-// slope rate (frozen at nu when rate = 0), for the table the level rule gives.
-double inverse_error(const Tabulator& tab, const Choices& c, const Tables& t,
-                     const std::vector<Array>& Y, double nu, double rate) {
+// slope rate (frozen at nu when rate = 0), for the table the level rule gives; the largest error
+// relative to the box widths goes into t.relative_error.
+double inverse_error(const Tabulator& tab, const Choices& c, Tables& t, const std::vector<Array>& Y,
+                     double nu, double rate) {
   const Eigen::MatrixXd table = rule_table(c, t, c.window_mean ? nu : nu + rate * c.T / 2);
   const std::size_t n = Y.size(), S = static_cast<std::size_t>(Y[0].size());
-  const Eigen::MatrixXd q = tab.map(Y, nu, rate) * t.metric.transpose();
+  auto cached = t.test_maps.find({nu, rate});
+  if (cached == t.test_maps.end())
+    cached =
+        t.test_maps.emplace(std::make_pair(nu, rate), tab.map(Y, nu, rate) * t.metric.transpose())
+            .first;
+  const Eigen::MatrixXd& q = cached->second;
   double err = 0;
   for (std::size_t i = 0; i < S; ++i) {
     Eigen::VectorXd xi(static_cast<Eigen::Index>(n));
     for (std::size_t s = 0; s < n; ++s)
       xi(static_cast<Eigen::Index>(s)) = Y[s](static_cast<Eigen::Index>(i));
-    const double e =
-        (kernel_inverse(table, t.grid, q.row(static_cast<Eigen::Index>(i)), c.eps, c.power) - xi)
-            .norm();
-    err = std::max(err, e);
+    const Eigen::VectorXd e =
+        kernel_inverse(table, t.grid, q.row(static_cast<Eigen::Index>(i)), c.eps, c.power) - xi;
+    err = std::max(err, e.norm());
+    for (std::size_t s = 0; s < n; ++s)
+      t.relative_error =
+          std::max(t.relative_error, std::fabs(e(static_cast<Eigen::Index>(s))) / c.width[s]);
   }
   return err;
 }
@@ -560,6 +630,7 @@ double inverse_error(const Tabulator& tab, const Choices& c, const Tables& t,
 void sampled_accuracy(const Tabulator& tab, const Choices& c, Tables& t) {
   const std::vector<Array> Y = halton_states(c);
   const Eigen::Index N = t.grid.rows();
+  t.grid_error = t.level_error = t.between_error = t.ramp_error = t.relative_error = 0;
   const Eigen::Index gstride = std::max<Eigen::Index>(1, N / 200);
   for (std::size_t k = 0; k < c.levels; ++k) {
     for (Eigen::Index i = 0; i < N; i += gstride)
@@ -597,9 +668,9 @@ void sampled_accuracy(const Tabulator& tab, const Choices& c, Tables& t) {
   t.tested = c.bound_samples;
 }
 
-Tables tabulate(const Model& m, Choices& c) {
+// The tables q_k over the grid, whitened and scaled (sampled_accuracy then measures them).
+Tables tabulate(const Tabulator& tab, const Model& m, const Choices& c) {
   const auto t0 = std::chrono::steady_clock::now();
-  Tabulator tab(m, c);
   const std::vector<Array> X = tab.grid();
   const auto N = X[0].size();
   const std::size_t n = m.n();
@@ -622,20 +693,194 @@ Tables tabulate(const Model& m, Choices& c) {
   for (auto& q : t.q) q /= t.scale;
   t.min_separation /= t.scale;
   t.metric = W / t.scale;
-  if (!c.eps_given) {
-    c.eps = 4 * *std::max_element(c.step.begin(), c.step.end());
-    c.notes.push_back(fmt::format("kernel epsilon {:.4g} = 4 grid steps (default)", c.eps));
-  }
-  t.eps = c.eps;
   const auto t1 = std::chrono::steady_clock::now();
   t.synthesis_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+  return t;
+}
+
+// ---- the search over window, levels, grid and kernel -------------------------------------
+
+// The model's rate: the median spectral norm of dF/dx over 64 Halton points of the box (states
+// and input), by central differences; 0 when it is not finite. Windows are multiples of 1/rate.
+double model_rate(const Model& m, const Choices& c) {
+  std::vector<std::string> names;
+  for (const auto& x : m.states) names.push_back(x.get_name());
+  for (const auto& u : m.inputs) names.push_back(u.get_name());
+  const ArrayFunction field(m.field(), names);
+  const std::size_t n = m.n(), S = 64;
+  static const unsigned primes[] = {2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41};
+  std::vector<Array> X(n + m.m(), Array(static_cast<Eigen::Index>(S)));
+  for (std::size_t i = 0; i < S; ++i) {
+    for (std::size_t s = 0; s < n; ++s)
+      X[s](static_cast<Eigen::Index>(i)) = c.lo[s] + c.width[s] * halton(i, primes[s % 13]);
+    if (m.m() > 0)
+      X[n](static_cast<Eigen::Index>(i)) =
+          c.level_lo + (c.input_hi - c.level_lo) * halton(i, primes[n % 13]);
+  }
+  std::vector<Eigen::MatrixXd> J(
+      S, Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n)));
+  for (std::size_t s = 0; s < n; ++s) {
+    const double h = 1e-6 * std::max(1.0, c.width[s]);
+    auto plus = X, minus = X;
+    plus[s] += h;
+    minus[s] -= h;
+    const auto fp = field(plus), fm = field(minus);
+    for (std::size_t i = 0; i < S; ++i)
+      for (std::size_t r = 0; r < n; ++r)
+        J[i](static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(s)) =
+            (fp[r](static_cast<Eigen::Index>(i)) - fm[r](static_cast<Eigen::Index>(i))) / (2 * h);
+  }
+  std::vector<double> norms;
+  for (const auto& j : J)
+    if (j.allFinite()) norms.push_back(Eigen::JacobiSVD<Eigen::MatrixXd>(j).singularValues()(0));
+  if (norms.empty()) return 0;
+  std::nth_element(norms.begin(), norms.begin() + static_cast<long>(norms.size() / 2), norms.end());
+  return norms[norms.size() / 2];
+}
+
+// One setting, measured: its tables and their sampled accuracy (score: t.relative_error).
+// nullopt when the backward simulation escapes (the error goes to *escape).
+std::optional<Tables> measure(const Model& m, Choices& c, std::optional<UserError>* escape) {
+  ++c.candidates;
+  try {
+    const Tabulator tab(m, c);
+    Tables t = tabulate(tab, m, c);
+    sampled_accuracy(tab, c, t);
+    return t;
+  } catch (const UserError& e) {
+    if (escape && !*escape) *escape = e;
+    return std::nullopt;
+  }
+}
+
+// The kernel the window and level stages use before the kernel stage: epsilon one grid step,
+// power 2n + 4 (local enough that the far field of the grid does not pull the estimate).
+void stage_kernel(Choices& c) {
+  if (!c.eps_given) c.eps = *std::max_element(c.step.begin(), c.step.end());
+  if (!c.power_given) c.power = std::min<int>(16, static_cast<int>(2 * c.lo.size() + 4));
+}
+
+std::string percent(double r) {
+  return fmt::format("{:.3g} %", 100 * r);
+}
+
+// Window T = k / rate, k in 3 .. 11: the smallest sampled error wins, and among windows within
+// 20 % of it the shortest (it converges sooner and sees less of the input's variation, which a
+// frozen-input bound does not).
+void search_window(const Model& m, Choices& c) {
+  if (c.window_given) {
+    default_poles(c, m.n());
+    return;
+  }
+  const double rate = model_rate(m, c);
+  const double w = rate > 0 && std::isfinite(rate) ? rate : 5;
+  std::vector<std::pair<double, double>> scores;  // (T, score)
+  std::optional<UserError> escape;
+  for (double k : {3.0, 4.0, 5.0, 6.5, 8.5, 11.0}) {
+    set_window(c, k / w);
+    default_poles(c, m.n());
+    if (!fill_grid(c)) break;
+    stage_kernel(c);
+    if (const auto t = measure(m, c, &escape)) scores.push_back({c.T, t->relative_error});
+  }
+  if (scores.empty() && escape) throw *escape;
+  double best = HUGE_VAL, T = scores.empty() ? 3 / w : scores.front().first;
+  for (const auto& sc : scores) best = std::min(best, sc.second);
+  for (const auto& sc : scores)
+    if (sc.second <= 1.2 * best) {
+      T = sc.first;
+      break;
+    }
+  set_window(c, T);
+  default_poles(c, m.n());
+  std::vector<std::string> tried;
+  for (const auto& sc : scores)
+    tried.push_back(fmt::format("{:g}: {}", sc.first, percent(sc.second)));
+  c.notes.push_back(fmt::format(
+      "window T = {:g} searched (model rate {:.4g} = median |dF/dx|; T = k / rate; sampled error "
+      "per window {}; the shortest within 20 % of the best)",
+      c.T, rate, fmt::join(tried, ", ")));
+  c.notes.push_back(fmt::format("{} filter poles geometric from -0.2/T to -20/T", c.lambda.size()));
+}
+
+// The number of input levels (5, 10 or 20 steps over the input's range), the grid filling the
+// budget that remains: the smallest sampled error wins.
+void search_levels(const Model& m, Choices& c) {
+  if (m.m() == 0 || c.levels_given || !(c.input_hi > c.level_lo)) return;
+  double best = HUGE_VAL;
+  std::size_t chosen = 11;
+  std::vector<std::string> tried;
+  for (std::size_t L : {11, 6, 21}) {
+    c.levels = L;
+    c.level_step = (c.input_hi - c.level_lo) / static_cast<double>(L - 1);
+    if (!fill_grid(c)) continue;
+    stage_kernel(c);
+    const auto t = measure(m, c, nullptr);
+    if (!t) continue;
+    tried.push_back(fmt::format("{}: {}", L, percent(t->relative_error)));
+    if (t->relative_error < best) best = t->relative_error, chosen = L;
+  }
+  c.levels = chosen;
+  c.level_step = (c.input_hi - c.level_lo) / static_cast<double>(chosen - 1);
+  c.notes.push_back(fmt::format("{} input levels searched (sampled error per level count {})",
+                                chosen, fmt::join(tried, ", ")));
+}
+
+// Epsilon (1/2, 1, 2 grid steps) and weight power (n + 2, 2n + 4, 4n + 4) on the chosen tables;
+// returns the final tables with their accuracy over the full test set.
+Tables search_kernel(const Model& m, Choices& c) {
+  if (!fill_grid(c))
+    throw option_error(fmt::format(
+        "method 'finite-time': no grid of 3 or more points per state fits the table-memory "
+        "budget of {} ({} filters x {} input levels); raise --table-memory",
+        c.budget_bytes, c.lambda.size(), c.levels));
+  const Tabulator tab(m, c);
+  Tables t = tabulate(tab, m, c);
+  ++c.candidates;
+  const double h = *std::max_element(c.step.begin(), c.step.end());
+  const int n = static_cast<int>(m.n());
+  std::vector<double> eps =
+      c.eps_given ? std::vector<double>{c.eps} : std::vector<double>{h, h / 2, 2 * h};
+  std::vector<int> powers = c.power_given
+                                ? std::vector<int>{c.power}
+                                : std::vector<int>{2 * n + 4, n + 2, std::min(16, 4 * n + 4)};
+  double best = HUGE_VAL, best_eps = eps[0];
+  int best_power = powers[0];
+  for (double e : eps)
+    for (int p : powers) {
+      c.eps = e;
+      c.power = p;
+      sampled_accuracy(tab, c, t);
+      if (t.relative_error < best) best = t.relative_error, best_eps = e, best_power = p;
+    }
+  c.eps = best_eps;
+  c.power = best_power;
+  if (eps.size() > 1 || powers.size() > 1)
+    c.notes.push_back(
+        fmt::format("kernel searched: epsilon {:.4g} ({:g} grid steps), weight "
+                    "power {} (of epsilon 1/2, 1, 2 steps x power n+2, 2n+4, 4n+4)",
+                    c.eps, c.eps / h, c.power));
+  c.bound_samples = 300;
+  t.test_maps.clear();
   sampled_accuracy(tab, c, t);
   return t;
 }
 
+// The whole design: what the options fix stays; window, levels, grid and kernel are searched
+// (at most 6 + 3 tabulations and 9 kernels, 150 test states each) for the smallest sampled error
+// within the memory budget; the final accuracy uses 300 test states.
+Tables design_tables(const Model& m, Choices& c) {
+  c.bound_samples = 150;
+  if (!c.eps_given && c.grid_given) c.eps = *std::max_element(c.step.begin(), c.step.end());
+  search_window(m, c);
+  search_levels(m, c);
+  return search_kernel(m, c);
+}
+
 // ---- verdict and spec -------------------------------------------------------------------
 
-Verdict applies(const Analysis& a) {
+// Whether the model qualifies (one output, at most one input, bound parameters, a box).
+Verdict requirements(const Analysis& a) {
   const Model& m = a.model;
   Verdict v;
   if (m.p() != 1)
@@ -661,6 +906,79 @@ Verdict applies(const Analysis& a) {
         "finite-time: needs no derivatives (h may be non-smooth); the domain box gives the "
         "compact region G and input range U; injectivity of q and the accuracy are checked "
         "numerically (sampled) when the tables are built");
+  return v;
+}
+
+// The sampled accuracy against the target and the memory against the budget.
+struct Outcome {
+  bool target_met = false, within_budget = false;
+  std::size_t entries = 0;
+};
+
+Outcome outcome(const Choices& c) {
+  Outcome o;
+  o.entries = table_entries(c);
+  o.within_budget = o.entries * 4 <= c.budget_bytes;
+  return o;
+}
+
+std::string memory_text(std::size_t bytes);
+
+// The guarantee line: partial (a sampled bound, not a proof) when the target is met within the
+// budget, none otherwise (an observer whose own bound says it misses its target).
+void set_guarantee(Verdict& v, const Choices& c, const Tables& t) {
+  Outcome o = outcome(c);
+  o.target_met = t.relative_error <= c.target;
+  const std::string measured = fmt::format(
+      "sampled error bound {:.4g} (max |x_s - xh_s| = {} of the state's box width over {} test "
+      "states, u frozen{}), target {}, tables {} as float (budget {})",
+      t.bound(), percent(t.relative_error), t.tested,
+      c.rate > 0 ? fmt::format(" or ramping at +-{:g}", c.rate) : std::string(), percent(c.target),
+      memory_text(o.entries * 4), memory_text(c.budget_bytes));
+  if (o.target_met && o.within_budget) {
+    v.guarantee = Guarantee::partial;
+    v.guarantee_text = "finite-time: target met (sampled, not a proof): " + measured;
+  } else {
+    v.guarantee = Guarantee::none;
+    v.guarantee_text =
+        fmt::format("finite-time: {}: {}",
+                    !o.within_budget ? "the tables exceed the memory budget"
+                                     : "no setting searched meets the error target (raise "
+                                       "--table-memory or --error-target)",
+                    measured);
+  }
+}
+
+// The default design's guarantee per model, recorded by a build without options: applies() stays
+// cheap (the main job's report asks every design's verdict; the search takes seconds) and
+// carries the guarantee once the tables exist.
+std::map<std::string, std::pair<Guarantee, std::string>>& guarantee_memo() {
+  static std::map<std::string, std::pair<Guarantee, std::string>> memo;
+  return memo;
+}
+
+std::string model_key(const Model& m) {
+  std::string key = m.name;
+  for (const auto& e : m.field()) key += "|" + to_string(e);
+  for (const auto& e : m.h) key += "|" + to_string(e);
+  for (const auto& [name, box] : m.domain)
+    key += fmt::format("|{}:{}:{}", name, to_string(box.lo), to_string(box.hi));
+  return key;
+}
+
+Verdict applies(const Analysis& a) {
+  Verdict v = requirements(a);
+  if (!v.applies) return v;
+  const auto it = guarantee_memo().find(model_key(a.model));
+  if (it != guarantee_memo().end()) {
+    v.guarantee = it->second.first;
+    v.guarantee_text = it->second.second;
+  } else {
+    v.guarantee = Guarantee::none;
+    v.guarantee_text =
+        "finite-time: its sampled error bound comes with its tables (a search of seconds), "
+        "built only by --method finite-time; not built here";
+  }
   return v;
 }
 
@@ -728,7 +1046,7 @@ std::vector<ConstTable> const_tables(const Choices& c, const Tables& t, double T
 
 // Title, description, class documentation and constants; bound is the sampled error bound.
 void describe_finite_time(ObserverSpec& s, const Choices& c, const Tables& t, double T,
-                          double bound) {
+                          double bound, const Verdict& g) {
   const std::size_t N = static_cast<std::size_t>(t.grid.rows());
   const std::string covered =
       c.rate > 0 ? fmt::format("frozen or ramping at up to {:g}", c.rate) : std::string("frozen");
@@ -741,7 +1059,11 @@ void describe_finite_time(ObserverSpec& s, const Choices& c, const Tables& t, do
                   "epsilon {:.6g}, weight power {}",
                   fmt::join(c.count, " x "), N, c.levels, c.levels == 1 ? "" : "s", c.eps, c.power),
       fmt::format("Sampled accuracy: |x - xh| <= {:.4g} for u {} over the window (not a proof)",
-                  bound, covered)};
+                  bound, covered),
+      g.guarantee == Guarantee::partial
+          ? fmt::format("Error target {} of the box width: met (sampled)", percent(c.target))
+          : fmt::format("WARNING: error target {} of the box width NOT met: sampled error {}",
+                        percent(c.target), percent(t.relative_error))};
   s.class_doc = {"  z <- e^{A dt} z + A^-1 (e^{A dt} - I) b y,  eta = z - e^{A T} z(t - T),",
                  "  xh = sum_i x_i w_i / sum_i w_i,  w_i = (epsilon + |eta - q_k(x_i)|)^-power,"};
   if (c.interpolate && c.levels > 1) {
@@ -770,9 +1092,27 @@ std::string memory_text(std::size_t bytes) {
 
 // The report rows (with the notes on defaults) and the summary.
 void report_finite_time(ObserverSpec& s, const Model& m, const Choices& c, const Tables& t,
-                        double T, double bound, std::size_t entries) {
+                        double T, double bound, std::size_t entries, const Verdict& g) {
   const std::size_t pz = c.lambda.size(), N = static_cast<std::size_t>(t.grid.rows());
+  std::vector<std::string> per_state;
+  for (std::size_t i = 0; i < m.n(); ++i)
+    per_state.push_back(
+        fmt::format("{:.4g} for {}", c.target * c.width[i], m.states[i].get_name()));
   s.report = {
+      {"guarantee", fmt::format("{}: {}", guarantee_name(g.guarantee), g.guarantee_text)},
+      {"error target",
+       fmt::format("{} of each state's box width ({}; --error-target): {}", percent(c.target),
+                   fmt::join(per_state, ", "),
+                   t.relative_error <= c.target
+                       ? fmt::format("met, sampled error {}", percent(t.relative_error))
+                       : fmt::format("NOT met, sampled error {}", percent(t.relative_error)))},
+      {"table memory budget",
+       fmt::format("{} at 4 bytes an entry (--table-memory, KiB): {} used as float{}",
+                   memory_text(c.budget_bytes), memory_text(entries * 4),
+                   entries * 4 <= c.budget_bytes ? "" : ", OVER the budget")},
+      {"search", fmt::format("{} settings tabulated (deterministic: fixed candidates, Halton test "
+                             "states); options given are kept",
+                             c.candidates)},
       {"window T",
        fmt::format("{:g} ({} samples of {:g}; --window, --sample-period)", T, c.D, c.dt)},
       {"filter poles", list(c.lambda)},
@@ -818,17 +1158,21 @@ void report_finite_time(ObserverSpec& s, const Model& m, const Choices& c, const
   for (const auto& note : c.notes) s.report.push_back({"default", note});
   s.summary = fmt::format(
       "finite-time epsilon-T observer: T = {:g}, {} filters, {} grid points x {} input levels, "
-      "sampled error bound {:.4g}",
-      T, pz, N, c.levels, bound);
+      "sampled error bound {:.4g} ({} of the box; target {} {})",
+      T, pz, N, c.levels, bound, percent(t.relative_error), percent(c.target),
+      g.guarantee == Guarantee::partial ? "met" : "NOT met");
 }
 
 ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Model& m = a.model;
-  const Verdict v = applies(a);
+  const Verdict v = requirements(a);
   if (!v.applies)
     throw UserError(SourceLoc{m.file, 0, 0}, "method 'finite-time' does not apply: " + v.text());
   Choices c = choose(a, o);
-  const Tables t = tabulate(m, c);
+  const Tables t = design_tables(m, c);
+  Verdict g;
+  set_guarantee(g, c, t);
+  if (o.values.empty()) guarantee_memo()[model_key(m)] = {g.guarantee, g.guarantee_text};
   const std::size_t pz = c.lambda.size();
 
   ObserverSpec s;
@@ -849,9 +1193,9 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
 
   // The map table is the last one.
   const std::size_t entries = s.tables.back().values.size() + 3 * pz + pz * pz;
-  const double bound = std::max({t.level_error, t.between_error, t.ramp_error});
-  describe_finite_time(s, c, t, T, bound);
-  report_finite_time(s, m, c, t, T, bound, entries);
+  const double bound = t.bound();
+  describe_finite_time(s, c, t, T, bound, g);
+  report_finite_time(s, m, c, t, T, bound, entries, g);
   return s;
 }
 
@@ -864,18 +1208,19 @@ Design finite_time_design() {
       "finite-time epsilon-T observer: filter bank, delay line and tabulated inverse per input "
       "level (seed 004; no derivatives, non-smooth h)";
   d.options = {
-      {"window", "finite-time: the window T", "1"},
+      {"window", "finite-time: the window T", "searched: k / (median |dF/dx|), k = 3 .. 11"},
       {"sample-period", "finite-time: the fixed sample period dt (T must be a multiple)",
        "T/100 (simulate: --dt)"},
       {"filter-poles", "finite-time: eigenvalues of the diagonal filter bank A, negative",
        "2n+1 geometric from -0.2/T to -20/T"},
       {"grid-step", "finite-time: state grid step (one, or one per state) over the domain box",
-       "2048^(1/n) points per state"},
+       "as many points as --table-memory holds"},
       {"input-step", "finite-time: spacing of the input levels over the input's domain",
-       "1/10 of the range"},
+       "searched: 1/5, 1/10 or 1/20 of the range"},
       {"kernel-epsilon", "finite-time: epsilon of the inverse's weights (eq. 13/15)",
-       "4 x median neighbour distance in q"},
-      {"weight-power", "finite-time: power of the weights, 1 (eq. 15) or n+2 (eq. 13)", "1"},
+       "searched: 1/2, 1 or 2 grid steps"},
+      {"weight-power", "finite-time: power of the weights, 1 (eq. 15) or n+2 (eq. 13)",
+       "searched: n+2, 2n+4, 4n+4"},
       {"metric",
        "finite-time: kernel distance: whiten (q whitened by its covariance over the grid) or "
        "scale",
@@ -888,10 +1233,17 @@ Design finite_time_design() {
        "window-interpolate"},
       {"input-rate", "finite-time: |du/dt| of the input ramps the sampled error bound also covers",
        "0"},
-      {"backward-steps", "finite-time: RK4 steps of the backward simulation over T", "200"}};
+      {"backward-steps", "finite-time: RK4 steps of the backward simulation over T", "200"},
+      {"error-target",
+       "finite-time: sampled error target, a fraction of each state's box width (the search "
+       "aims under it; the verdict says when no setting meets it)",
+       "0.05"},
+      {"table-memory",
+       "finite-time: budget of the inverse tables in KiB, at 4 bytes an entry (float)", "256"}};
   d.applies = applies;
   d.build = build;
   d.in_all = false;  // tables of 10^4..10^6 entries: by name only, not by auto or all
+  d.observes_output_offset = false;  // feeds y itself to its filter bank
   return d;
 }
 

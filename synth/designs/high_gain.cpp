@@ -14,6 +14,7 @@
 #include "certify/enclosure.hpp"
 #include "designs/canonical.hpp"
 #include "designs/options.hpp"
+#include "front/fresh_names.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/lie.hpp"
 #include "symbolic/poly.hpp"
@@ -107,12 +108,35 @@ std::vector<numeric> chosen_poles(const DesignOptions& o, std::size_t n) {
   return poles;
 }
 
-numeric chosen_theta(const DesignOptions& o) {
+// Default theta: the certificate's theta* with a margin, never below the floor (a useful speed
+// when theta* = 1), never above the cap (the gain grows as theta^n and the fastest error pole,
+// theta max|pole|, sets the largest step).
+constexpr double kThetaFloor = 5, kThetaMargin = 1.25, kThetaCap = 200;
+
+// 1.25 theta* rounded up to two significant digits, within [floor, cap].
+numeric automatic_theta(double theta_star) {
+  const double want = std::max(kThetaFloor, kThetaMargin * theta_star);
+  if (!std::isfinite(want) || want >= kThetaCap) return numeric(static_cast<long>(kThetaCap));
+  const double unit = std::pow(10.0, std::floor(std::log10(want)) - 1);
+  const long digits = static_cast<long>(std::ceil(want / unit - 1e-9));
+  return unit >= 1 ? numeric(digits * static_cast<long>(unit))
+                   : numeric(digits, static_cast<long>(std::llround(1 / unit)));
+}
+
+std::optional<numeric> user_theta(const DesignOptions& o) {
   const auto t = real_option(o, "theta");
-  if (!t) return numeric(5);
+  if (!t) return std::nullopt;
   if (!t->is_positive())
     throw UserError(SourceLoc{}, fmt::format("--theta: {} is not positive", to_string(*t)));
   return *t;
+}
+
+// RK4's stability interval on the negative real axis is [-2.785, 0]: a step needs
+// dt max|error pole| below it, the error poles being theta times the poles of A - K C.
+double rk4_safe_period(const numeric& theta, const std::vector<numeric>& poles) {
+  double fastest = 0;
+  for (const auto& q : poles) fastest = std::max(fastest, std::abs(q.to_double()));
+  return 2.785 / (theta.to_double() * fastest);
 }
 
 // lambda_max of P with (A - K C)^T P + P (A - K C) = -I (A upper shift, C = e_1).
@@ -432,14 +456,19 @@ GeneratedFunction fn(const std::string& name, const std::string& doc, std::vecto
 struct GainChoice {
   std::vector<numeric> poles, K;
   numeric theta;
+  bool theta_given = false;
   std::vector<numeric> gain;  // Delta_theta K
 };
 
-GainChoice choose_gain(const DesignOptions& o, std::size_t n) {
+// theta: --theta, else from the certificate's theta* (automatic_theta).
+GainChoice choose_gain(const DesignOptions& o, std::vector<numeric> poles, double theta_star) {
+  const std::size_t n = poles.size();
   GainChoice g;
-  g.poles = chosen_poles(o, n);
+  g.poles = std::move(poles);
   g.K = high_gain_K(g.poles);
-  g.theta = chosen_theta(o);
+  const auto given = user_theta(o);
+  g.theta_given = given.has_value();
+  g.theta = given ? *given : automatic_theta(theta_star);
   numeric th = 1;
   for (std::size_t i = 0; i < n; ++i) {
     th *= g.theta;
@@ -469,7 +498,7 @@ void add_hg_functions(ObserverSpec& s, const Model& m, const HighGainStructure& 
   const std::size_t n = m.n();
   const FunctionArg w =
       vector_arg("w", "ObserverState", m.states, FunctionArg::Kind::observer_state);
-  const GiNaC::symbol y("y");
+  const GiNaC::symbol y = fresh_symbol(m, "y");
   const FunctionArg u = input_arg(m), yarg = output_arg({y});
   const ExVec F = m.field();
   s.functions.push_back(
@@ -574,6 +603,19 @@ void describe_hg(ObserverSpec& s, const GainChoice& g, const Certificate& cert,
   s.constants.push_back({"gain", g.gain, "Delta_theta K"});
 }
 
+// The "theta" report row: given, or chosen from theta* (and why).
+std::string theta_text(const GainChoice& g, const Certificate& cert) {
+  if (g.theta_given) return to_string(g.theta) + " (--theta)";
+  if (!std::isfinite(cert.theta_star) || cert.theta_star * kThetaMargin > kThetaCap)
+    return fmt::format(
+        "{} (default: the cap; theta* = {} is unusable: no theta up to the cap {:g} is covered "
+        "by the theorem)",
+        to_string(g.theta), up6(cert.theta_star), kThetaCap);
+  return fmt::format("{} (default: {:g} theta* = {} rounded up, at least {:g}, at most {:g})",
+                     to_string(g.theta), kThetaMargin, up6(cert.theta_star), kThetaFloor,
+                     kThetaCap);
+}
+
 // The "convergence" report row.
 std::string convergence_text(const GainChoice& g, const Certificate& cert, const Convergence& c) {
   if (c.above && cert.rigorous && !c.singular_in_box.empty())
@@ -617,7 +659,11 @@ void report_hg(ObserverSpec& s, const HighGainStructure& st, const GainChoice& g
                const DesignOptions& o) {
   s.report = {
       {"coordinates", "z = (h, L_f h, ..., L_f^{n-1} h), output first (seed 002 convention)"},
-      {"theta", to_string(g.theta) + (o.find("theta") ? "" : " (default)")},
+      {"theta", theta_text(g, cert)},
+      {"largest safe sample period",
+       fmt::format("{:.3g} s (RK4 stability on the fastest error pole theta max|pole|; the "
+                   "firmware's step() must run at least this often)",
+                   rk4_safe_period(g.theta, g.poles))},
       {"poles", numbers_text(g.poles) + (o.find("poles") ? "" : " (default)")},
       {"K", numbers_text(g.K)},
       {"Delta_theta K", numbers_text(g.gain)},
@@ -644,6 +690,54 @@ void report_hg(ObserverSpec& s, const HighGainStructure& st, const GainChoice& g
                                                                : "not guaranteed");
 }
 
+// The certificate behind the verdict, with the default poles and theta (the main job's
+// choice): withdrawn where it shows the design useless (no finite L, theta* above the cap, O
+// singular inside the box), otherwise rigorous (Arb L) or partial (sampled L).
+void assess(const Analysis& a, Verdict& v) {
+  const Model& m = a.model;
+  const HighGainStructure st = high_gain_structure(m);
+  if (!st.failures.empty()) {
+    v = Verdict{false, st.failures};
+    return;
+  }
+  const std::vector<numeric> poles = default_poles(m.n());
+  const Certificate cert = certify(m, st, high_gain_K(poles));
+  const auto singular = singular_in_box(m, st);
+  if (cert.unbounded || cert.theta_star * kThetaMargin > kThetaCap) {
+    v.applies = false;
+    v.reasons = {fmt::format(
+        "uniformly observable, but its certificate makes it useless here: theta* = {} ({} L = "
+        "{}){}; no theta up to the cap {:g} is covered by the theorem",
+        up6(cert.theta_star), cert.rigorous ? "rigorous" : "sampled", up6(cert.L),
+        cert.unbounded ? " (phi has no finite Lipschitz bound on the domain box)" : "",
+        kThetaCap)};
+    return;
+  }
+  if (singular && singular->find("inside the domain box") != std::string::npos) {
+    v.applies = false;
+    v.reasons = {"uniformly observable only off det O = 0, and " + *singular +
+                 ": the realisation in x solves with O(xh) and stalls there"};
+    return;
+  }
+  const numeric theta = automatic_theta(cert.theta_star);
+  const std::string claim = fmt::format("theta = {} > theta* = {} (L = {}, {})", to_string(theta),
+                                        up6(cert.theta_star), up6(cert.L),
+                                        cert.rigorous ? "Arb bound over the box" : "sampled");
+  if (singular) {
+    v.guarantee = Guarantee::none;
+    v.guarantee_text = claim + " gives zh -> z, but " + *singular;
+  } else {
+    // Even with a rigorous L the theorem holds only while xh stays in the box, and the
+    // high-gain transient peaks like theta^(n-1), which nothing here bounds: on a sub-region of
+    // the state-estimate space, not the domain (a ship model left the box in its first step).
+    v.guarantee = Guarantee::partial;
+    v.guarantee_text =
+        claim + (cert.rigorous ? ", proved while xh stays in the domain box; the transient's "
+                                 "peaking (like theta^(n-1)) is not bounded"
+                               : ": L is an estimate from samples, not a bound");
+  }
+}
+
 ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Model& m = a.model;
   const HighGainStructure st = high_gain_structure(m);
@@ -651,8 +745,9 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
     throw UserError(SourceLoc{m.file, 0, 0}, fmt::format("method 'high-gain' does not apply: {}",
                                                          fmt::join(st.failures, "; ")));
   const std::size_t n = m.n();
-  const GainChoice g = choose_gain(o, n);
-  const Certificate cert = certify(m, st, g.K);
+  std::vector<numeric> poles = chosen_poles(o, n);
+  const Certificate cert = certify(m, st, high_gain_K(poles));
+  const GainChoice g = choose_gain(o, std::move(poles), cert.theta_star);
   const std::string where_singular = singular_set(m, st);
 
   ObserverSpec s;
@@ -667,6 +762,9 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Convergence c = convergence(g, cert, singular_in_box(m, st));
   describe_hg(s, g, cert, c, where_singular);
   report_hg(s, st, g, cert, c, where_singular, o);
+  if (!c.guaranteed)
+    s.warnings.push_back("the high-gain observer as built is " +
+                         convergence_text(g, cert, c));
   return s;
 }
 
@@ -686,8 +784,9 @@ Design high_gain_design() {
       {"theta",
        "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^n)); "
        "kalman-theta: forgetting rate theta of S",
-       "5 (high-gain), 5 (kalman-theta)"}};
+       "1.25 theta* within [5, 200] (high-gain), 5 (kalman-theta)"}};
   d.applies = applies;
+  d.assess = assess;
   d.build = build;
   return d;
 }

@@ -9,6 +9,7 @@
 #include "analysis/triangular_form.hpp"
 #include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
+#include "front/fresh_names.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
 
@@ -100,6 +101,80 @@ std::optional<KtForm> find_form(const Analysis& a, bool compute, std::string& wh
   return std::nullopt;
 }
 
+// The factors of x_of_z's denominators that depend on z and may vanish for a state in the
+// domain box (f(z_of_x(x)), zeros_in_box; those proved nonzero there are left out): where they
+// vanish the estimate is not finite (the generated estimate returns Status::non_finite).
+std::string denominators_text(const Model& m, const KtForm& form) {
+  GiNaC::exmap at_x;
+  for (std::size_t i = 0; i < form.z.size(); ++i) at_x[form.z[i]] = form.z_of_x[i];
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  std::vector<std::string> seen, out;
+  for (const auto& e : form.x_of_z)
+    for (const auto& f : dependent_factors(GiNaC::denom(GiNaC::normal(e)), form.z)) {
+      const std::string t = to_string(f);
+      if (std::find(seen.begin(), seen.end(), t) != seen.end()) continue;
+      seen.push_back(t);
+      const BoxZeros zx = zeros_in_box(f.subs(at_x), boxes);
+      if (zx.kind == BoxZeros::never) continue;
+      out.push_back(fmt::format("{} = 0 ({})", t,
+                                zx.kind == BoxZeros::somewhere
+                                    ? "meets the domain box: " + zx.detail
+                                    : "not proved to stay out of the domain box"));
+    }
+  if (out.empty()) return "";
+  return fmt::format("; not finite where {}", fmt::join(out, "; "));
+}
+
+std::string form_text(const KtForm& form) {
+  if (form.in_x)
+    return fmt::format("in seed 002's form in x with a(u) = [{}]",
+                       fmt::join(to_strings(form.a), ", "));
+  return fmt::format(
+      "in seed 002's form {}, z = [{}], with a(u) = [{}] (the observer runs in z and estimates "
+      "x = [{}])",
+      coordinates_text(form), fmt::join(to_strings(form.z_of_x), ", "),
+      fmt::join(to_strings(form.a), ", "), fmt::join(to_strings(form.x_of_z), ", "));
+}
+
+// Whether every input is strongly persistent: a free of u and nonzero on the parameter box.
+// Then A is a constant nilpotent matrix, Psi(t, theta) tends to the same limit for every input,
+// and scaling z_i by theta^(i-1) / (a_1 ... a_{i-1}) makes alpha(theta) and Gamma_ii / Gamma_jj
+// (theta >= 1) constants: i) and ii) of the Definition hold whatever u.
+bool every_input_persistent(const Model& m, const KtForm& form) {
+  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  for (const auto& ai : form.a)
+    if (depends_on(ai, m.inputs) || zeros_in_box(ai, boxes).kind != BoxZeros::never) return false;
+  return true;
+}
+
+// The guarantee the Theorem gives here. Never rigorous: it proves convergence for theta above
+// a threshold it does not make explicit, so no chosen theta is proven sufficient.
+void set_guarantee(Verdict& v, const Model& m, const KtForm& form, const PhiLipschitz& lip) {
+  const std::string singular_estimate = form.in_x ? "" : denominators_text(m, form);
+  if (lip.kind != PhiLipschitz::proved) {
+    v.guarantee = Guarantee::none;
+    v.guarantee_text = lip.text;
+  } else if (!every_input_persistent(m, form)) {
+    v.guarantee = Guarantee::none;
+    v.guarantee_text =
+        "for an unknown input: a(u) depends on the input (or may vanish), so convergence "
+        "needs a strongly persistent input; `obsynth check --input ... --horizon ...` checks "
+        "one (sampled)";
+  } else if (!singular_estimate.empty()) {
+    v.guarantee = Guarantee::none;
+    v.guarantee_text = "in x: zh -> z holds for theta large enough, but the estimate x_of_z" +
+                       singular_estimate.substr(1);
+  } else {
+    v.guarantee = Guarantee::partial;
+    v.guarantee_text =
+        "the Theorem's hypotheses are proved on the domain box for every input (a "
+        "constant: every input strongly persistent; " +
+        lip.text +
+        "), but the Theorem gives convergence only for theta above a threshold it does not make "
+        "explicit (theta is not proven large enough), and only while x and xh stay in the box";
+  }
+}
+
 Verdict applies(const Analysis& a) {
   Verdict v;
   std::string why;
@@ -108,20 +183,19 @@ Verdict applies(const Analysis& a) {
     v.reasons.push_back(why);
     return v;
   }
-  v.applies = true;
-  if (form->in_x) {
-    v.reasons.push_back(fmt::format(
-        "in seed 002's form in x with a(u) = [{}]: converges for strongly persistent inputs "
-        "(check with `obsynth check --input ... --horizon ...`)",
-        fmt::join(to_strings(form->a), ", ")));
-  } else {
-    v.reasons.push_back(fmt::format(
-        "in seed 002's form {}, z = [{}], with a(u) = [{}]: the observer runs in z and "
-        "estimates x = [{}]; converges for strongly persistent inputs (check with `obsynth "
-        "check --input ... --horizon ...`)",
-        coordinates_text(*form), fmt::join(to_strings(form->z_of_x), ", "),
-        fmt::join(to_strings(form->a), ", "), fmt::join(to_strings(form->x_of_z), ", ")));
+  const PhiLipschitz lip = phi_lipschitz_on_box(a.model, form->z, form->phi, form->z_of_x);
+  if (lip.kind == PhiLipschitz::fails) {
+    v.reasons.push_back(form_text(*form) +
+                        ", but seed 002's Theorem needs phi(u, z) Lipschitz in z, whatever "
+                        "the input: " +
+                        lip.text);
+    return v;
   }
+  v.applies = true;
+  v.reasons.push_back(form_text(*form) +
+                      ": converges for strongly persistent inputs and theta large enough (check "
+                      "an input with `obsynth check --input ... --horizon ...`)");
+  set_guarantee(v, a.model, *form, lip);
   return v;
 }
 
@@ -212,7 +286,7 @@ ExVec kt_rhs(const KtForm& form, const ExMatrix& S, const numeric& theta) {
 // init is (z_of_x(xh0), S0) and the estimate x_of_z(zh).
 void add_kt_functions(ObserverSpec& s, const Model& m, const KtForm& form, const KtSymbols& sym,
                       const ExVec& rhs, const std::vector<numeric>& S0packed) {
-  const GiNaC::symbol y("y");
+  const GiNaC::symbol y = fresh_symbol(m, "y");
   const FunctionArg w = vector_arg("w", "ObserverState", sym.w, FunctionArg::Kind::observer_state);
   const FunctionArg u = input_arg(m), yarg = output_arg({y});
   s.functions.push_back(
@@ -251,38 +325,44 @@ SolveCorrection kt_correction(std::size_t n) {
   corr.target_offset = 0;
   corr.dim = n;
   corr.singular_doc =
-      "S is not positive definite (it stays so in exact arithmetic; loss is numerical, e.g. a "
-      "non-persistent input over a long time)";
+      "S is not positive definite (it stays so in exact arithmetic; loss is numerical: a step "
+      "with dt theta > 1.2956, or a non-persistent input over a long time)";
   return corr;
 }
 
-// The factors of x_of_z's denominators that depend on z and may vanish for a state in the
-// domain box (f(z_of_x(x)), zeros_in_box; those proved nonzero there are left out): where they
-// vanish the estimate is not finite (the generated estimate returns Status::non_finite).
-std::string denominators_text(const Model& m, const KtForm& form) {
-  GiNaC::exmap at_x;
-  for (std::size_t i = 0; i < form.z.size(); ++i) at_x[form.z[i]] = form.z_of_x[i];
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
-  std::vector<std::string> seen, out;
-  for (const auto& e : form.x_of_z)
-    for (const auto& f : dependent_factors(GiNaC::denom(GiNaC::normal(e)), form.z)) {
-      const std::string t = to_string(f);
-      if (std::find(seen.begin(), seen.end(), t) != seen.end()) continue;
-      seen.push_back(t);
-      const BoxZeros zx = zeros_in_box(f.subs(at_x), boxes);
-      if (zx.kind == BoxZeros::never) continue;
-      out.push_back(fmt::format("{} = 0 ({})", t,
-                                zx.kind == BoxZeros::somewhere
-                                    ? "meets the domain box: " + zx.detail
-                                    : "not proved to stay out of the domain box"));
-    }
-  if (out.empty()) return "";
-  return fmt::format("; not finite where {}", fmt::join(out, "; "));
+// The class documentation's line on convergence: the Theorem's claim only where it applies.
+std::string theorem_line(const PhiLipschitz& lip) {
+  if (lip.kind == PhiLipschitz::fails)
+    return "NOT covered by seed 002's Theorem: phi is not Lipschitz in z on the domain box.";
+  if (lip.kind == PhiLipschitz::unknown)
+    return "Converges for strongly persistent inputs (seed 002, Theorem) if phi is Lipschitz in "
+           "z (not proved).";
+  return "Converges for strongly persistent inputs (seed 002, Theorem).";
+}
+
+// The step is RK4 on (zh, S) with the gain solved with S in every stage (a stage whose S is not
+// positive definite is rejected). Along a direction that C^T C does not feed, S' = -theta S
+// (A = 0, e.g. u = 0 in seed 002's example (4)) gives the stages S, (1 - h/2) S,
+// (1 - h/2 + h^2/4) S and (1 - h + h^2/2 - h^3/4) S, h = dt theta: the last one turns negative
+// for h > 1.29560, the real root of 1 - h + h^2/2 - h^3/4 (bisection; RK4's own stability,
+// h < 2.78529, is looser). So dt < 1.2956 / theta is necessary (measured on dufour4, u = 1,
+// theta = 50: dt = 0.0255 converges, 0.026 is rejected at t = 0); d phi/d z adds to the zh
+// equation's eigenvalues, so it is not sufficient.
+constexpr double kStagePositivity = 1.2956;
+
+std::string safe_period_text(const numeric& theta) {
+  return fmt::format(
+      "dt < {:.4g} = 1.2956 / theta (necessary: beyond it the last RK4 stage of S' = -theta S "
+      "- A^T S - S A + C^T C loses positive definiteness in a direction C^T C does not feed, and "
+      "the step is rejected with Status::singular); not sufficient: d phi/d z adds to the zh "
+      "equation's eigenvalues",
+      kStagePositivity / theta.to_double());
 }
 
 // Title, description, class documentation, constants, report rows and summary.
 void describe_kt(ObserverSpec& s, const Model& m, const KtForm& form, const numeric& theta,
-                 const std::vector<numeric>& S0packed, const DesignOptions& o) {
+                 const std::vector<numeric>& S0packed, const DesignOptions& o,
+                 const PhiLipschitz& lip, const Verdict& guarantee) {
   const std::string as = fmt::format("{}", fmt::join(to_strings(form.a), ", "));
   const std::string phis = fmt::format("{}", fmt::join(to_strings(form.phi), ", "));
   s.title = "Kalman-like theta observer (Dufour-Flila-Hammouri)";
@@ -302,8 +382,7 @@ void describe_kt(ObserverSpec& s, const Model& m, const KtForm& form, const nume
       "Gain S^-1 C^T (y - C zh) by a Cholesky solve; S not positive definite -> "
       "Status::singular");
   s.class_doc = {"  zh' = A(u) zh + phi(u, zh) - S^-1 C^T (C zh - y)",
-                 "  S'  = -theta S - A(u)^T S - S A(u) + C^T C",
-                 "Converges for strongly persistent inputs (seed 002, Theorem)."};
+                 "  S'  = -theta S - A(u)^T S - S A(u) + C^T C", theorem_line(lip)};
   if (!form.in_x)
     s.class_doc.insert(s.class_doc.begin() + 2,
                        fmt::format("in z = [{}], started at z(xh0); estimate xh = [{}].",
@@ -326,21 +405,30 @@ void describe_kt(ObserverSpec& s, const Model& m, const KtForm& form, const nume
                                          denominators_text(m, form))}};
   }
   const std::string conv =
-      "for strongly persistent inputs (seed 002's Theorem, phi globally Lipschitz in z); check "
-      "an input with `obsynth check model.sym --input \"...\" --horizon T`";
+      lip.kind == PhiLipschitz::fails
+          ? "NOT covered by seed 002's Theorem, whatever the input and theta: " + lip.text
+          : "for strongly persistent inputs (seed 002's Theorem, phi globally Lipschitz in z) and "
+            "theta large enough; check an input with `obsynth check model.sym --input \"...\" "
+            "--horizon T`";
   s.report.insert(
       s.report.end(),
       {{"theta", to_string(theta) + (o.find("theta") ? "" : " (default)")},
        {"S0 (packed)", numbers_text(S0packed) + (o.find("S0") ? "" : " (default: identity)")},
        {"gain", "S^-1 C^T (y - C zh), Cholesky solve with S"},
+       {"phi Lipschitz in z", lip.text},
+       {"guarantee",
+        fmt::format("{}: {}", guarantee_name(guarantee.guarantee), guarantee.guarantee_text)},
+       {"largest safe sample period", safe_period_text(theta)},
        {"convergence", form.in_x
                            ? conv
                            : conv + "; the theorem is about zh - z: xh - x follows where x_of_z is "
                                     "continuous along the trajectory"}});
   s.summary = fmt::format(
-      "Kalman-like theta observer{}, theta = {}, S0 = [{}] (packed); converges for strongly "
-      "persistent inputs",
-      form.in_x ? "" : " " + coordinates_text(form), to_string(theta), numbers_text(S0packed));
+      "Kalman-like theta observer{}, theta = {}, S0 = [{}] (packed); {}",
+      form.in_x ? "" : " " + coordinates_text(form), to_string(theta), numbers_text(S0packed),
+      lip.kind == PhiLipschitz::fails
+          ? "NOT covered by seed 002's Theorem (phi is not Lipschitz in z on the domain box)"
+          : "converges for strongly persistent inputs and theta large enough");
 }
 
 ObserverSpec build(const Analysis& a, const DesignOptions& o) {
@@ -377,7 +465,10 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const KtSymbols sym = kt_symbols(*form);
   add_kt_functions(s, m, *form, sym, kt_rhs(*form, sym.S, theta), S0packed);
   s.correction = kt_correction(n);
-  describe_kt(s, m, *form, theta, S0packed, o);
+  const PhiLipschitz lip = phi_lipschitz_on_box(m, form->z, form->phi, form->z_of_x);
+  Verdict guarantee;
+  set_guarantee(guarantee, m, *form, lip);
+  describe_kt(s, m, *form, theta, S0packed, o, lip, guarantee);
   return s;
 }
 

@@ -4,8 +4,10 @@
 
 #include <algorithm>
 
+#include "analysis/conditions.hpp"
 #include "designs/canonical.hpp"
 #include "designs/options.hpp"
+#include "front/fresh_names.hpp"
 #include "symbolic/symbolic.hpp"
 
 namespace obsynth {
@@ -22,13 +24,9 @@ struct Jets {
 Jets jet_symbols(const Model& m) {
   Jets j;
   const std::size_t n = m.n();
-  for (std::size_t k = 0; k < n; ++k) j.y.push_back(GiNaC::symbol(fmt::format("y_d{}", k)));
-  for (const auto& u : m.inputs) {
-    std::vector<GiNaC::symbol> jet;
-    for (std::size_t k = 0; k + 1 < std::max<std::size_t>(n, 2); ++k)
-      jet.push_back(GiNaC::symbol(fmt::format("{}_d{}", u.get_name(), k)));
-    j.u.push_back(jet);
-  }
+  j.y = fresh_symbols(m, "y_d", n, 0);
+  for (const auto& u : m.inputs)
+    j.u.push_back(fresh_symbols(m, u.get_name() + "_d", std::max<std::size_t>(n, 2) - 1, 0));
   return j;
 }
 
@@ -83,7 +81,25 @@ Verdict applies(const Analysis& a) {
     return v;
   }
   v.applies = true;
-  v.reasons.push_back("T and l are closed-form: the state is a function of the output jets");
+  const std::vector<std::string> unproven = unproven_steps(cf);
+  if (unproven.empty()) {
+    v.reasons.push_back("T and l are closed-form: the state is a function of the output jets");
+    v.guarantee = Guarantee::rigorous;
+    v.guarantee_text =
+        "rigorous: x = T^-1(z(y, y', ..., u, ...)) exactly (brackets, T and l(u, y) proved "
+        "symbolically; exact jets assumed)";
+    return v;
+  }
+  const std::string list = fmt::format("{}", fmt::join(unproven, "; "));
+  v.reasons.push_back(fmt::format(
+      "T and l are closed-form, but unproven: {}; the state is a function of the output jets "
+      "only if these hold",
+      list));
+  v.guarantee = Guarantee::partial;
+  v.guarantee_text = fmt::format(
+      "partial (numeric): the reconstruction is exact only if what is numerically zero is "
+      "zero, not proved: {}",
+      list);
   return v;
 }
 
@@ -238,6 +254,7 @@ Design perfect_design() {
   d.options = {{"epsilon", "perfect observer: differentiator time constant", "0.01"}};
   d.applies = applies;
   d.build = build;
+  d.observes_output_offset = false;  // differentiates y itself
   return d;
 }
 

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 
+#include "symbolic/expr_print.hpp"
+
 #include "designs/canonical.hpp"
 #include "designs/extended_linearization.hpp"
 #include "designs/finite_time.hpp"
@@ -30,6 +32,32 @@ const char* guarantee_name(Guarantee g) {
 
 std::string Verdict::text() const {
   return fmt::format("{}", fmt::join(reasons, "; "));
+}
+
+Verdict design_verdict(const Design& d, const Analysis& a, bool assess) {
+  const Model& m = a.model;
+  Verdict v;
+  if (!m.output_offset.empty() && !d.observes_output_offset) {
+    v.reasons.push_back(fmt::format(
+        "the output has a direct feedthrough k(u) = [{}]; this design feeds y itself to its "
+        "filters or differentiators and cannot observe y - k(u)",
+        fmt::join(to_strings(m.output_offset), ", ")));
+    return v;
+  }
+  if (m.feedthrough() && !d.accepts_feedthrough) {
+    v.reasons.push_back(
+        "the output depends on the input in a way that does not split as h0(x) + k(u) "
+        "(direct feedthrough y = h(x, u)); this design needs y = h(x)");
+    return v;
+  }
+  v = d.applies(a);
+  if (v.applies && d.assess) {
+    if (assess)
+      d.assess(a, v);
+    else
+      v.guarantee_text = "not assessed (its certificate runs with `obsynth check --certify`)";
+  }
+  return v;
 }
 
 const std::vector<Design>& design_registry() {

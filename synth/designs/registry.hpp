@@ -38,17 +38,31 @@ struct Design {
   // When every method asked for says false, the command line skips those stages.
   bool needs_canonical_form = true;
   Verdict (*applies)(const Analysis&) = nullptr;
+  // Optional: the certificate behind the verdict (seconds on large models): fills the
+  // guarantee, and may withdraw `applies` when the certificate shows the design useless here.
+  // The main job always runs it; `check` only with --certify.
+  void (*assess)(const Analysis&, Verdict&) = nullptr;
   // Throws UserError (why it does not apply, or a bad option) on failure.
   ObserverSpec (*build)(const Analysis&, const DesignOptions&) = nullptr;
   // Whether `--method all` and `--method auto` consider it (false for designs that build large
   // numeric tables: chosen by name only).
   bool in_all = true;
+  // Direct feedthrough. A separable y = h0(x) + k(u) is analysed as h0 with y - k(u) observed
+  // (Model::output_offset): a design whose generated functions read y (with u among their
+  // arguments) takes it by substitution; one that feeds y to filters or differentiators itself
+  // does not. A feedthrough that does not split needs a design built on h(x, u) itself.
+  bool observes_output_offset = true;
+  bool accepts_feedthrough = false;
   // Whether applies() runs a certificate search (seconds, not milliseconds): `check` runs it
   // only with --certify; the main job always does for the methods it considers.
   bool verdict_searches = false;
 };
 
-// Implemented designs, in the order `--method auto` tries them.
+// The design's verdict, after the registry's own checks (feedthrough traits above).
+// assess: also run the design's certificate (Design::assess).
+Verdict design_verdict(const Design& d, const Analysis& a, bool assess = true);
+
+// Implemented designs, in the order of their cost (`--method auto` breaks ties by it).
 const std::vector<Design>& design_registry();
 // Method names of design.md §3 that no registered design implements yet.
 const std::vector<std::string>& planned_methods();

@@ -221,6 +221,11 @@ struct ObserverSpec {
   // ode: symmetric blocks of w kept positive definite, and a solve term added to rhs.
   std::vector<SymmetricBlock> symmetric_blocks;
   std::optional<SolveCorrection> correction;
+  // ode with symmetric blocks or a correction (a guarded step): when > 0, step(dt) splits dt
+  // into ceil(dt / max_substep) equal RK4 sub-steps (at most 4096), u and y held, so that a
+  // sample period longer than the design's largest safe RK4 step still integrates the observer
+  // inside RK4's stability region. 0: one RK4 step per sample.
+  GiNaC::numeric max_substep = 0;
 
   // linear_exact: the closed-loop matrix of w' = A_cl w + c (rows of exact rationals).
   std::vector<std::vector<GiNaC::numeric>> closed_loop;
@@ -247,6 +252,10 @@ struct ObserverSpec {
   std::vector<DesignConstant> constants;
   std::vector<ReportRow> report;
   std::string summary;  // one paragraph for the report
+  // What the design's own numbers say against using it as built (predicted peaking out of the
+  // box, a gain capped below what the theorem needs): the main job prints each as a warning
+  // and the report opens with them.
+  std::vector<std::string> warnings;
 
   const GeneratedFunction* function(const std::string& name) const;
 };

@@ -11,6 +11,7 @@
 #include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
 #include "emit/dag.hpp"
+#include "front/fresh_names.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
 
@@ -746,6 +747,9 @@ void exact_gain(const Split& s, const DesignOptions& o, const SearchOutcome& bes
 
 // Q normalised to sigma_max 1 and rounded to 1e-6 (I if that loses definiteness).
 GiNaC::matrix exact_Q(const Eigen::MatrixXd& Q, unsigned n) {
+  // No candidate accepted (every one non-finite on stiff models): Q = I, judged as any other.
+  if (Q.rows() != static_cast<Eigen::Index>(n) || Q.cols() != Q.rows() || !Q.allFinite())
+    return GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(n));
   Eigen::MatrixXd Qd = Q;
   Qd /= Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Qd).eigenvalues()(Qd.rows() - 1);
   GiNaC::matrix E(n, n);
@@ -992,11 +996,42 @@ std::vector<std::string> verdict_reasons(const Model& m, const Result& r) {
   return out;
 }
 
+// A region below this scale (per state phi's Jacobian depends on) is too small to rely on.
+constexpr double kUsefulRegionScale = 0.25;
+
+// Share of the domain box's volume the certified region covers, and over how many states.
+std::pair<double, std::size_t> region_share(const Model& m, const Result& r) {
+  std::size_t k = 0;
+  for (const auto& x : m.states) k += jacobian_depends_on(m, r.split, x) ? 1 : 0;
+  return {std::pow(r.region.scale, static_cast<double>(k)), k};
+}
+
 Verdict applies(const Analysis& a) {
   const Result& r = cached_design(a.model, DesignOptions{});
   Verdict v;
   v.reasons = verdict_reasons(a.model, r);
   v.applies = r.holds && r.rigorous;
+  if (!v.applies) return v;
+  if (r.domain_margin() > 0) {
+    v.guarantee = Guarantee::rigorous;
+    v.guarantee_text = fmt::format(
+        "condition (26) proved over the whole domain box (margin {:.6g}, Arb)", r.domain_margin());
+    return v;
+  }
+  const auto [share, k] = region_share(a.model, r);
+  const std::string where = fmt::format(
+      "W = {}, {:.3g} % of the domain box's volume ({:.3g} of its width in {} state{})",
+      box_text(a.model, r.region.box), 100 * share, r.region.scale, k, k == 1 ? "" : "s");
+  if (r.region.scale < kUsefulRegionScale) {
+    v.applies = false;
+    v.reasons.push_back(fmt::format(
+        "the certified region is too small to rely on: {} (below {:g} of the width)", where,
+        kUsefulRegionScale));
+    return v;
+  }
+  v.guarantee = Guarantee::partial;
+  v.guarantee_text = "condition (26) proved (Arb) only on the sub-box " + where +
+                     ": the error decays while x and xh stay in it";
   return v;
 }
 
@@ -1013,10 +1048,7 @@ GeneratedFunction fn(const std::string& name, const std::string& doc, std::vecto
 }
 
 std::vector<GiNaC::symbol> output_symbols(const Model& m) {
-  std::vector<GiNaC::symbol> y;
-  for (std::size_t i = 0; i < m.p(); ++i)
-    y.push_back(GiNaC::symbol(m.p() == 1 ? std::string("y") : fmt::format("y{}", i + 1)));
-  return y;
+  return measurement_symbols(m);
 }
 
 std::vector<numeric> flat(const GiNaC::matrix& M) {

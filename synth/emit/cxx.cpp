@@ -48,13 +48,24 @@ const char* const kCxxKeywords[] = {"alignas",       "alignof",     "and",
                                     "volatile",      "wchar_t",     "while",
                                     "xor",           "xor_eq",      "final",
                                     "override",      "import",      "module"};
-// Names the generated code itself uses in observer classes and functions.
+// Names that standard headers of the generated code may define as macros, C keywords, and the
+// template parameter Scalar (a parameter field named Scalar would shadow it): never an
+// identifier taken from the model.
+const char* const kReservedIdentifiers[] = {
+    "restrict", "Scalar",    "NAN",        "INFINITY",
+    "HUGE_VAL", "HUGE_VALF", "errno",      "assert",
+    "EOF",      "NULL",      "isfinite",   "isnan",
+    "isinf",    "signbit",   "fpclassify", "math_errhandling"};
+// Names the generated code itself uses in observer classes and functions; "N" and "K" are
+// macros of the C source, "I" is <complex.h>'s, sinf ... the float calls of the C back end.
 const char* const kGeneratedNames[] = {
-    "Scalar", "Eigen",  "std",   "obsynth", "State",    "Input", "Output", "Matrix", "Status",
-    "dt",     "n",      "m",     "p",       "x",        "u",     "y",      "z",      "out",
-    "tau",    "xh",     "zh",    "dz",      "dx",       "K",     "y0",     "jet",    "ujet",
-    "main",   "assert", "errno", "NAN",     "INFINITY", "sin",   "cos",    "tan",    "exp",
-    "log",    "sqrt",   "tanh",  "atan",    "atanh",    "pow",   "abs",    "fabs",   "isfinite"};
+    "N",     "I",      "sinf",   "cosf",    "tanf",   "expf",   "logf",  "sqrtf",   "tanhf",
+    "atanf", "powf",   "fabsf",  "atanhf",  "Scalar", "Eigen",  "std",   "obsynth", "State",
+    "Input", "Output", "Matrix", "Status",  "dt",     "n",      "m",     "p",       "x",
+    "u",     "y",      "z",      "out",     "tau",    "xh",     "zh",    "dz",      "dx",
+    "K",     "y0",     "jet",    "ujet",    "main",   "assert", "errno", "NAN",     "INFINITY",
+    "sin",   "cos",    "tan",    "exp",     "log",    "sqrt",   "tanh",  "atan",    "atanh",
+    "pow",   "abs",    "fabs",   "isfinite"};
 
 bool is_temporary_name(const std::string& s) {
   if (s.size() < 2 || s[0] != 't') return false;
@@ -67,6 +78,7 @@ bool is_temporary_name(const std::string& s) {
 
 Namer::Namer() {
   for (const char* k : kCxxKeywords) taken_.insert(k);
+  for (const char* k : kReservedIdentifiers) taken_.insert(k);
   for (const char* k : kGeneratedNames) taken_.insert(k);
 }
 
@@ -90,7 +102,14 @@ std::string cxx_identifier(const std::string& name) {
   }
   for (const char* k : kCxxKeywords)
     if (s == k) return s + "_";
+  for (const char* k : kReservedIdentifiers)
+    if (s == k) return s + "_";
   return s;
+}
+
+std::string c_field_identifier(const std::string& name) {
+  const std::string s = cxx_identifier(name);
+  return s == "N" || s == "K" ? s + "_" : s;
 }
 
 std::string scalar_literal(const GiNaC::numeric& v, Precision p) {

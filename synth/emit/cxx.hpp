@@ -30,8 +30,11 @@ class Namer {
   std::set<std::string> taken_;
 };
 
-// An escaped identifier for a model name (for namespaces and file names).
+// An escaped identifier for a model name (for namespaces and file names), a state index or a
+// parameter field: keywords and names that standard headers define as macros get a '_'.
 std::string cxx_identifier(const std::string& name);
+// A parameter field of the C back end: also clear of the C source's own macros N and K.
+std::string c_field_identifier(const std::string& name);
 
 // A floating literal of the given precision for an exact value, wrapped as Scalar(...).
 std::string scalar_literal(const GiNaC::numeric& v, Precision p);

@@ -236,16 +236,17 @@ const char* kStepRk4Guarded = R"(
  * {{P}}_singular) {{guard_doc}}. */
 {{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
   Scalar k1[N], k2[N], k3[N], k4[N], t[N], w[N];
-  int i, ok;
-  ok = total_rhs(o->w, u, y{{PRM}}, k1);
-  for (i = 0; i < N; ++i) t[i] = o->w[i] + dt / {{two}} * k1[i];
+  int i, ok = 1;
+{{substeps}}  for (i = 0; i < N; ++i) w[i] = o->w[i];
+{{loop}}  ok = total_rhs(w, u, y{{PRM}}, k1) && ok;
+  for (i = 0; i < N; ++i) t[i] = w[i] + h / {{two}} * k1[i];
   ok = total_rhs(t, u, y{{PRM}}, k2) && ok;
-  for (i = 0; i < N; ++i) t[i] = o->w[i] + dt / {{two}} * k2[i];
+  for (i = 0; i < N; ++i) t[i] = w[i] + h / {{two}} * k2[i];
   ok = total_rhs(t, u, y{{PRM}}, k3) && ok;
-  for (i = 0; i < N; ++i) t[i] = o->w[i] + dt * k3[i];
+  for (i = 0; i < N; ++i) t[i] = w[i] + h * k3[i];
   ok = total_rhs(t, u, y{{PRM}}, k4) && ok;
-  if (!ok) return o->status = {{P}}_singular;
-  for (i = 0; i < N; ++i) w[i] = o->w[i] + dt / {{six}} * (k1[i] + {{two}} * (k2[i] + k3[i]) + k4[i]);
+  for (i = 0; i < N; ++i) w[i] = w[i] + h / {{six}} * (k1[i] + {{two}} * (k2[i] + k3[i]) + k4[i]);
+{{loop_end}}  if (!ok) return o->status = {{P}}_singular;
   if (!all_finite(w, N)) return o->status = {{P}}_non_finite;
 {{block_checks}}  for (i = 0; i < N; ++i) o->w[i] = w[i];
   return o->status = update_estimate(o);
@@ -701,7 +702,7 @@ class CBuilder {
     }
     if (has_params()) {
       for (const auto& p : s_.params)
-        b[p.name] = Binding{local(p.name), "prm->" + cxx_identifier(p.name), "prm"};
+        b[p.name] = Binding{local(p.name), "prm->" + c_field_identifier(p.name), "prm"};
       decls.push_back(fmt::format("const {}_params* prm", prefix_));
       reads.push_back("prm");
     }
@@ -855,7 +856,24 @@ std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBu
   if (s.correction) why.push_back("when a gain solve fails in any stage");
   if (!names.empty()) why.push_back(fmt::format("when {} is no longer positive definite", names));
   const std::string guard_doc = fmt::format("{}", fmt::join(why, ", or "));
+  // Sub-steps no longer than max_substep (the design's largest safe RK4 step).
+  std::string substeps = "  const Scalar h = dt;\n", loop, loop_end;
+  if (s.max_substep > 0) {
+    substeps = fmt::format(
+        "  /* dt in equal RK4 sub-steps of at most {0} (the largest safe step) */\n"
+        "  const Scalar ratio = dt / {1};\n"
+        "  const int steps = !(ratio > {2}) ? 1 : ratio >= {3} ? 4096 : (int)ratio + "
+        "((Scalar)(int)ratio < ratio ? 1 : 0);\n"
+        "  const Scalar h = dt / (Scalar)steps;\n  int k;\n",
+        fmt::format("{:.6g}", s.max_substep.to_double()),
+        c_scalar_literal(s.max_substep, precision), b.lit(1), b.lit(4096));
+    loop = "  for (k = 0; k < steps; ++k) {\n";
+    loop_end = "  }\n";
+  }
   return out + render_template(kStepRk4Guarded, {{"P", b.prefix()},
+                                                 {"substeps", substeps},
+                                                 {"loop", loop},
+                                                 {"loop_end", loop_end},
                                                  {"guard_doc", guard_doc},
                                                  {"PRM", prm},
                                                  {"two", b.lit(2)},
@@ -1177,7 +1195,7 @@ std::string c_usage(const Model& m, const ObserverSpec& s, const EmitOptions& op
   if (params)
     for (const auto& p : s.params)
       set_params += fmt::format("  observer.prm.{} = ({}_scalar){}; /* run-time parameter */\n",
-                                cxx_identifier(p.name), P, p.default_value.to_double());
+                                c_field_identifier(p.name), P, p.default_value.to_double());
   return render_template(kUsage, {{"P", P},
                                   {"source", opt.source_name},
                                   {"header", header},
@@ -1210,9 +1228,9 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
   }
   std::string fields, defaults;
   for (const auto& p : s.params) {
-    fields += fmt::format("  {}_scalar {}; /* default: {} */\n", P, cxx_identifier(p.name),
+    fields += fmt::format("  {}_scalar {}; /* default: {} */\n", P, c_field_identifier(p.name),
                           p.default_reason);
-    defaults += fmt::format("  prm->{} = {};\n", cxx_identifier(p.name),
+    defaults += fmt::format("  prm->{} = {};\n", c_field_identifier(p.name),
                             c_scalar_literal(p.default_value, opt.precision));
   }
   h.text = c_header_text(a, s, opt, P, params, fields, c_members(s, P, m.m(), exact, params),

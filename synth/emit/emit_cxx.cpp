@@ -148,11 +148,11 @@ const char* kStepOdeGuarded =
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
     const ObserverState w_prev = {{w}}_;
     bool solved = true;
-    obsynth::rk4_step<Scalar, nw>(
+{{substeps}}    obsynth::rk4_step<Scalar, nw>(
         [{{capture}}&u, &y, &solved](const ObserverState& w, ObserverState& dw) noexcept {
           solved = total_rhs(w, u, y{{P}}, dw) && solved;
         },
-        dt, {{w}}_);
+        {{h}}, {{w}}_);
     if (!solved) {
       {{w}}_ = w_prev;
       return status_ = obsynth::Status::singular;
@@ -757,7 +757,7 @@ std::string input_map_literals(const ObserverSpec& s, Precision p) {
   return fmt::format("{}", fmt::join(v, ", "));
 }
 
-std::string guarded_step(const ObserverSpec& s, const ClassContext& c) {
+std::string guarded_step(const ObserverSpec& s, const ClassContext& c, Precision precision) {
   std::string checks, names;
   for (const auto& b : s.symmetric_blocks) {
     if (!b.keep_positive_definite) continue;
@@ -771,7 +771,25 @@ std::string guarded_step(const ObserverSpec& s, const ClassContext& c) {
   if (s.correction) why.push_back("when a gain solve fails in any stage");
   if (!names.empty()) why.push_back(fmt::format("when {} is no longer positive definite", names));
   const std::string guard_doc = fmt::format("{}", fmt::join(why, ", or "));
+  // Sub-steps no longer than max_substep (the design's largest safe RK4 step).
+  const std::string substeps =
+      s.max_substep > 0
+          ? fmt::format(
+                "    // dt in equal RK4 sub-steps of at most {0} (the largest safe step)\n"
+                "    const Scalar ratio = dt / {1};\n"
+                "    const int steps = !(ratio > Scalar(1)) ? 1\n"
+                "                      : ratio >= Scalar(4096) ? 4096\n"
+                "                      : static_cast<int>(ratio) + "
+                "(Scalar(static_cast<int>(ratio)) "
+                "< ratio ? 1 : 0);\n"
+                "    const Scalar h = dt / static_cast<Scalar>(steps);\n"
+                "    for (int k = 0; k < steps; ++k)\n",
+                fmt::format("{:.6g}", s.max_substep.to_double()),
+                scalar_literal(s.max_substep, precision))
+          : std::string();
   return render_template(kStepOdeGuarded, {{"w", s.state_name},
+                                           {"substeps", substeps},
+                                           {"h", s.max_substep > 0 ? "h" : "dt"},
                                            {"P", c.P},
                                            {"capture", c.capture.empty() ? "" : "this, "},
                                            {"guard_doc", guard_doc},
@@ -812,7 +830,7 @@ std::string total_rhs_function(const ObserverSpec& s, const ClassContext& c) {
                                      {"correction", correction}});
 }
 
-std::string step_text(const ObserverSpec& s, const ClassContext& c) {
+std::string step_text(const ObserverSpec& s, const ClassContext& c, Precision precision) {
   const std::map<std::string, std::string> v = {{"w", s.state_name},
                                                 {"P", c.P},
                                                 {"capture", c.capture.empty() ? "" : "this, "},
@@ -825,7 +843,7 @@ std::string step_text(const ObserverSpec& s, const ClassContext& c) {
     for (const char* k : keys) used[k] = v.at(k);
     return render_template(t, used);
   };
-  if (s.update == UpdateKind::ode && guarded(s)) return guarded_step(s, c);
+  if (s.update == UpdateKind::ode && guarded(s)) return guarded_step(s, c, precision);
   if (s.update == UpdateKind::ode) return pick(kStepOde, {"w", "P", "capture", "rhs"});
   if (s.rk4_for_linear) return pick(kStepLinearRk4, {"w", "P", "capture", "rhs", "step_constant"});
   const bool fused = s.estimate == EstimateKind::function;
@@ -927,7 +945,7 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOpti
                       ? fmt::format(" ({} = {}(xh0))", s.state_name, s.roles.init)
                       : "";
   v["reset_body"] = reset;
-  v["step"] = step_text(s, c);
+  v["step"] = step_text(s, c, opt.precision);
   v["derivative_body"] = derivative_body(s, c);
   v["derivative_type"] = s.update == UpdateKind::ode && guarded(s) ? "obsynth::Status" : "void";
   v["WState"] = wstate;

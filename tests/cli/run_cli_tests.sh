@@ -217,7 +217,7 @@ check "main job time stop writes nothing" test ! -e "$tmp/job_time"
 # finite-time on a model that escapes in backward time: a diagnostic, not an internal error.
 "$bin" "$src/models/vanderpol.sym" -o "$tmp/vdp_ft" --method finite-time >"$tmp/out" 2>"$tmp/err"
 check "finite-time backward escape exits 1" test $? -eq 1
-check "finite-time backward escape diagnostic" grep -q "backward simulation over the window T = 1 from the grid point x = (.*) at u = .* leaves the finite numbers" "$tmp/err"
+check "finite-time backward escape diagnostic" grep -q "backward simulation over the window T = [0-9.]* from the grid point x = (.*) at u = .* leaves the finite numbers" "$tmp/err"
 # check runs the costly verdicts (thau, kou: certificate searches; extended-linearization: the
 # symbolic design) only with --certify.
 "$bin" check "$src/models/pendulum.sym" >"$tmp/out" 2>"$tmp/err"
@@ -443,6 +443,129 @@ for m in slawinski17 pendulum_params; do
     "$tmp/use_$m/main.cpp" -o "$tmp/use_$m/main" 2>"$tmp/err"
   check "usage: $m example compiles under the contract flags" test $? -eq 0
   check "usage: $m example runs" "$tmp/use_$m/main"
+done
+
+# simulate --method auto names the design it ran (a stderr note, the summary, the file names);
+# --plant-param sets a free parameter in the plant alone, and refuses other names (issue 17).
+"$bin" simulate "$src/models/slawinski17.sym" --method auto --u "sin(t)" --x0 0.5,-0.5 \
+  --xhat0 0,0 --t-end 1 --dt 0.01 -o "$tmp/simauto" >"$tmp/out" 2>"$tmp/err"
+check "simulate auto exits 0" test $? -eq 0
+chosen=$(sed -n "s/^obsynth: note: auto: chose '\([a-z-]*\)'.*/\1/p" "$tmp/err")
+check "simulate auto names the design on stderr" test -n "$chosen"
+check "simulate auto names the design in the summary" \
+  grep -q "^observer: $chosen (auto: chose '$chosen'" "$tmp/out"
+check "simulate auto CSV carries the design's name" test -s "$tmp/simauto/slawinski17_$chosen.csv"
+check "simulate auto SVG carries the design's name" test -s "$tmp/simauto/slawinski17_$chosen.svg"
+check "simulate auto writes no _auto files" test ! -e "$tmp/simauto/slawinski17_auto.csv"
+"$bin" simulate "$src/models/pendulum_params.sym" --method canonical --x0 1,0 --xhat0 0,0 \
+  --t-end 1 --dt 0.01 -o "$tmp/simpp" --param mgl=1 --plant-param mgl=1.9 --plant-param J=1.2 \
+  >"$tmp/out" 2>"$tmp/err"
+check "simulate --plant-param exits 0" test $? -eq 0
+check "simulate --plant-param names plant and observer values" \
+  grep -q "plant parameters: mgl = 1.9 (observer: 1); J = 1.2 (observer: 1)" "$tmp/out"
+plant_param_fails() {  # name, model, state count, --plant-param value, expected diagnostic
+  local x0
+  x0=$(printf '0%.0s,' $(seq "$3"))
+  "$bin" simulate "$src/models/$2.sym" --method canonical --x0 "${x0%,}" --xhat0 "${x0%,}" \
+    --t-end 0.1 -o "$tmp/simbad" --plant-param "$4" >"$tmp/out" 2>"$tmp/err"
+  check "simulate --plant-param $1 exits 1" test $? -eq 1
+  check "simulate --plant-param $1 diagnostic" grep -qF "error: --plant-param $5" "$tmp/err"
+}
+plant_param_fails "unknown name" pendulum_params 2 nope=1 \
+  "nope: the model has no parameter 'nope' (its free parameters: mgl, b, J)"
+plant_param_fails "fixed parameter" stuart_landau 2 mu=2 "mu: 'mu' is not a free parameter"
+plant_param_fails "bad value" pendulum_params 2 mgl=abc "mgl=abc"
+plant_param_fails "no value" pendulum_params 2 mgl "'mgl': expected name=value"
+check "simulate --plant-param failures write nothing" test ! -e "$tmp/simbad"
+# Names engineers write (issue 17 item 7): a dilution rate D, a pump current I, a state y, and a
+# domain wrapped after its commas. Oracle: the same model with neutral names (Dil, v, b) must
+# give the same trajectories; the generated code compiles under the contract flags, C and C++.
+cat >"$tmp/bio.sym" <<'SYM'
+# chemostat: substrate S, biomass y (measured), feed driven by the pump current I
+model bioreactor
+states S y
+inputs I
+params D, mu = 1, K = 1, Yield = 1/2
+f = [ -D*S - mu*S/(K + S)*y/Yield, mu*S/(K + S)*y - D*y ]
+g = [ I, 0 ]
+h = [ y ]
+domain S in [0.05, 4],   # substrate
+       y in [0.05, 2],
+       I in [0, 2], D in [0.2, 0.4]
+SYM
+sed -e 's/\bD\b/Dil/g; s/\by\b/b/g; s/\bI\b/v/g' "$tmp/bio.sym" >"$tmp/bio_plain.sym"
+"$bin" check "$tmp/bio.sym" >"$tmp/bio_check" 2>"$tmp/err"
+check "names D, I, y: check exits 0" test $? -eq 0
+check "names D, I, y: check keeps the user's names" grep -q "states: S, y; m = 1 inputs: I" "$tmp/bio_check"
+check "names D, I, y: the domain continues after ','" grep -q "Free parameters D in \[1/5, 2/5\]" "$tmp/bio_check"
+for lang in cpp c; do
+  rm -rf "$tmp/bio_$lang"
+  "$bin" "$tmp/bio.sym" -o "$tmp/bio_$lang" --method auto,riccati --language "$lang" >"$tmp/out" 2>"$tmp/err"
+  check "names D, I, y: main job ($lang) exits 0" test $? -eq 0
+  check "names D, I, y: main job ($lang) writes bioreactor_report.md" test -s "$tmp/bio_$lang/bioreactor_report.md"
+done
+check "names D, I, y: C++ accessors keep the names" grep -q "constexpr int y = 1;" "$tmp/bio_cpp/bioreactor_riccati.hpp"
+check "names D, I, y: C++ parameter field D" grep -q "Scalar D = " "$tmp/bio_cpp/bioreactor_riccati.hpp"
+check "names D, I, y: C parameter field D" grep -q "_scalar D;" "$tmp/bio_c/bioreactor_riccati.h"
+for hpp in "$tmp"/bio_cpp/*.hpp; do
+  printf '#include "%s"\nint main() { return 0; }\n' "$(basename "$hpp")" >"$tmp/bio_inc.cpp"
+  # shellcheck disable=SC2086
+  "$cxx" -std=c++17 -Wall -Wextra -Werror -Wconversion -Wdouble-promotion -pedantic -fno-exceptions \
+    -fno-rtti -I"$tmp/bio_cpp" -I"$src/runtime" $eigen -c "$tmp/bio_inc.cpp" -o "$tmp/bio_inc.o" 2>"$tmp/err"
+  check "names D, I, y: $(basename "$hpp") compiles under the contract flags" test $? -eq 0
+done
+jq -r '.generated[0].usage_example' "$tmp/bio_cpp/bioreactor_report.json" >"$tmp/bio_cpp/main.cpp"
+# shellcheck disable=SC2086
+"$cxx" -std=c++17 -O1 -Wall -Wextra -Werror -Wconversion -Wdouble-promotion -pedantic -fno-exceptions \
+  -fno-rtti -I"$tmp/bio_cpp" -I"$src/runtime" $eigen "$tmp/bio_cpp/main.cpp" -o "$tmp/bio_cpp/main" 2>"$tmp/err"
+check "names D, I, y: C++ usage example compiles" test $? -eq 0
+if command -v cc >/dev/null 2>&1; then
+  jq -r '.generated[0].usage_example' "$tmp/bio_c/bioreactor_report.json" >"$tmp/bio_main.c"
+  cc -std=c99 -O1 -Wall -Wextra -Werror -Wconversion -Wdouble-promotion -pedantic -I"$tmp/bio_c" \
+    "$tmp/bio_main.c" "$tmp"/bio_c/*.c -lm -o "$tmp/bio_main" 2>"$tmp/err"
+  check "names D, I, y: C sources and usage example compile" test $? -eq 0
+fi
+for method in riccati kou; do
+  for m in bio bio_plain; do
+    "$bin" simulate "$tmp/$m.sym" --method "$method" --u "1" --x0 0.5,1.2 --xhat0 0.6,1.0 \
+      --t-end 20 --dt 1e-3 -o "$tmp/sim_$m" >"$tmp/out" 2>"$tmp/err"
+    check "names D, I, y: simulate $method ($m) exits 0" test $? -eq 0
+  done
+  check "names D, I, y: simulate CSV header keeps the names" \
+    sh -c "head -1 '$tmp/sim_bio/bioreactor_$method.csv' | grep -qx 't,S,y,S_hat,y_hat'"
+  # Same trajectories as with neutral names (to 1e-9: GiNaC orders terms by name), converged.
+  check "names D, I, y: simulate $method equals the neutral-name run and converges" \
+    awk -F, 'NR == FNR { a[FNR] = $0; next }
+             FNR > 1 { split(a[FNR], p, ","); for (i = 1; i <= NF; ++i) { d = p[i] - $i; if (d < 0) d = -d; if (d > 1e-9) bad = 1 } }
+             END { d1 = $2 - $4; d2 = $3 - $5; if (d1 < 0) d1 = -d1; if (d2 < 0) d2 = -d2; exit bad || d1 > 1e-6 || d2 > 1e-6 || NR != 2 * FNR }' \
+      "$tmp/sim_bio/bioreactor_$method.csv" "$tmp/sim_bio_plain/bioreactor_$method.csv"
+done
+
+# States named y and z1 (the names of the measured output and of the canonical coordinates):
+# slawinski17 with x1 -> y, x2 -> z1, u -> I runs canonical, perfect and kalman-theta like the
+# original, and its canonical header compiles.
+sed -e 's/\bx1\b/y/g; s/\bx2\b/z1/g; s/\bu\b/I/g' "$src/models/slawinski17.sym" >"$tmp/slaw_yz.sym"
+"$bin" "$tmp/slaw_yz.sym" -o "$tmp/slaw_yz" --method canonical,perfect >"$tmp/out" 2>"$tmp/err"
+check "states y, z1: main job exits 0" test $? -eq 0
+"$bin" check "$tmp/slaw_yz.sym" >"$tmp/out" 2>"$tmp/err"
+check "states y, z1: canonical coordinates and output give way" grep -q "^  y_ = z_2 + h(x0)" "$tmp/out"
+check "states y, z1: T^-1 names the state z1" grep -q "z1 = y^2/2-z_1   (from T_1 = z_1)" "$tmp/out"
+printf '#include "slawinski17_canonical.hpp"\nint main() { obsynth_gen::slawinski17::Slawinski17Canonical<float> o; return o.step(0.01f, {}, {}) == obsynth::Status::ok ? 0 : 1; }\n' >"$tmp/slaw_yz.cpp"
+# shellcheck disable=SC2086
+"$cxx" -std=c++17 -Wall -Wextra -Werror -Wconversion -Wdouble-promotion -pedantic -fno-exceptions \
+  -fno-rtti -I"$tmp/slaw_yz" -I"$src/runtime" $eigen "$tmp/slaw_yz.cpp" -o "$tmp/slaw_yz_main" 2>"$tmp/err"
+check "states y, z1: canonical header compiles under the contract flags" test $? -eq 0
+for method in canonical perfect kalman-theta; do
+  for m in "$src/models/slawinski17.sym" "$tmp/slaw_yz.sym"; do
+    "$bin" simulate "$m" --method "$method" --u "sin(t)" --x0 0.5,-0.3 --xhat0 0,0 --t-end 6 \
+      --dt 1e-3 -o "$tmp/sim_$(basename "$m" .sym)" >"$tmp/out" 2>"$tmp/err"
+    check "states y, z1: simulate $method ($(basename "$m")) exits 0" test $? -eq 0
+  done
+  check "states y, z1: simulate $method equals the original" \
+    awk -F, 'NR == FNR { a[FNR] = $0; next }
+             FNR > 1 { split(a[FNR], p, ","); for (i = 1; i <= NF; ++i) { d = p[i] - $i; if (d < 0) d = -d; if (d > 1e-9) bad = 1 } }
+             END { exit bad || NR != 2 * FNR }' \
+      "$tmp/sim_slawinski17/slawinski17_$method.csv" "$tmp/sim_slaw_yz/slawinski17_$method.csv"
 done
 
 echo "cli: $pass passed, $fail failed"
