@@ -157,8 +157,8 @@ int guarded(const CommonOptions& c, const std::function<int()>& job,
   if (c.in_process) return run_in_process(body, c.max_memory_bytes);
   // A stop that ends the process needs no second process: a watchdog thread prints the
   // checkpoint and the diagnostic itself. Only a caller that goes on after it needs the fork.
-  const WorkerLimits limits{c.stage_seconds, c.canonical_seconds, c.max_memory_bytes,
-                            c.total_seconds};
+  const WorkerLimits limits{c.stage_seconds, c.max_memory_bytes, c.total_seconds,
+                            c.canonical_seconds};
   if (!stopped) return run_watched(body, limits);
   const WorkerResult r = run_in_worker(body, limits);
   if (r.stop != WorkerStop::none) {
@@ -521,13 +521,14 @@ bool asks_auto(const std::vector<std::string>& methods) {
   return methods.empty() || std::find(methods.begin(), methods.end(), "auto") != methods.end();
 }
 
-// "<method> design" (synthesize's stage name for one design's build) -> method, else "".
+// "<method> design" or "<method> trial" (synthesize's stage names for one design's build and
+// auto's closed-loop trial of it) -> method, else "".
 std::string design_of_stage(const std::string& stage) {
-  const std::string suffix = " design";
-  if (stage.size() <= suffix.size() ||
-      stage.compare(stage.size() - suffix.size(), suffix.size(), suffix) != 0)
-    return "";
-  return stage.substr(0, stage.size() - suffix.size());
+  for (const std::string suffix : {" design", " trial"})
+    if (stage.size() > suffix.size() &&
+        stage.compare(stage.size() - suffix.size(), suffix.size(), suffix) == 0)
+      return stage.substr(0, stage.size() - suffix.size());
+  return "";
 }
 
 int run_main_job(const MainJob& c) {
@@ -557,7 +558,8 @@ int run_main_job(const MainJob& c) {
     } else if (asks_auto(methods) && !design.empty() &&
                excluded.size() < design_registry().size()) {
       std::fprintf(stderr, "obsynth: note: %s; auto tries the next design\n", why.c_str());
-      excluded.push_back({design, "stopped: " + why});
+      const bool trial = stop->stage.size() > 6 && stop->stage.rfind(" trial") == stop->stage.size() - 6;
+      excluded.push_back({design, (trial ? "its closed-loop trial stopped: " : "its build stopped: ") + why});
     } else {
       std::fputs(stop->checkpoint.c_str(), stdout);
       std::fflush(stdout);

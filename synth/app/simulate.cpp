@@ -8,6 +8,7 @@
 #include <memory>
 
 #include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
 #include <unsupported/Eigen/MatrixFunctions>
 
 #include "app/svg_plot.hpp"
@@ -140,6 +141,16 @@ bool finite(const Vec& v) {
   for (double d : v)
     if (!std::isfinite(d)) return false;
   return true;
+}
+
+// The radical-inverse (Halton) point i in base b, in [0, 1).
+double halton_point(std::size_t i, unsigned base) {
+  double f = 1, r = 0;
+  for (std::size_t k = i + 1; k > 0; k /= base) {
+    f /= base;
+    r += f * static_cast<double>(k % base);
+  }
+  return r;
 }
 
 // The spec's functions as numeric maps: inputs are the arguments' symbols in order; the
@@ -364,7 +375,8 @@ class SampledDelayObserver {
         gain_(s.table(d_.gain_table)->values),
         delay_(s.table(d_.delay_table)->values),
         metric_(s.table(d_.metric_table)->values),
-        map_(s.table(d_.map_table)->values) {}
+        map_(s.table(d_.map_table)->values),
+        slope_(d_.slope_table.empty() ? map_ : s.table(d_.slope_table)->values) {}
   void reset(const Vec& xh0) {
     xh_ = xh0;
     ring_.assign((d_.delay_steps + 1) * d_.filters, 0.0);
@@ -385,7 +397,8 @@ class SampledDelayObserver {
     if (filled_ < d_.delay_steps) return true;
     const std::size_t old = (head_ + 1) % slots;  // D steps ago
     std::size_t level = 0;
-    double frac = 0;  // level_interpolate: the weight of table level + 1
+    double frac = 0;   // level_interpolate: the weight of table level + 1
+    double slope = 0;  // slope_table: du/dt fitted over the window
     if (d_.levels > 1) {
       double v = u[d_.input_index];
       if (d_.level_window_mean) {
@@ -393,6 +406,7 @@ class SampledDelayObserver {
         for (std::size_t k = 0; k < slots; ++k)
           if (k != old) acc += u_ring_[k];
         v = acc / static_cast<double>(d_.delay_steps);
+        if (!d_.slope_table.empty()) slope = window_slope(v, dt);
       }
       if (d_.level_interpolate) {
         const double top = static_cast<double>(d_.levels - 1);
@@ -418,10 +432,13 @@ class SampledDelayObserver {
     const double* q = map_.data() + level * N * pz;
     // The next level's table (read only when interpolating, then level + 1 < levels).
     const double* q1 = d_.level_interpolate && d_.levels > 1 ? q + N * pz : q;
-    for (std::size_t i = 0; i < N; ++i, q += pz, q1 += pz) {
+    const double* dq = slope_.data() + level * N * pz;  // read only with a slope table
+    const double* dq1 = d_.level_interpolate && d_.levels > 1 ? dq + N * pz : dq;
+    for (std::size_t i = 0; i < N; ++i, q += pz, q1 += pz, dq += pz, dq1 += pz) {
       double d2 = 0;
       for (std::size_t j = 0; j < pz; ++j) {
-        const double e = q[j] + frac * (q1[j] - q[j]) - eta[j];
+        double e = q[j] + frac * (q1[j] - q[j]) - eta[j];
+        if (slope != 0) e += slope * (dq[j] + frac * (dq1[j] - dq[j]));
         d2 += e * e;
       }
       const double b = 1 / (d_.epsilon + std::sqrt(d2));
@@ -441,8 +458,20 @@ class SampledDelayObserver {
   const Vec& estimate() const { return xh_; }
 
  private:
+  // Least-squares slope (du/dt) of the window's D input samples, whose mean is v (spec.hpp).
+  double window_slope(double v, double dt) const {
+    const std::size_t D = d_.delay_steps, slots = D + 1;
+    const double abar = static_cast<double>(D - 1) / 2;
+    double sxy = 0, sxx = 0;
+    for (std::size_t a = 0; a < D; ++a) {  // a = 0: this step's sample
+      const double da = static_cast<double>(a) - abar;
+      sxy += da * (u_ring_[(head_ + slots - a) % slots] - v);
+      sxx += da * da;
+    }
+    return sxx > 0 ? -sxy / (dt * sxx) : 0.0;
+  }
   const SampledDelay& d_;
-  const Vec &decay_, &gain_, &delay_, &metric_, &map_;
+  const Vec &decay_, &gain_, &delay_, &metric_, &map_, &slope_;
   Vec ring_, u_ring_, xh_;
   std::size_t head_ = 0, filled_ = 0;
 };
@@ -731,23 +760,65 @@ void render_outputs(const Model& m, const SimulationOptions& opt, const std::str
 
 }  // namespace
 
-SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
+std::optional<SafePeriod> sampled_safe_period(const Analysis& a, const ObserverSpec& spec) {
+  if (spec.update != UpdateKind::ode || spec.correction || !spec.symmetric_blocks.empty())
+    return std::nullopt;
+  const Model& m = a.model;
+  const std::size_t S = 64;
+  static const unsigned primes[] = {2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47};
+  const GiNaC::exmap params = parameter_values(spec);
+  SpecFunctions fn(spec, params);
+  ExVec h = m.measured_outputs();
+  for (auto& e : h) e = e.subs(params);
+  std::vector<std::string> xu = names_of(m.states);
+  for (const auto& u : m.inputs) xu.push_back(u.get_name());
+  const NumericFunction output(h, xu);
+  SafePeriod out;
+  for (std::size_t i = 0; i < S; ++i) {
+    Vec x, u;
+    std::size_t k = 0;
+    for (const auto& sym : m.states) {
+      const Interval b = m.box(sym);
+      x.push_back(b.lo.to_double() + (b.hi - b.lo).to_double() * halton_point(i, primes[k++ % 15]));
+    }
+    for (const auto& sym : m.inputs) {
+      const Interval b = m.box(sym);
+      u.push_back(b.lo.to_double() + (b.hi - b.lo).to_double() * halton_point(i, primes[k++ % 15]));
+    }
+    const Vec y = output(concat(x, u));
+    const Vec w = spec.init == InitKind::function ? fn(spec.roles.init)(x) : x;
+    const auto dim = static_cast<Eigen::Index>(w.size());
+    Eigen::MatrixXd J(dim, dim);
+    for (Eigen::Index j = 0; j < dim; ++j) {
+      const double step = 1e-6 * std::max(1.0, std::fabs(w[static_cast<std::size_t>(j)]));
+      Vec wp = w, wm = w;
+      wp[static_cast<std::size_t>(j)] += step;
+      wm[static_cast<std::size_t>(j)] -= step;
+      const Vec fp = fn(spec.roles.rhs)(concat(concat(wp, u), y));
+      const Vec fm = fn(spec.roles.rhs)(concat(concat(wm, u), y));
+      for (Eigen::Index r = 0; r < dim; ++r)
+        J(r, j) = (fp[static_cast<std::size_t>(r)] - fm[static_cast<std::size_t>(r)]) / (2 * step);
+    }
+    if (!J.allFinite()) continue;
+    const Eigen::VectorXcd ev = Eigen::EigenSolver<Eigen::MatrixXd>(J, false).eigenvalues();
+    for (Eigen::Index r = 0; r < ev.size(); ++r) out.rho = std::max(out.rho, std::abs(ev(r)));
+    ++out.samples;
+  }
+  if (out.samples == 0 || !(out.rho > 0) || !std::isfinite(out.rho)) return std::nullopt;
+  out.period = kRk4StabilityRadius / out.rho;
+  return out;
+}
+
+SimulationResult run_closed_loop(const Analysis& a, const ObserverSpec& spec,
+                                 const SimulationOptions& opt, std::string* plant_note) {
   const Model& m = a.model;
   const std::size_t steps = step_count(opt, m.n());
-  plant_assignments(plant_source(m, opt), opt);  // a bad --plant-param fails before any work
-  SimulationResult res;
-  const auto methods = resolve_methods(a, {opt.method}, res.explanation);
-  res.method = methods.front();
-  DesignOptions design = opt.design;
-  // A design with a fixed sample period gets --dt unless it was given.
-  if (const Design* d = find_design(res.method))
-    for (const auto& o : d->options)
-      if (o.name == "sample-period" && !design.find(o.name))
-        design.values[o.name] = fmt::format("{:.17g}", opt.dt);
-  const ObserverSpec spec = build_design(a, res.method, design);
   const GiNaC::exmap params = parameter_values(spec);
   const PlantParameters pp = plant_parameters(m, opt, params);
   const Plant plant = make_plant(*pp.model, opt.u_text, pp.values);
+  if (plant_note) *plant_note = pp.note;
+  SimulationResult res;
+  res.method = spec.method;
   res.names = names_of(m.states);
   Recorder rec{res};
   if (spec.update == UpdateKind::jets) {
@@ -760,10 +831,29 @@ SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
     SpecObserver obs(spec, params, opt);
     run_state_observer(plant, obs, opt, steps, rec);
   }
+  return res;
+}
+
+SimulationResult simulate(const Analysis& a, const SimulationOptions& opt) {
+  const Model& m = a.model;
+  step_count(opt, m.n());                        // bad --x0 / --dt fail before any work
+  plant_assignments(plant_source(m, opt), opt);  // a bad --plant-param fails before any work
+  // A design with a fixed sample period gets --dt unless it was given.
+  DesignOptions design = opt.design;
+  for (const auto& d : design_registry())
+    for (const auto& o : d.options)
+      if (o.name == "sample-period" && !design.find(o.name))
+        design.values[o.name] = fmt::format("{:.17g}", opt.dt);
+  std::string explanation;
+  const BuiltDesign built = choose_and_build(a, opt.method, design, explanation);
+  std::string plant_note;
+  SimulationResult res = run_closed_loop(a, built.spec, opt, &plant_note);
+  res.method = built.method;
+  res.explanation = explanation;
   if (res.t.empty())
     throw UserError(SourceLoc{}, res.diverged.empty() ? "simulate: nothing recorded"
                                                       : res.diverged + " before the first sample");
-  render_outputs(m, opt, pp.note, res);
+  render_outputs(m, opt, plant_note, res);
   return res;
 }
 

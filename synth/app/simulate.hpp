@@ -3,6 +3,7 @@
 // from; the plant is the model's field.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -47,5 +48,22 @@ struct SimulationResult {
 };
 
 SimulationResult simulate(const Analysis& a, const SimulationOptions& opt);
+
+// The largest RK4 step of an ODE observer (UpdateKind::ode, no solve or symmetric blocks: the
+// designs with those report their own) that keeps its own dynamics stable, sampled: the RK4
+// stability radius 2.785 over the largest |eigenvalue| of d(rhs)/dw at 64 Halton points of the
+// domain box (w = init(x), y = h(x, u): the estimate on the trajectory). nullopt otherwise.
+constexpr double kRk4StabilityRadius = 2.785;
+struct SafePeriod {
+  double period = 0, rho = 0;
+  std::size_t samples = 0;
+};
+std::optional<SafePeriod> sampled_safe_period(const Analysis& a, const ObserverSpec& spec);
+
+// Plant and an observer already built: the trajectories only (no CSV, no plot; opt.method and
+// opt.design unused). A run that leaves the finite numbers or rejects a step ends there, with
+// `diverged` set. plant_note, when given, receives the --plant-param line.
+SimulationResult run_closed_loop(const Analysis& a, const ObserverSpec& spec,
+                                 const SimulationOptions& opt, std::string* plant_note);
 
 }  // namespace obsynth

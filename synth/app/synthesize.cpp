@@ -4,9 +4,13 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <optional>
+#include <stdexcept>
 
 #include "app/design_report.hpp"
 #include "app/report.hpp"
+#include "app/simulate.hpp"
+#include "app/trial.hpp"
 #include "app/worker.hpp"
 #include "designs/registry.hpp"
 #include "emit/emit_c.hpp"
@@ -85,7 +89,7 @@ std::string auto_explanation(const Candidate& best, const std::vector<Candidate>
 // auto ranks the designs that apply by the guarantee their own certificate gives on this model
 // (rigorous over the domain > on a sub-box or sampled > none), then by cost (registry order).
 std::string choose_auto(const Analysis& a, std::string& explanation,
-                        const std::vector<ExcludedDesign>& excluded) {
+                        const std::vector<ExcludedDesign>& excluded, Guarantee* guarantee) {
   std::vector<std::string> rejected;
   std::vector<Candidate> applying;
   const auto& registry = design_registry();
@@ -95,7 +99,7 @@ std::string choose_auto(const Analysis& a, std::string& explanation,
     const auto skip = std::find_if(excluded.begin(), excluded.end(),
                                    [&](const ExcludedDesign& e) { return e.method == d.name; });
     if (skip != excluded.end()) {
-      rejected.push_back(fmt::format("{}: it applies, but its build {}", d.name, skip->reason));
+      rejected.push_back(fmt::format("{}: it applies, but {}", d.name, skip->reason));
       continue;
     }
     Verdict v = design_verdict(d, a);
@@ -108,6 +112,7 @@ std::string choose_auto(const Analysis& a, std::string& explanation,
     std::stable_sort(applying.begin(), applying.end(), ranks_before);
     explanation = auto_explanation(
         applying.front(), std::vector<Candidate>(applying.begin() + 1, applying.end()), rejected);
+    if (guarantee) *guarantee = applying.front().verdict.guarantee;
     return applying.front().design->name;
   }
   throw UserError(
@@ -123,7 +128,7 @@ std::string choose_auto(const Analysis& a, std::string& explanation,
 std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<std::string>& asked,
                                          std::string& explanation,
                                          const std::vector<ExcludedDesign>& excluded,
-                                         std::string* auto_choice) {
+                                         std::string* auto_choice, Guarantee* auto_guarantee) {
   std::vector<std::string> methods;
   for (const auto& m : asked) {
     std::string name = m;
@@ -135,7 +140,7 @@ std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<st
       continue;
     }
     if (m == "auto") {
-      name = choose_auto(a, explanation, excluded);
+      name = choose_auto(a, explanation, excluded, auto_guarantee);
       if (auto_choice) *auto_choice = name;
     } else if (!find_design(m)) {
       const auto& planned = planned_methods();
@@ -199,6 +204,26 @@ void observe_output_offset(ObserverSpec& s, const Model& m) {
 
 }  // namespace
 
+namespace {
+
+// Every discretised design reports its largest safe sample period: the designs whose step has
+// its own scheme (exact, sub-stepped, solved) compute it themselves; for the other ODE
+// observers it is sampled here from the spec (app/simulate.hpp sampled_safe_period).
+void add_safe_period_row(const Analysis& a, ObserverSpec& s) {
+  const std::string key = "largest safe sample period";
+  for (const auto& row : s.report)
+    if (row.key == key) return;
+  const auto safe = sampled_safe_period(a, s);
+  if (!safe) return;
+  s.report.push_back(
+      {key, fmt::format("{:.3g} (sampled, not a proof: RK4's stability radius {} over the largest "
+                        "|eigenvalue| {:.4g} of d(rhs)/dw at {} points of the domain box, on the "
+                        "trajectory; a longer period can make the discrete observer unstable)",
+                        safe->period, kRk4StabilityRadius, safe->rho, safe->samples)});
+}
+
+}  // namespace
+
 ObserverSpec build_design(const Analysis& a, const std::string& method, const DesignOptions& o) {
   const Design* d = find_design(method);
   OBSYNTH_ASSERT(d != nullptr, "build_design: unresolved method " + method);
@@ -208,23 +233,112 @@ ObserverSpec build_design(const Analysis& a, const std::string& method, const De
       throw UserError(SourceLoc{a.model.file, 0, 0},
                       fmt::format("method '{}' does not apply: {}", method, v.text()));
   }
-  ObserverSpec s = d->build(a, with_model_options(a.model, o));
+  ObserverSpec s;
+  try {
+    s = d->build(a, with_model_options(a.model, o));
+  } catch (const std::domain_error& e) {  // GiNaC's division by zero (pole_error derives from it)
+    throw UserError(SourceLoc{a.model.file, 0, 0},
+                    fmt::format("method '{}': the model is undefined where the design evaluates "
+                                "it ({}): f, g or h has a singularity in the domain box (shrink "
+                                "the box to exclude it)",
+                                method, e.what()));
+  }
   if (!a.model.output_offset.empty()) observe_output_offset(s, a.model);
+  add_safe_period_row(a, s);
   return s;
 }
 
 namespace {
 
+using BuiltSpecs = std::vector<std::pair<std::string, ObserverSpec>>;
+
+// A choice auto passed over for its closed-loop trial, kept in case nothing better comes.
+struct TrialFallback {
+  std::vector<std::string> chosen;
+  std::string explanation, warning;
+  BuiltSpecs specs;
+  Guarantee guarantee = Guarantee::none;
+};
+
+// auto's closed-loop trials (app/trial.hpp): the first design that converges in its trial is
+// taken. A design whose error fell too slowly is passed over only for one of the same guarantee
+// that converges; one that failed (rejected its step, diverged, left the box) is passed over for
+// any other. When nothing converges, the slow design ranked first is taken, else the failed one,
+// with a warning.
+class TrialChoice {
+ public:
+  TrialChoice(const Analysis& a, std::vector<ExcludedDesign>& excluded)
+      : a_(a), excluded_(excluded) {}
+
+  // True when this choice is taken; false when auto tries the next design.
+  bool accept(const std::string& method, const ObserverSpec& spec, TrialFallback attempt,
+              std::string& explanation) {
+    publish_stage(method + " trial");
+    const TrialOutcome trial = closed_loop_trial(a_, spec);
+    const std::string found = fmt::format("{}: {}", trial.setup, trial.text);
+    if (trial.verdict == TrialVerdict::passed || trial.verdict == TrialVerdict::inconclusive) {
+      explanation += fmt::format(
+          "; its {}{}", found,
+          trial.verdict == TrialVerdict::inconclusive ? " (inconclusive about the observer)" : "");
+      return true;
+    }
+    std::fprintf(stderr,
+                 "obsynth: note: auto chose '%s', but its %s; auto tries the next design\n",
+                 method.c_str(), found.c_str());
+    excluded_.push_back({method, "its " + found});
+    attempt.explanation += "; its " + found;
+    std::optional<TrialFallback>& keep = trial.verdict == TrialVerdict::slow ? slow_ : failed_;
+    if (!keep) {
+      keep = std::move(attempt);
+      keep->warning = fmt::format(
+          "auto's closed-loop trial of '{0}' did not converge ({1}); '{0}' is emitted all the "
+          "same, as the best-ranked design that is left: check it in simulation with your "
+          "inputs",
+          method, found);
+    }
+    return false;
+  }
+  std::optional<TrialFallback> fallback() const { return slow_ ? slow_ : failed_; }
+  // A slow design is taken before any design of a weaker guarantee is tried.
+  const TrialFallback* slow_above(Guarantee g) const {
+    return slow_ && slow_->guarantee > g ? &*slow_ : nullptr;
+  }
+
+ private:
+  const Analysis& a_;
+  std::vector<ExcludedDesign>& excluded_;
+  std::optional<TrialFallback> slow_, failed_;
+};
+
+BuiltSpecs take_fallback(const TrialFallback& f, std::vector<std::string>& chosen,
+                         std::string& explanation, std::vector<std::string>& warnings) {
+  chosen = f.chosen;
+  explanation = f.explanation;
+  warnings.push_back(f.warning);
+  return f.specs;
+}
+
 // The chosen methods' specs. When a budget stops the build of the design auto chose (within
-// this process; main.cpp reruns after a worker's time or memory stop), auto passes over it and
-// chooses again, with a note on stderr. Other errors (a bad option value) still end the job.
-std::vector<std::pair<std::string, ObserverSpec>> build_chosen(
-    const Analysis& a, const SynthesisOptions& opt, std::vector<ExcludedDesign>& excluded,
-    std::vector<std::string>& chosen, std::string& explanation) {
+// this process; main.cpp reruns after a worker's time or memory stop), or its closed-loop
+// trial does not converge (TrialChoice), auto passes over it and chooses again, with a note on
+// stderr. Other errors (a bad option value) still end the job.
+BuiltSpecs build_chosen(const Analysis& a, const SynthesisOptions& opt,
+                        std::vector<ExcludedDesign>& excluded, std::vector<std::string>& chosen,
+                        std::string& explanation, std::vector<std::string>& warnings) {
+  TrialChoice trials(a, excluded);
   for (;;) {
     std::string auto_choice;
-    chosen = resolve_methods(a, opt.methods, explanation, excluded, &auto_choice);
-    std::vector<std::pair<std::string, ObserverSpec>> specs;
+    Guarantee guarantee = Guarantee::none;
+    try {
+      chosen = resolve_methods(a, opt.methods, explanation, excluded, &auto_choice, &guarantee);
+    } catch (const UserError&) {
+      const auto f = trials.fallback();
+      if (!f) throw;
+      return take_fallback(*f, chosen, explanation, warnings);
+    }
+    if (const TrialFallback* slow = trials.slow_above(guarantee))
+      return take_fallback(*slow, chosen, explanation, warnings);
+    BuiltSpecs specs;
     std::string failed, why;
     for (const auto& method : chosen) {
       publish_stage(method + " design");
@@ -232,16 +346,23 @@ std::vector<std::pair<std::string, ObserverSpec>> build_chosen(
         specs.emplace_back(method, build_design(a, method, opt.design));
       } catch (const BudgetExceeded& e) {
         if (method != auto_choice) throw;
-        why = fmt::format("stopped: stage '{}' {}", e.stage(), e.reason());
+        why = fmt::format("its build stopped: stage '{}' {}", e.stage(), e.reason());
       }
       if (!why.empty()) {
         failed = method;
         break;
       }
     }
-    if (failed.empty()) return specs;
-    std::fprintf(stderr,
-                 "obsynth: note: auto chose '%s', but its build %s; auto tries the next design\n",
+    if (failed.empty()) {
+      const auto it = std::find_if(specs.begin(), specs.end(),
+                                   [&](const auto& s) { return s.first == auto_choice; });
+      if (it == specs.end() ||
+          trials.accept(auto_choice, it->second,
+                        TrialFallback{chosen, explanation, "", specs, guarantee}, explanation))
+        return specs;
+      continue;
+    }
+    std::fprintf(stderr, "obsynth: note: auto chose '%s', but %s; auto tries the next design\n",
                  failed.c_str(), why.c_str());
     excluded.push_back({failed, why});
   }
@@ -264,6 +385,18 @@ std::vector<std::string> guarantee_warnings(const Analysis& a,
 
 }  // namespace
 
+BuiltDesign choose_and_build(const Analysis& a, const std::string& method,
+                             const DesignOptions& design, std::string& explanation) {
+  SynthesisOptions opt;
+  opt.methods = {method};
+  opt.design = design;
+  std::vector<ExcludedDesign> excluded;
+  std::vector<std::string> chosen, warnings;
+  BuiltSpecs specs = build_chosen(a, opt, excluded, chosen, explanation, warnings);
+  OBSYNTH_ASSERT(specs.size() == 1, "choose_and_build: one method gives one observer");
+  return {specs.front().first, std::move(specs.front().second)};
+}
+
 Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   Synthesis s;
   with_model_options(a.model, opt.design);  // unknown option lines fail before any work
@@ -272,9 +405,11 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   // Each step under its own stage name, so that a budget stop names it (worker watchdog).
   publish_stage("verdicts");
   std::vector<ExcludedDesign> excluded = opt.auto_excluded;
-  const std::vector<std::pair<std::string, ObserverSpec>> specs =
-      build_chosen(a, opt, excluded, s.chosen, s.explanation);
+  std::vector<std::string> trial_warnings;
+  const BuiltSpecs specs =
+      build_chosen(a, opt, excluded, s.chosen, s.explanation, trial_warnings);
   s.warnings = guarantee_warnings(a, s.chosen);
+  s.warnings.insert(s.warnings.end(), trial_warnings.begin(), trial_warnings.end());
   for (const auto& spec : specs) s.warnings.insert(s.warnings.end(), spec.second.warnings.begin(),
                                                    spec.second.warnings.end());
   std::vector<GeneratedObserver> generated;

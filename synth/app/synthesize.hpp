@@ -7,12 +7,14 @@
 
 #include "analysis/analysis.hpp"
 #include "app/output_dir.hpp"
+#include "designs/registry.hpp"
 #include "designs/spec.hpp"
 #include "emit/emit_cxx.hpp"
 
 namespace obsynth {
 
-// Designs auto passes over, with the reason (a budget stopped their build).
+// Designs auto passes over, with the reason (a budget stopped their build, or their
+// closed-loop trial failed): "it applies, but <reason>".
 struct ExcludedDesign {
   std::string method, reason;
 };
@@ -41,7 +43,8 @@ struct Synthesis {
 std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<std::string>& asked,
                                          std::string& explanation,
                                          const std::vector<ExcludedDesign>& excluded = {},
-                                         std::string* auto_choice = nullptr);
+                                         std::string* auto_choice = nullptr,
+                                         Guarantee* auto_guarantee = nullptr);
 
 // The design options with the model file's `option` lines added; a value given on the command
 // line wins. An option no registered design declares is a UserError at its line.
@@ -50,6 +53,15 @@ DesignOptions with_model_options(const Model& m, const DesignOptions& given);
 // Builds the spec of one registered method (the model's `option` lines merged in) (UserError when
 // it does not apply).
 ObserverSpec build_design(const Analysis& a, const std::string& method, const DesignOptions& o);
+
+// One method (a name, or auto) chosen and built as the main job would: auto passes over a
+// design whose build stops or whose closed-loop trial fails (app/trial.hpp).
+struct BuiltDesign {
+  std::string method;
+  ObserverSpec spec;
+};
+BuiltDesign choose_and_build(const Analysis& a, const std::string& method,
+                             const DesignOptions& design, std::string& explanation);
 
 Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt);
 

@@ -33,11 +33,11 @@ void publish_checkpoint(const std::string& text);
 
 struct WorkerLimits {
   double stage_seconds = 60;         // hard deadline per stage (plus a grace period)
-  double canonical_stage_seconds = 0;  // canonical-form stages: min(this, stage_seconds); 0: same
   std::size_t max_memory_bytes = 0;  // address-space limit of the child (0: none)
   // The whole run, counted from this process's start, ends within this many seconds (0: no
   // limit): the stop comes kTotalMarginMs early, to leave time for the partial report.
   double total_seconds = 0;
+  double canonical_stage_seconds = 0;  // canonical-form stages: min(this, stage_seconds); 0: same
 };
 constexpr long long kTotalMarginMs = 300;
 

@@ -137,6 +137,10 @@ struct Choices {
   bool whiten = true;
   bool nearest = true, window_mean = true, interpolate = true;
   double rate = 0;                 // --input-rate: |u'| of the ramps the sampled bound covers
+  bool rate_given = false;
+  // --input-slope correct: a second table per level, dq/du' (the map's sensitivity to a ramp of
+  // the input over the window), applied with the slope the runtime fits to the window's inputs.
+  bool slope = false;
   std::vector<std::string> notes;  // how defaults were chosen
   // What the user fixed; the search (search_design) chooses the rest.
   bool window_given = false, dt_given = false, poles_given = false, grid_given = false,
@@ -234,7 +238,7 @@ std::size_t table_entries(const Choices& c) {
   std::size_t N = 1;
   for (auto k : c.count) N *= k;
   const std::size_t pz = c.lambda.size();
-  return c.levels * N * pz + 3 * pz + pz * pz;
+  return (c.slope ? 2 : 1) * c.levels * N * pz + 3 * pz + pz * pz;
 }
 
 // Without --grid-step: the same number of points per state, as many as the table-memory budget
@@ -243,7 +247,7 @@ bool fill_grid(Choices& c) {
   if (c.grid_given) return true;
   const std::size_t n = c.lo.size(), pz = c.lambda.size();
   const double entries = static_cast<double>(c.budget_bytes / 4) - 3.0 * pz - 1.0 * pz * pz;
-  const double points = entries / static_cast<double>(c.levels * pz);
+  const double points = entries / static_cast<double>((c.slope ? 2 : 1) * c.levels * pz);
   std::size_t per_axis = points >= 1 ? static_cast<std::size_t>(std::floor(
                                            std::pow(points, 1.0 / static_cast<double>(n)) + 1e-9))
                                      : 0;
@@ -339,6 +343,7 @@ void choose_kernel(const DesignOptions& o, Choices& c) {
   c.whiten = choice_option(o, "metric", {"whiten", "scale"}).value_or("whiten") == "whiten";
   if (const auto r = real_option(o, "input-rate")) {
     c.rate = dbl(*r);
+    c.rate_given = true;
     if (!(c.rate >= 0)) throw option_error("--input-rate must be >= 0");
   }
   if (const auto k = real_option(o, "backward-steps")) {
@@ -363,7 +368,16 @@ Choices choose(const Analysis& a, const DesignOptions& o) {
   choose_grid(o, m, c);
   choose_levels(o, m, c);
   choose_kernel(o, c);
+  c.slope = m.m() > 0 && c.levels > 1 &&
+            choice_option(o, "input-slope", {"correct", "ignore"}).value_or("correct") == "correct";
   return c;
+}
+
+// The ramps the sampled bound covers: --input-rate, else (with the slope correction) ramps that
+// cross the input's range in ten windows.
+double ramp_rate(const Choices& c) {
+  if (c.rate_given || !c.slope) return c.rate;
+  return (c.input_hi - c.level_lo) / (10 * c.T);
 }
 
 // ---- the observation maps q_k -------------------------------------------------------------
@@ -469,7 +483,8 @@ double halton(std::size_t i, unsigned base) {
 }
 
 struct Tables {
-  std::vector<Eigen::MatrixXd> q;  // per level: N x pz
+  std::vector<Eigen::MatrixXd> q;   // per level: N x pz
+  std::vector<Eigen::MatrixXd> dq;  // per level, with the slope correction: dq/du' (N x pz)
   Eigen::MatrixXd grid;            // N x n
   double eps = 0;
   double scale = 1;        // median sensitivity after whitening
@@ -535,6 +550,7 @@ Eigen::MatrixXd whiten(const Choices& c, Tables& t) {
   for (Eigen::Index i = 0; i < ev.size(); ++i) ev(i) = 1 / std::sqrt(std::max(ev(i), 1e-6 * top));
   W = ev.asDiagonal() * es.eigenvectors().transpose();
   for (auto& q : t.q) q = q * W.transpose();
+  for (auto& q : t.dq) q = q * W.transpose();
   return W;
 }
 
@@ -580,21 +596,30 @@ std::vector<Array> halton_states(const Choices& c) {
   return Y;
 }
 
-// The table the observer's inverse uses when the level rule's input value is v (the runtime's
+// The table of `tables` (q or dq) the level rule picks for the input value v (the runtime's
 // rule, spec.hpp SampledDelay): level k's (nearest / floor), or the two neighbouring levels'
 // interpolated linearly in v.
-Eigen::MatrixXd rule_table(const Choices& c, const Tables& t, double v) {
-  if (c.levels < 2) return t.q[0];
+Eigen::MatrixXd level_table(const Choices& c, const std::vector<Eigen::MatrixXd>& tables,
+                            double v) {
+  if (c.levels < 2) return tables[0];
   const double top = static_cast<double>(c.levels - 1);
   const double r = (v - c.level_lo) / c.level_step;
   if (!c.interpolate) {
     const double k = std::floor(r + (c.nearest ? 0.5 : 0.0));
-    return t.q[k <= 0 ? 0 : k >= top ? c.levels - 1 : static_cast<std::size_t>(k)];
+    return tables[k <= 0 ? 0 : k >= top ? c.levels - 1 : static_cast<std::size_t>(k)];
   }
   const double rc = std::clamp(r, 0.0, top);
   const std::size_t k0 = std::min(static_cast<std::size_t>(std::floor(rc)), c.levels - 2);
   const double a = rc - static_cast<double>(k0);
-  return t.q[k0] + a * (t.q[k0 + 1] - t.q[k0]);
+  return tables[k0] + a * (tables[k0 + 1] - tables[k0]);
+}
+
+// The table the observer's inverse compares eta with, for the input's value v and slope
+// (du/dt over the window, fitted by the runtime): q at v, plus slope * dq at v when corrected.
+Eigen::MatrixXd rule_table(const Choices& c, const Tables& t, double v, double slope) {
+  Eigen::MatrixXd q = level_table(c, t.q, v);
+  if (!t.dq.empty() && slope != 0) q += slope * level_table(c, t.dq, v);
+  return q;
 }
 
 // The largest inverse error at the test states Y with u over the window the ramp of mean nu and
@@ -602,7 +627,7 @@ Eigen::MatrixXd rule_table(const Choices& c, const Tables& t, double v) {
 // relative to the box widths goes into t.relative_error.
 double inverse_error(const Tabulator& tab, const Choices& c, Tables& t, const std::vector<Array>& Y,
                      double nu, double rate) {
-  const Eigen::MatrixXd table = rule_table(c, t, c.window_mean ? nu : nu + rate * c.T / 2);
+  const Eigen::MatrixXd table = rule_table(c, t, c.window_mean ? nu : nu + rate * c.T / 2, rate);
   const std::size_t n = Y.size(), S = static_cast<std::size_t>(Y[0].size());
   auto cached = t.test_maps.find({nu, rate});
   if (cached == t.test_maps.end())
@@ -656,11 +681,11 @@ void sampled_accuracy(const Tabulator& tab, const Choices& c, Tables& t) {
     for (auto [nu, err] : inputs) *err = std::max(*err, inverse_error(tab, c, t, Y, nu, 0));
     // Ramps at +-rate whose window stays in the input range, with their mean at the same
     // points (clamped into the means such a ramp can have).
-    const double half = c.rate * c.T / 2,
+    const double rate = ramp_rate(c), half = rate * c.T / 2,
                  hi = c.level_lo + c.level_step * static_cast<double>(c.levels - 1);
-    if (c.rate > 0 && c.level_lo + half <= hi - half)
+    if (rate > 0 && c.level_lo + half <= hi - half)
       for (auto [nu, err] : inputs)
-        for (double r : {c.rate, -c.rate})
+        for (double r : {rate, -rate})
           t.ramp_error = std::max(
               t.ramp_error,
               inverse_error(tab, c, t, Y, std::clamp(nu, c.level_lo + half, hi - half), r));
@@ -681,6 +706,11 @@ Tables tabulate(const Tabulator& tab, const Model& m, const Choices& c) {
     const double u = c.level_lo + c.level_step * static_cast<double>(k);
     t.q.push_back(tab.map(X, u));
     require_finite(t.q.back(), t.grid, u, c);
+    if (c.slope) {  // central difference over ramps that move the input one level per window
+      const double delta = c.level_step / c.T;
+      t.dq.push_back((tab.map(X, u, delta) - tab.map(X, u, -delta)) / (2 * delta));
+      require_finite(t.dq.back(), t.grid, u, c);
+    }
   }
   // The kernel's metric: whitened (or not), then scaled by the median sensitivity.
   const Eigen::MatrixXd W = whiten(c, t);
@@ -691,6 +721,7 @@ Tables tabulate(const Tabulator& tab, const Model& m, const Choices& c) {
   std::sort(nn.begin(), nn.end());
   t.scale = nn.empty() || !(nn[nn.size() / 2] > 0) ? 1 : nn[nn.size() / 2];
   for (auto& q : t.q) q /= t.scale;
+  for (auto& q : t.dq) q /= t.scale;
   t.min_separation /= t.scale;
   t.metric = W / t.scale;
   const auto t1 = std::chrono::steady_clock::now();
@@ -933,7 +964,8 @@ void set_guarantee(Verdict& v, const Choices& c, const Tables& t) {
       "sampled error bound {:.4g} (max |x_s - xh_s| = {} of the state's box width over {} test "
       "states, u frozen{}), target {}, tables {} as float (budget {})",
       t.bound(), percent(t.relative_error), t.tested,
-      c.rate > 0 ? fmt::format(" or ramping at +-{:g}", c.rate) : std::string(), percent(c.target),
+      ramp_rate(c) > 0 ? fmt::format(" or ramping at +-{:.3g}", ramp_rate(c)) : std::string(),
+      percent(c.target),
       memory_text(o.entries * 4), memory_text(c.budget_bytes));
   if (o.target_met && o.within_budget) {
     v.guarantee = Guarantee::partial;
@@ -998,6 +1030,7 @@ SampledDelay sampled_delay(const Choices& c) {
   d.gain_table = "filter_gain";
   d.delay_table = "delay_decay";
   d.map_table = "observation_map";
+  if (c.slope) d.slope_table = "observation_slope";
   d.grid_lo = c.lo;
   d.grid_step = c.step;
   d.grid_count = c.count;
@@ -1041,7 +1074,18 @@ std::vector<ConstTable> const_tables(const Choices& c, const Tables& t, double T
   for (std::size_t i = 0; i < pz; ++i)
     for (std::size_t j = 0; j < pz; ++j)
       metric.values.push_back(t.metric(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
-  return {decay, gain, delay, metric, map};
+  if (!c.slope) return {decay, gain, delay, metric, map};
+  ConstTable slope{"observation_slope",
+                   {c.levels, N, pz},
+                   {},
+                   "dq_k/du'(x_i): the maps' sensitivity to the input's slope over the window"};
+  slope.values.reserve(c.levels * N * pz);
+  for (std::size_t k = 0; k < c.levels; ++k)
+    for (std::size_t i = 0; i < N; ++i)
+      for (std::size_t j = 0; j < pz; ++j)
+        slope.values.push_back(
+            t.dq[k](static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
+  return {decay, gain, delay, metric, map, slope};
 }
 
 // Title, description, class documentation and constants; bound is the sampled error bound.
@@ -1049,7 +1093,8 @@ void describe_finite_time(ObserverSpec& s, const Choices& c, const Tables& t, do
                           double bound, const Verdict& g) {
   const std::size_t N = static_cast<std::size_t>(t.grid.rows());
   const std::string covered =
-      c.rate > 0 ? fmt::format("frozen or ramping at up to {:g}", c.rate) : std::string("frozen");
+      ramp_rate(c) > 0 ? fmt::format("frozen or ramping at up to {:.3g}", ramp_rate(c))
+                       : std::string("frozen");
   s.title = "Finite-time epsilon-T observer (Kreisselmeier-Engel filter bank, tabulated inverse)";
   s.description = {
       "Observer: finite-time epsilon-T observer (Garcia & Hernandez, seed 004, eq. 10, 15)",
@@ -1128,7 +1173,10 @@ void report_finite_time(ObserverSpec& s, const Model& m, const Choices& c, const
                          c.interpolate ? "q interpolated linearly between the two levels around"
                          : c.nearest   ? "Q_k for the level nearest"
                                        : "Q_k for the level at or below",
-                         c.window_mean ? "the input's mean over the window" : "the input now")
+                         c.window_mean ? "the input's mean over the window" : "the input now") +
+                 (c.slope ? "; plus its slope over the window (least squares) times dq/du', "
+                            "tabulated per level (--input-slope)"
+                          : "")
            : std::string("1 (no input)")},
       {"kernel", fmt::format("epsilon {:.6g}, weight power {} ({})", c.eps, c.power,
                              c.power == 1 ? "eq. 15" : "eq. 13 form")},
@@ -1149,9 +1197,9 @@ void report_finite_time(ObserverSpec& s, const Model& m, const Choices& c, const
        fmt::format("{:.4g} = max |Q_k(q_u(x)) - x| over {} Halton states in the box and u "
                    "frozen at the levels ({:.3g}) and between them ({:.3g}){}",
                    bound, t.tested, t.level_error, t.between_error,
-                   c.rate > 0 ? fmt::format(", and u ramping at +-{:g} over the window ({:.3g}); "
+                   ramp_rate(c) > 0 ? fmt::format(", and u ramping at +-{:.3g} over the window ({:.3g}); "
                                             "faster inputs are not covered",
-                                            c.rate, t.ramp_error)
+                                            ramp_rate(c), t.ramp_error)
                               : std::string("; a time-varying u adds to it (--input-rate covers "
                                             "ramps)"))},
   };
@@ -1191,8 +1239,8 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.tables = const_tables(c, t, T);
   s.sampled_delay = d;
 
-  // The map table is the last one.
-  const std::size_t entries = s.tables.back().values.size() + 3 * pz + pz * pz;
+  const std::size_t entries = table_entries(c);
+  (void)pz;
   const double bound = t.bound();
   describe_finite_time(s, c, t, T, bound, g);
   report_finite_time(s, m, c, t, T, bound, entries, g);
@@ -1232,7 +1280,12 @@ Design finite_time_design() {
        "u_k+1), sample-nearest, sample-interpolate",
        "window-interpolate"},
       {"input-rate", "finite-time: |du/dt| of the input ramps the sampled error bound also covers",
-       "0"},
+       "with --input-slope correct: the input's range over 10 windows; else 0"},
+      {"input-slope",
+       "finite-time: correct (a second table per level, dq/du', applied with the input's slope "
+       "fitted over the window: first order in the slope) or ignore (u taken as frozen at its "
+       "mean)",
+       "correct (models with an input and more than one level)"},
       {"backward-steps", "finite-time: RK4 steps of the backward simulation over T", "200"},
       {"error-target",
        "finite-time: sampled error target, a fraction of each state's box width (the search "

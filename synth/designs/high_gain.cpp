@@ -697,7 +697,7 @@ void assess(const Analysis& a, Verdict& v) {
   const Model& m = a.model;
   const HighGainStructure st = high_gain_structure(m);
   if (!st.failures.empty()) {
-    v = Verdict{false, st.failures};
+    v = Verdict{false, st.failures, Guarantee::none, ""};
     return;
   }
   const std::vector<numeric> poles = default_poles(m.n());

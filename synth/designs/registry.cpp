@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <stdexcept>
 
 #include "symbolic/expr_print.hpp"
 
@@ -50,12 +51,23 @@ Verdict design_verdict(const Design& d, const Analysis& a, bool assess) {
         "(direct feedthrough y = h(x, u)); this design needs y = h(x)");
     return v;
   }
-  v = d.applies(a);
-  if (v.applies && d.assess) {
-    if (assess)
-      d.assess(a, v);
-    else
-      v.guarantee_text = "not assessed (its certificate runs with `obsynth check --certify`)";
+  // A design that evaluates the model where it is undefined (a pole of f inside the box, the
+  // expansion point on it) does not apply there: GiNaC's division by zero is a verdict, never an
+  // internal error.
+  try {
+    v = d.applies(a);
+    if (v.applies && d.assess) {
+      if (assess)
+        d.assess(a, v);
+      else
+        v.guarantee_text = "not assessed (its certificate runs with `obsynth check --certify`)";
+    }
+  } catch (const std::domain_error& e) {  // GiNaC::pole_error derives from it
+    v = Verdict{};
+    v.reasons.push_back(fmt::format(
+        "{}: the model is undefined where this design evaluates it ({}): f, g or h has a "
+        "singularity in the domain box (shrink the box to exclude it)",
+        d.name, e.what()));
   }
   return v;
 }

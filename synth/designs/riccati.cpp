@@ -420,6 +420,23 @@ Verdict applies(const Analysis& a) {
     v.reasons.push_back("the observability stage did not complete");
     return v;
   }
+  if (r < n && a.under_inputs.computed && a.under_inputs.observable_for_some_input == true) {
+    // The drift alone does not observe the state, the inputs do (an induction motor's flux
+    // through its currents): the filter linearises along the actual input, so it applies, but
+    // (3.3) at u = 0 fails and no certificate covers an unknown input: guarantee none.
+    v.applies = true;
+    v.reasons.push_back(fmt::format(
+        "it needs only the Jacobians of f + g and h (no canonical form); the drift alone has "
+        "rank {} < n = {}, but the model is observable under inputs (rank O_u = {}): it "
+        "converges only along inputs that keep (H, A) uniformly detectable (seed 000 (3.3)), "
+        "which no certificate here covers",
+        r, n, a.under_inputs.generic_rank));
+    v.guarantee = Guarantee::none;
+    v.guarantee_text =
+        "neither Theorem 2.1 nor Corollary 2.1 applies: the drift is not observable and the "
+        "inputs that make the model observable are not known in advance";
+    return v;
+  }
   if (r < n) {
     v.reasons.push_back(fmt::format(
         "the observability rank (at u = 0) is {} < n = {}: the Riccati observer needs the pair "

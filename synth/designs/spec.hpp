@@ -120,6 +120,11 @@ struct ConstTable {
 //      r = clamp((v - level_lo) / level_step, 0, levels - 1), level = min(floor(r), levels - 2),
 //      a = r - level, and q[level][i] above is replaced by
 //      q[level][i] + a * (q[level + 1][i] - q[level][i]) (level_nearest is then ignored).
+//      With a slope_table (dq [levels][points][filters], only with level_window_mean and
+//      level_interpolate), the slope of the same D input samples, fitted by least squares,
+//        slope = sum_a (a - abar) (u_a - v) / (-dt sum_a (a - abar)^2)  (a = 0 newest .. D - 1,
+//        abar = (D - 1) / 2; du/dt forward in time),
+//      adds slope * (dq[level][i] + a * (dq[level + 1][i] - dq[level][i])) to that table entry.
 // The grid enumerates states row-major: the last state varies fastest; x_i(s) = grid_lo[s] +
 // grid_step[s] * index_s. Table shapes: decay, gain, delay [filters]; map [levels][points]
 // [filters], metric [filters][filters] row-major (names in ObserverSpec::tables).
@@ -128,6 +133,7 @@ struct SampledDelay {
   std::size_t delay_steps = 0;
   std::size_t filters = 0;
   std::string decay_table, gain_table, delay_table, metric_table, map_table;
+  std::string slope_table;  // empty: no slope correction
   std::vector<double> grid_lo, grid_step;
   std::vector<std::size_t> grid_count;
   std::size_t input_index = 0;

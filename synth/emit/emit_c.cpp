@@ -1038,6 +1038,24 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
     return fmt::format("{}", fmt::join(o, ", "));
   };
   const bool interpolate = d.level_interpolate && d.levels > 1;
+  // The slope correction (spec.hpp SampledDelay::slope_table): window mean and interpolation.
+  const bool slope = !d.slope_table.empty() && interpolate && d.level_window_mean;
+  const std::string slope_fit =
+      slope ? fmt::format(
+                  "    {{ /* least-squares slope of the same samples, a = 0: this step's */\n"
+                  "      Scalar sxy = {0}, sxx = {0};\n"
+                  "      int a;\n"
+                  "      for (a = 0; a < {1}_delay_steps; ++a) {{\n"
+                  "        const Scalar da = (Scalar)a - (Scalar)({1}_delay_steps - 1) / {2};\n"
+                  "        const int kk = o->head >= a ? o->head - a : o->head - a + "
+                  "{1}_delay_steps + 1;\n"
+                  "        sxy += da * (o->u_ring[kk] - v);\n"
+                  "        sxx += da * da;\n"
+                  "      }}\n"
+                  "      o->slope = sxx > {0} ? -sxy / (dt * sxx) : {0};\n"
+                  "    }}\n",
+                  b.lit(0), b.prefix(), b.lit(2))
+            : "";
   const std::string level =
       d.levels > 1
           ? render_template(
@@ -1052,7 +1070,8 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
                                                  "    for (k = 0; k <= {1}_delay_steps; ++k)\n"
                                                  "      if (k != old) acc += o->u_ring[k];\n"
                                                  "    v = acc / (Scalar){1}_delay_steps;\n",
-                                                 b.lit(0), b.prefix())
+                                                 b.lit(0), b.prefix()) +
+                                         slope_fit
                                    : ""},
                               {"nearest", d.level_nearest ? " + " + b.lit(0.5) : ""},
                               {"level_lo", c_table_literal(d.level_lo, p)},
@@ -1077,14 +1096,30 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
        {"m", std::to_string(std::max<std::size_t>(m.m(), 1))},
        {"u_now", d.levels > 1 ? fmt::format("u[{}]", d.input_index) : b.lit(0)},
        {"level", level},
-       {"q_next_decl", interpolate ? "  const Scalar* q1;\n" : ""},
-       {"q_next", interpolate ? fmt::format("  q1 = q + {}_grid_points * {}_filters; "
-                                            "/* level + 1 */\n",
-                                            b.prefix(), b.prefix())
-                              : ""},
-       {"q_next_advance", interpolate ? fmt::format(", q1 += {}_filters", b.prefix()) : ""},
-       {"q_entry", interpolate ? "q[j] + o->frac * (q1[j] - q[j])" : "q[j]"},
-       {"frac_reset", interpolate ? "  o->frac = " + b.lit(0) + ";\n" : ""},
+       {"q_next_decl", slope         ? "  const Scalar *q1, *dq, *dq1;\n"
+                       : interpolate ? "  const Scalar* q1;\n"
+                                     : ""},
+       {"q_next",
+        interpolate
+            ? fmt::format("  q1 = q + {0}_grid_points * {0}_filters; /* level + 1 */\n{1}",
+                          b.prefix(),
+                          slope ? fmt::format("  dq = {1} + (long)o->level * {0}_grid_points * "
+                                              "{0}_filters;\n"
+                                              "  dq1 = dq + {0}_grid_points * {0}_filters;\n",
+                                              b.prefix(), d.slope_table)
+                                : "")
+            : ""},
+       {"q_next_advance",
+        slope ? fmt::format(", q1 += {0}_filters, dq += {0}_filters, dq1 += {0}_filters",
+                            b.prefix())
+        : interpolate ? fmt::format(", q1 += {}_filters", b.prefix())
+                      : ""},
+       {"q_entry", slope ? "q[j] + o->frac * (q1[j] - q[j]) +\n"
+                           "                       o->slope * (dq[j] + o->frac * (dq1[j] - dq[j]))"
+                   : interpolate ? "q[j] + o->frac * (q1[j] - q[j])"
+                                 : "q[j]"},
+       {"frac_reset", std::string(interpolate ? "  o->frac = " + b.lit(0) + ";\n" : "") +
+                          (slope ? "  o->slope = " + b.lit(0) + ";\n" : "")},
        {"decay", d.decay_table},
        {"gain", d.gain_table},
        {"delay", d.delay_table},
@@ -1122,6 +1157,8 @@ std::string c_members(const ObserverSpec& s, const std::string& P, std::size_t i
     if (d.level_interpolate && d.levels > 1)
       members +=
           fmt::format("  {}_scalar frac; /* weight of table level + 1 (interpolated) */\n", P);
+    if (!d.slope_table.empty() && d.level_interpolate && d.levels > 1 && d.level_window_mean)
+      members += fmt::format("  {}_scalar slope; /* du/dt fitted over the window */\n", P);
   }
   return members;
 }

@@ -1116,6 +1116,19 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const 
     return fmt::format("{}", fmt::join(out, ", "));
   };
   const bool interpolate = d.level_interpolate && d.levels > 1;
+  // The slope correction (spec.hpp SampledDelay::slope_table) needs the window mean and the
+  // interpolation, which the design gives it.
+  const bool slope = !d.slope_table.empty() && interpolate && d.level_window_mean;
+  const std::string slope_fit =
+      slope ? "      Scalar sxy = Scalar(0), sxx = Scalar(0);  // least-squares slope, same samples\n"
+              "      for (int a = 0; a < delay_steps; ++a) {  // a = 0: this step's sample\n"
+              "        const Scalar da = Scalar(a) - Scalar(delay_steps - 1) / Scalar(2);\n"
+              "        const int k = head_ >= a ? head_ - a : head_ - a + delay_steps + 1;\n"
+              "        sxy += da * (u_ring_[k] - v);\n"
+              "        sxx += da * da;\n"
+              "      }\n"
+              "      slope_ = sxx > Scalar(0) ? -sxy / (dt * sxx) : Scalar(0);\n"
+            : "";
   const std::string level =
       d.levels > 1
           ? render_template(
@@ -1128,7 +1141,8 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const 
                           ? "      Scalar acc = Scalar(0);  // mean of the last D samples\n"
                             "      for (int k = 0; k <= delay_steps; ++k)\n"
                             "        if (k != old) acc += u_ring_[k];\n"
-                            "      v = acc / Scalar(delay_steps);\n"
+                            "      v = acc / Scalar(delay_steps);\n" +
+                                slope_fit
                           : ""},
                      {"nearest", d.level_nearest ? " + Scalar(0.5)" : ""},
                      {"level_lo", scalar_literal(GiNaC::numeric(d.level_lo), p)},
@@ -1148,21 +1162,39 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const 
        {"class_name", c.common.at("class_name")},
        {"u_now", d.levels > 1 ? fmt::format("u({})", d.input_index) : std::string("Scalar(0)")},
        {"level", level},
-       {"q_next", interpolate ? fmt::format("    const {}* q1 = q + grid_points * filters;  "
-                                            "// level_ + 1\n",
-                                            precision_name(p))
-                              : ""},
-       {"q_next_advance", interpolate ? ", q1 += filters" : ""},
+       {"q_next",
+        interpolate
+            ? fmt::format("    const {0}* q1 = q + grid_points * filters;  // level_ + 1\n{1}",
+                          precision_name(p),
+                          slope ? fmt::format("    const {0}* dq = Tables::{1} + static_cast<long>"
+                                              "(level_) * grid_points * filters;\n"
+                                              "    const {0}* dq1 = dq + grid_points * filters;\n",
+                                              precision_name(p), d.slope_table)
+                                : "")
+            : ""},
+       {"q_next_advance",
+        slope ? ", q1 += filters, dq += filters, dq1 += filters" : interpolate ? ", q1 += filters" : ""},
        {"q_entry",
-        interpolate ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j]))" : "Scalar(q[j])"},
+        slope ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j])) +\n"
+                "                       slope_ * (Scalar(dq[j]) + frac_ * (Scalar(dq1[j]) - "
+                "Scalar(dq[j])))"
+        : interpolate ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j]))"
+                      : "Scalar(q[j])"},
        {"level_doc", interpolate ? " (the lower table; frac() weights the next)" : ""},
        {"frac_member",
-        interpolate ? "  Scalar frac_ = Scalar(0);  ///< weight of table level_ + 1\n" : ""},
-       {"frac_accessor", interpolate ? "  /// The weight of table level() + 1 in the last step's "
-                                       "inverse, in [0, 1].\n"
-                                       "  Scalar frac() const noexcept { return frac_; }\n"
-                                     : ""},
-       {"frac_reset", interpolate ? "    frac_ = Scalar(0);\n" : ""},
+        std::string(interpolate ? "  Scalar frac_ = Scalar(0);  ///< weight of table level_ + 1\n"
+                                : "") +
+            (slope ? "  Scalar slope_ = Scalar(0);  ///< du/dt fitted over the window\n" : "")},
+       {"frac_accessor",
+        std::string(interpolate ? "  /// The weight of table level() + 1 in the last step's "
+                                  "inverse, in [0, 1].\n"
+                                  "  Scalar frac() const noexcept { return frac_; }\n"
+                                : "") +
+            (slope ? "  /// The input's slope over the window (least squares) in the last step.\n"
+                     "  Scalar input_slope() const noexcept { return slope_; }\n"
+                   : "")},
+       {"frac_reset", std::string(interpolate ? "    frac_ = Scalar(0);\n" : "") +
+                          (slope ? "    slope_ = Scalar(0);\n" : "")},
        {"decay", d.decay_table},
        {"gain", d.gain_table},
        {"delay", d.delay_table},
