@@ -8,9 +8,9 @@
 //   g = [0, -cos(x1)*u]
 //   h = [sin(x1)]
 // Observer: high-gain observer (Gauthier-Hammouri-Kupka; seed 002 eq. 3)
-// theta = 5; poles of A - K C: -2, -5/2; K = [9/2, 5]; Delta_theta K = [45/2, 125]
+// theta = 84; poles of A - K C: -2, -5/2; K = [9/2, 5]; Delta_theta K = [378, 35280]
 // Gain applied by an LU solve with O(xh); O singular or ill-conditioned (smallest LU pivot <= sqrt(epsilon) x largest, in any RK4 stage) -> Status::singular, state kept; O is singular where cos(x1) = 0 (no sign change sampled in the domain box)
-// Lipschitz constant of phi in z: L = 29.5662 (rigorous); theta* = 66.6264: convergence not guaranteed
+// Lipschitz constant of phi in z: L = 29.5662 (rigorous); theta* = 66.6264: convergence not guaranteed in x (O singular in the domain box)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -107,8 +107,8 @@ struct HighGainFunctions {
     const Scalar x1 = w(0);
     const Scalar y_ = y(0);
     const Scalar t0 = std::sin(x1);
-    out(0) = y_ * Scalar(22.5) - t0 * Scalar(22.5);
-    out(1) = -(Scalar(125) * t0) + Scalar(125) * y_;
+    out(0) = -(t0 * Scalar(378)) + y_ * Scalar(378);
+    out(1) = y_ * Scalar(35280) - t0 * Scalar(35280);
   }
 };
 

@@ -8,8 +8,8 @@
 //   g = [0, -cos(x1)*u]
 //   h = [sin(x1)]
 // Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)
-// Q0 = [[1, 0], [0, 1]] (default); N = [[1, 0], [0, 1]] (default); R = [[1]] (default)
-// Integrator: RK4 of (m, Q) jointly with u, y held over a step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
+// Q0 = [[1, 0], [0, 4]] (default); N = [[141/100, 0], [0, 283/100]] (default); R = [[119/200]] (default)
+// Integrator: RK4 of (m, Q) jointly with u, y held over a step, in sub-steps no longer than the largest safe step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -84,7 +84,7 @@ struct RiccatiFunctions {
     out(1) = x2;
     out(2) = Scalar(1);
     out(3) = Scalar(0);
-    out(4) = Scalar(1);
+    out(4) = Scalar(4);
   }
 
   /// d/dt (m, Q): m' = f + g + G R^-2 (y - h), Q' = A Q + Q A^T - G R^-2 G^T + N N^T (upper triangle), G = Q Dh^T.
@@ -100,13 +100,15 @@ struct RiccatiFunctions {
     const Scalar t1 = y_ - t0;
     const Scalar t2 = std::cos(x1);
     const Scalar t3 = Q_1_1 * t2;
-    const Scalar t4 = Q_1_2 * t2;
-    const Scalar t5 = t0 * u_ + t2;
-    out(0) = t1 * t3 + x2;
-    out(1) = t0 - t2 * u_ + t1 * t4;
-    out(2) = -(t3 * t3) + Scalar(1) + Q_1_2 * Scalar(2);
-    out(3) = Q_1_1 * t5 + Q_2_2 - t3 * t4;
-    out(4) = -(t4 * t4) + (Q_1_2 * t5) * Scalar(2) + Scalar(1);
+    const Scalar t4 = Scalar(2.8246592754748958) * t3;
+    const Scalar t5 = Q_1_2 * t2;
+    const Scalar t6 = Scalar(2.8246592754748958) * t5;
+    const Scalar t7 = t0 * u_ + t2;
+    out(0) = x2 + t1 * t4;
+    out(1) = t0 + t1 * t6 - t2 * u_;
+    out(2) = Scalar(1.9881) - t4 * t3 + Q_1_2 * Scalar(2);
+    out(3) = Q_1_1 * t7 + Q_2_2 - t4 * t5;
+    out(4) = Scalar(8.0089000000000006) - t6 * t5 + (Q_1_2 * t7) * Scalar(2);
   }
 
   /// The estimate m: the first n entries of w.
@@ -153,11 +155,18 @@ class CartPendulumRiccati {
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
     const ObserverState w_prev = w_;
     bool solved = true;
+    // dt in equal RK4 sub-steps of at most 0.394 (the largest safe step)
+    const Scalar ratio = dt / Scalar(0.39400000000000002);
+    const int steps = !(ratio > Scalar(1)) ? 1
+                      : ratio >= Scalar(4096) ? 4096
+                      : static_cast<int>(ratio) + (Scalar(static_cast<int>(ratio)) < ratio ? 1 : 0);
+    const Scalar h = dt / static_cast<Scalar>(steps);
+    for (int k = 0; k < steps; ++k)
     obsynth::rk4_step<Scalar, nw>(
         [&u, &y, &solved](const ObserverState& w, ObserverState& dw) noexcept {
           solved = total_rhs(w, u, y, dw) && solved;
         },
-        dt, w_);
+        h, w_);
     if (!solved) {
       w_ = w_prev;
       return status_ = obsynth::Status::singular;

@@ -10,7 +10,7 @@
 // Observer: canonical-form Luenberger observer (Krener-Isidori; seeds 001 §7, 003)
 // Realisation: z coordinates (T and T^-1 are closed-form: the z realisation integrates a linear system)
 // T^-1: closed form
-// Error poles: -2, -5/2, -3, -7/2; K = [105/2, 319/4, 179/4, 11]; integrator exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)
+// Error poles: -243/100, -76/25, -73/20, -17/4; K = [5729697/50000, 28642451/200000, 661127/10000, 1337/100]; integrator exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -124,10 +124,10 @@ struct CanonicalFunctions {
     const Scalar u_ = u(0);
     const Scalar y_ = y(0);
     const Scalar t0 = std::sin(y_) * Scalar(2);
-    out(0) = -t0 + Scalar(52.5) * y_ + u_;
-    out(1) = Scalar(79.75) * y_;
-    out(2) = -t0 + Scalar(42.75) * y_;
-    out(3) = y_ * Scalar(11);
+    out(0) = -t0 + y_ * Scalar(114.59394) + u_;
+    out(1) = y_ * Scalar(143.212255);
+    out(2) = -t0 + y_ * Scalar(64.112700000000004);
+    out(3) = y_ * Scalar(13.369999999999999);
   }
 
   /// zh' = A zh - K zh_n + c (the z-realisation right-hand side).
@@ -140,10 +140,10 @@ struct CanonicalFunctions {
     const Scalar zh2 = z(1);
     const Scalar zh3 = z(2);
     const Scalar zh4 = z(3);
-    out(0) = -(Scalar(52.5) * zh4) + c1;
-    out(1) = -(Scalar(79.75) * zh4) + zh1 + c2;
-    out(2) = -(Scalar(44.75) * zh4) + c3 + zh2;
-    out(3) = -(zh4 * Scalar(11)) + zh3 + c4;
+    out(0) = c1 - zh4 * Scalar(114.59394);
+    out(1) = zh1 + c2 - zh4 * Scalar(143.212255);
+    out(2) = c3 + zh2 - Scalar(66.112700000000004) * zh4;
+    out(3) = zh3 - zh4 * Scalar(13.369999999999999) + c4;
   }
 
   /// b with c = l(u, y) + K (y - y0) = B b (B: the class's input map).
@@ -158,7 +158,7 @@ struct CanonicalFunctions {
 
 /// Canonical-form Luenberger observer, realised in z coordinates:
 ///   zh' = A zh + l(u, y) + K (y - y0 - zh_n),  xh = T^-1(zh)
-/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles -2, -5/2, -3, -7/2.
+/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles -243/100, -76/25, -73/20, -17/4.
 template <class Scalar_ = double>
 class FlexibleJointCanonical {
  public:
@@ -232,9 +232,9 @@ class FlexibleJointCanonical {
 #endif
   bool discretise(Scalar dt) noexcept {
     Eigen::Matrix<Scalar, n, n> A;
-    A << Scalar(0), Scalar(0), Scalar(0), Scalar(-52.5), Scalar(1), Scalar(0), Scalar(0), Scalar(-79.75), Scalar(0), Scalar(1), Scalar(0), Scalar(-44.75), Scalar(0), Scalar(0), Scalar(1), Scalar(-11);
+    A << Scalar(0), Scalar(0), Scalar(0), Scalar(-114.59394), Scalar(1), Scalar(0), Scalar(0), Scalar(-143.212255), Scalar(0), Scalar(1), Scalar(0), Scalar(-66.112700000000004), Scalar(0), Scalar(0), Scalar(1), Scalar(-13.369999999999999);
     Eigen::Matrix<Scalar, n, 3> B;
-    B << Scalar(-2), Scalar(1), Scalar(52.5), Scalar(0), Scalar(0), Scalar(79.75), Scalar(-2), Scalar(0), Scalar(42.75), Scalar(0), Scalar(0), Scalar(11);
+    B << Scalar(-2), Scalar(1), Scalar(114.59394), Scalar(0), Scalar(0), Scalar(143.212255), Scalar(-2), Scalar(0), Scalar(64.112700000000004), Scalar(0), Scalar(0), Scalar(13.369999999999999);
     return exact_.prepare(A, B, dt);
   }
 

@@ -8,8 +8,8 @@
 //   g = [u, 0]
 //   h = [sin(x1)]
 // Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)
-// Q0 = [[1, 0], [0, 1]] (default); N = [[1, 0], [0, 1]] (default); R = [[1]] (default)
-// Integrator: RK4 of (m, Q) jointly with u, y held over a step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
+// Q0 = [[9, 0], [0, 9]] (default); N = [[106/25, 0], [0, 106/25]] (default); R = [[707/1000]] (default)
+// Integrator: RK4 of (m, Q) jointly with u, y held over a step, in sub-steps no longer than the largest safe step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -82,9 +82,9 @@ struct RiccatiFunctions {
     const Scalar x2 = x(1);
     out(0) = x1;
     out(1) = x2;
-    out(2) = Scalar(1);
+    out(2) = Scalar(9);
     out(3) = Scalar(0);
-    out(4) = Scalar(1);
+    out(4) = Scalar(9);
   }
 
   /// d/dt (m, Q): m' = f + g + G R^-2 (y - h), Q' = A Q + Q A^T - G R^-2 G^T + N N^T (upper triangle), G = Q Dh^T.
@@ -99,12 +99,14 @@ struct RiccatiFunctions {
     const Scalar t0 = y_ - std::sin(x1);
     const Scalar t1 = std::cos(x1);
     const Scalar t2 = Q_1_1 * t1;
-    const Scalar t3 = Q_1_2 * t1;
-    out(0) = t0 * t2 + Scalar(0.5) * x2 - x1 * Scalar(1.5) + u_;
-    out(1) = x1 * Scalar(0.5) + t0 * t3 - Scalar(1.5) * x2;
-    out(2) = Scalar(1) - t2 * t2 - (Q_1_1 * Scalar(1.5) - Q_1_2 * Scalar(0.5)) * Scalar(2);
-    out(3) = Scalar(0.5) * Q_2_2 + Q_1_1 * Scalar(0.5) - Q_1_2 * Scalar(3) - t2 * t3;
-    out(4) = Scalar(1) - (Scalar(1.5) * Q_2_2 - Q_1_2 * Scalar(0.5)) * Scalar(2) - t3 * t3;
+    const Scalar t3 = t2 * Scalar(2.0006041824631038);
+    const Scalar t4 = Q_1_2 * t1;
+    const Scalar t5 = Scalar(2.0006041824631038) * t4;
+    out(0) = t0 * t3 + Scalar(0.5) * x2 - x1 * Scalar(1.5) + u_;
+    out(1) = x1 * Scalar(0.5) + t0 * t5 - Scalar(1.5) * x2;
+    out(2) = Scalar(17.977599999999999) - t3 * t2 - (Q_1_1 * Scalar(1.5) - Q_1_2 * Scalar(0.5)) * Scalar(2);
+    out(3) = Q_1_1 * Scalar(0.5) - Q_1_2 * Scalar(3) - t3 * t4 + Scalar(0.5) * Q_2_2;
+    out(4) = Scalar(17.977599999999999) - (Scalar(1.5) * Q_2_2 - Q_1_2 * Scalar(0.5)) * Scalar(2) - t5 * t4;
   }
 
   /// The estimate m: the first n entries of w.
@@ -151,11 +153,18 @@ class JamesbarasSinRiccati {
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
     const ObserverState w_prev = w_;
     bool solved = true;
+    // dt in equal RK4 sub-steps of at most 0.064 (the largest safe step)
+    const Scalar ratio = dt / Scalar(0.064000000000000001);
+    const int steps = !(ratio > Scalar(1)) ? 1
+                      : ratio >= Scalar(4096) ? 4096
+                      : static_cast<int>(ratio) + (Scalar(static_cast<int>(ratio)) < ratio ? 1 : 0);
+    const Scalar h = dt / static_cast<Scalar>(steps);
+    for (int k = 0; k < steps; ++k)
     obsynth::rk4_step<Scalar, nw>(
         [&u, &y, &solved](const ObserverState& w, ObserverState& dw) noexcept {
           solved = total_rhs(w, u, y, dw) && solved;
         },
-        dt, w_);
+        h, w_);
     if (!solved) {
       w_ = w_prev;
       return status_ = obsynth::Status::singular;

@@ -10,7 +10,7 @@
 // Observer: canonical-form Luenberger observer (Krener-Isidori; seeds 001 §7, 003)
 // Realisation: z coordinates (T and T^-1 are closed-form: the z realisation integrates a linear system)
 // T^-1: closed form
-// Error poles: -2, -5/2; K = [5, 9/2]; integrator exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)
+// Error poles: -291/100, -363/100; K = [105633/10000, 327/50]; integrator exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -127,8 +127,8 @@ struct CanonicalFunctions {
     const Scalar mgl = prm.mgl;
     const Scalar u_ = u(0);
     const Scalar y_ = y(0);
-    out(0) = (-(std::sin(y_) * mgl) + u_) / J + y_ * Scalar(5);
-    out(1) = -(b * y_ / J) + y_ * Scalar(4.5);
+    out(0) = (-(std::sin(y_) * mgl) + u_) / J + y_ * Scalar(10.5633);
+    out(1) = -(b * y_ / J) + y_ * Scalar(6.54);
   }
 
   /// zh' = A zh - K zh_n + c (the z-realisation right-hand side).
@@ -138,14 +138,14 @@ struct CanonicalFunctions {
     const Scalar c2 = c(1);
     const Scalar zh1 = z(0);
     const Scalar zh2 = z(1);
-    out(0) = c1 - Scalar(5) * zh2;
-    out(1) = zh1 + c2 - zh2 * Scalar(4.5);
+    out(0) = c1 - Scalar(10.5633) * zh2;
+    out(1) = zh1 + c2 - Scalar(6.54) * zh2;
   }
 };
 
 /// Canonical-form Luenberger observer, realised in z coordinates:
 ///   zh' = A zh + l(u, y) + K (y - y0 - zh_n),  xh = T^-1(zh)
-/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles -2, -5/2.
+/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles -291/100, -363/100.
 template <class Scalar_ = double>
 class PendulumParamsCanonical {
  public:
@@ -226,7 +226,7 @@ class PendulumParamsCanonical {
 #endif
   bool discretise(Scalar dt) noexcept {
     Eigen::Matrix<Scalar, n, n> A;
-    A << Scalar(0), Scalar(-5), Scalar(1), Scalar(-4.5);
+    A << Scalar(0), Scalar(-10.5633), Scalar(1), Scalar(-6.54);
     return exact_.prepare(A, dt);
   }
 

@@ -8,9 +8,9 @@
 //   g = [0, u/J]
 //   h = [x1]
 // Observer: high-gain observer (Gauthier-Hammouri-Kupka; seed 002 eq. 3)
-// theta = 5; poles of A - K C: -2, -5/2; K = [9/2, 5]; Delta_theta K = [45/2, 125]
+// theta = 12; poles of A - K C: -2, -5/2; K = [9/2, 5]; Delta_theta K = [54, 720]
 // Gain applied by an LU solve with O(xh); O singular or ill-conditioned (smallest LU pivot <= sqrt(epsilon) x largest, in any RK4 stage) -> Status::singular, state kept; O is singular never (det O = 1)
-// Lipschitz constant of phi in z: L = 4.12311 (rigorous); theta* = 9.29128: convergence not guaranteed
+// Lipschitz constant of phi in z: L = 4.12311 (rigorous); theta* = 9.29128: convergence guaranteed
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -123,8 +123,8 @@ struct HighGainFunctions {
     static_cast<void>(prm);
     const Scalar x1 = w(0);
     const Scalar y_ = y(0);
-    out(0) = -(x1 * Scalar(22.5)) + y_ * Scalar(22.5);
-    out(1) = Scalar(125) * y_ - Scalar(125) * x1;
+    out(0) = -(x1 * Scalar(54)) + y_ * Scalar(54);
+    out(1) = Scalar(720) * y_ - x1 * Scalar(720);
   }
 };
 

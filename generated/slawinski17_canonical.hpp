@@ -10,7 +10,7 @@
 // Observer: canonical-form Luenberger observer (Krener-Isidori; seeds 001 §7, 003)
 // Realisation: z coordinates (T and T^-1 are closed-form: the z realisation integrates a linear system)
 // T^-1: closed form
-// Error poles: -2, -5/2; K = [5, 9/2]; integrator exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)
+// Error poles: -137/50, -343/100; K = [46991/5000, 617/100]; integrator exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -107,8 +107,8 @@ struct CanonicalFunctions {
     const Scalar y_ = y(0);
     const Scalar t0 = y_ * u_;
     const Scalar t1 = y_ * y_;
-    out(0) = -u_ + t0 + t1 * u_ + y_ * Scalar(5);
-    out(1) = -(t1 * Scalar(0.5)) + t0 + y_ * Scalar(4.5) + u_;
+    out(0) = -u_ + Scalar(9.3981999999999992) * y_ + t0 + t1 * u_;
+    out(1) = -(t1 * Scalar(0.5)) + t0 + Scalar(6.1699999999999999) * y_ + u_;
   }
 
   /// zh' = A zh - K zh_n + c (the z-realisation right-hand side).
@@ -117,14 +117,14 @@ struct CanonicalFunctions {
     const Scalar c2 = c(1);
     const Scalar zh1 = z(0);
     const Scalar zh2 = z(1);
-    out(0) = c1 - Scalar(5) * zh2;
-    out(1) = zh1 + c2 - zh2 * Scalar(4.5);
+    out(0) = c1 - Scalar(9.3981999999999992) * zh2;
+    out(1) = zh1 + c2 - Scalar(6.1699999999999999) * zh2;
   }
 };
 
 /// Canonical-form Luenberger observer, realised in z coordinates:
 ///   zh' = A zh + l(u, y) + K (y - y0 - zh_n),  xh = T^-1(zh)
-/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles -2, -5/2.
+/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles -137/50, -343/100.
 template <class Scalar_ = double>
 class Slawinski17Canonical {
  public:
@@ -200,7 +200,7 @@ class Slawinski17Canonical {
 #endif
   bool discretise(Scalar dt) noexcept {
     Eigen::Matrix<Scalar, n, n> A;
-    A << Scalar(0), Scalar(-5), Scalar(1), Scalar(-4.5);
+    A << Scalar(0), Scalar(-9.3981999999999992), Scalar(1), Scalar(-6.1699999999999999);
     return exact_.prepare(A, dt);
   }
 

@@ -8,9 +8,9 @@
 //   g = [(x1+1)*u, u]
 //   h = [x1]
 // Observer: high-gain observer (Gauthier-Hammouri-Kupka; seed 002 eq. 3)
-// theta = 5; poles of A - K C: -2, -5/2; K = [9/2, 5]; Delta_theta K = [45/2, 125]
+// theta = 83/10; poles of A - K C: -2, -5/2; K = [9/2, 5]; Delta_theta K = [747/20, 6889/20]
 // Gain applied by an LU solve with O(xh); O singular or ill-conditioned (smallest LU pivot <= sqrt(epsilon) x largest, in any RK4 stage) -> Status::singular, state kept; O is singular never (det O = -1)
-// Lipschitz constant of phi in z: L = 2.92081 (rigorous); theta* = 6.58195: convergence not guaranteed
+// Lipschitz constant of phi in z: L = 2.92081 (rigorous); theta* = 6.58195: convergence guaranteed
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -104,8 +104,8 @@ struct HighGainFunctions {
     static_cast<void>(u);
     const Scalar x1 = w(0);
     const Scalar y_ = y(0);
-    out(0) = -(x1 * Scalar(22.5)) + y_ * Scalar(22.5);
-    out(1) = Scalar(125) * y_ - Scalar(125) * x1;
+    out(0) = -(x1 * Scalar(37.350000000000001)) + y_ * Scalar(37.350000000000001);
+    out(1) = y_ * Scalar(344.44999999999999) - x1 * Scalar(344.44999999999999);
   }
 };
 

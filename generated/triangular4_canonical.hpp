@@ -10,7 +10,7 @@
 // Observer: canonical-form Luenberger observer (Krener-Isidori; seeds 001 §7, 003)
 // Realisation: z coordinates (T and T^-1 are closed-form: the z realisation integrates a linear system)
 // T^-1: closed form
-// Error poles: -2, -5/2, -3, -7/2; K = [105/2, 319/4, 179/4, 11]; integrator exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)
+// Error poles: -219/100, -137/50, -82/25, -383/100; K = [471137109/6250000, 52298449/500000, 536153/10000, 301/25]; integrator exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -126,10 +126,10 @@ struct CanonicalFunctions {
     const Scalar u_ = u(0);
     const Scalar y_ = y(0);
     const Scalar t0 = y_ * y_;
-    out(0) = y_ * Scalar(51.5) + t0 * u_ + u_;
-    out(1) = y_ * Scalar(78.75);
-    out(2) = y_ * Scalar(44.75);
-    out(3) = y_ * Scalar(11) + t0 * Scalar(0.5);
+    out(0) = Scalar(74.381937440000002) * y_ + t0 * u_ + u_;
+    out(1) = Scalar(103.596898) * y_;
+    out(2) = y_ * Scalar(53.615299999999998);
+    out(3) = t0 * Scalar(0.5) + Scalar(12.039999999999999) * y_;
   }
 
   /// zh' = A zh - K zh_n + c (the z-realisation right-hand side).
@@ -142,10 +142,10 @@ struct CanonicalFunctions {
     const Scalar zh2 = z(1);
     const Scalar zh3 = z(2);
     const Scalar zh4 = z(3);
-    out(0) = -(Scalar(52.5) * zh4) + c1;
-    out(1) = -(Scalar(79.75) * zh4) + zh1 + c2;
-    out(2) = -(Scalar(44.75) * zh4) + c3 + zh2;
-    out(3) = -(zh4 * Scalar(11)) + zh3 + c4;
+    out(0) = c1 - zh4 * Scalar(75.381937440000002);
+    out(1) = zh1 + c2 - zh4 * Scalar(104.596898);
+    out(2) = c3 - Scalar(53.615299999999998) * zh4 + zh2;
+    out(3) = -(Scalar(12.039999999999999) * zh4) + zh3 + c4;
   }
 
   /// b with c = l(u, y) + K (y - y0) = B b (B: the class's input map).
@@ -162,7 +162,7 @@ struct CanonicalFunctions {
 
 /// Canonical-form Luenberger observer, realised in z coordinates:
 ///   zh' = A zh + l(u, y) + K (y - y0 - zh_n),  xh = T^-1(zh)
-/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles -2, -5/2, -3, -7/2.
+/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles -219/100, -137/50, -82/25, -383/100.
 template <class Scalar_ = double>
 class Triangular4Canonical {
  public:
@@ -236,9 +236,9 @@ class Triangular4Canonical {
 #endif
   bool discretise(Scalar dt) noexcept {
     Eigen::Matrix<Scalar, n, n> A;
-    A << Scalar(0), Scalar(0), Scalar(0), Scalar(-52.5), Scalar(1), Scalar(0), Scalar(0), Scalar(-79.75), Scalar(0), Scalar(1), Scalar(0), Scalar(-44.75), Scalar(0), Scalar(0), Scalar(1), Scalar(-11);
+    A << Scalar(0), Scalar(0), Scalar(0), Scalar(-75.381937440000002), Scalar(1), Scalar(0), Scalar(0), Scalar(-104.596898), Scalar(0), Scalar(1), Scalar(0), Scalar(-53.615299999999998), Scalar(0), Scalar(0), Scalar(1), Scalar(-12.039999999999999);
     Eigen::Matrix<Scalar, n, 4> B;
-    B << Scalar(1), Scalar(1), Scalar(51.5), Scalar(0), Scalar(0), Scalar(0), Scalar(78.75), Scalar(0), Scalar(0), Scalar(0), Scalar(44.75), Scalar(0), Scalar(0), Scalar(0), Scalar(11), Scalar(0.5);
+    B << Scalar(1), Scalar(1), Scalar(74.381937440000002), Scalar(0), Scalar(0), Scalar(0), Scalar(103.596898), Scalar(0), Scalar(0), Scalar(0), Scalar(53.615299999999998), Scalar(0), Scalar(0), Scalar(0), Scalar(12.039999999999999), Scalar(0.5);
     return exact_.prepare(A, B, dt);
   }
 

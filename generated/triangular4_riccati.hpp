@@ -8,8 +8,8 @@
 //   g = [0, 0, 0, (x1^2+1)*u]
 //   h = [x1]
 // Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)
-// Q0 = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]] (default); N = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]] (default); R = [[1]] (default)
-// Integrator: RK4 of (m, Q) jointly with u, y held over a step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
+// Q0 = [[4, 0, 0, 0], [0, 4, 0, 0], [0, 0, 4, 0], [0, 0, 0, 4]] (default); N = [[133/25, 0, 0, 0], [0, 133/25, 0, 0], [0, 0, 133/25, 0], [0, 0, 0, 133/25]] (default); R = [[94/125]] (default)
+// Integrator: RK4 of (m, Q) jointly with u, y held over a step, in sub-steps no longer than the largest safe step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -94,16 +94,16 @@ struct RiccatiFunctions {
     out(1) = x2;
     out(2) = x3;
     out(3) = x4;
-    out(4) = Scalar(1);
+    out(4) = Scalar(4);
     out(5) = Scalar(0);
     out(6) = Scalar(0);
     out(7) = Scalar(0);
-    out(8) = Scalar(1);
+    out(8) = Scalar(4);
     out(9) = Scalar(0);
     out(10) = Scalar(0);
-    out(11) = Scalar(1);
+    out(11) = Scalar(4);
     out(12) = Scalar(0);
-    out(13) = Scalar(1);
+    out(13) = Scalar(4);
   }
 
   /// d/dt (m, Q): m' = f + g + G R^-2 (y - h), Q' = A Q + Q A^T - G R^-2 G^T + N N^T (upper triangle), G = Q Dh^T.
@@ -125,23 +125,27 @@ struct RiccatiFunctions {
     const Scalar x4 = w(3);
     const Scalar y_ = y(0);
     const Scalar t0 = x1 - y_;
-    const Scalar t1 = Scalar(1) - x3;
-    const Scalar t2 = -Scalar(1) + x1 * Scalar(2) * u_;
-    const Scalar t3 = x2 * Q_2_3;
-    out(0) = -(Q_1_1 * t0) + x2;
-    out(1) = -(Q_1_2 * t0) + x3;
-    out(2) = -x1 + Scalar(0.5) * (x2 * x2) - Q_1_3 * t0 + x1 * x3 + x4;
-    out(3) = (x1 * x1 + Scalar(1)) * u_ - x1 - t0 * Q_1_4 + x2 * x3;
-    out(4) = Scalar(1) - Q_1_1 * Q_1_1 + Q_1_2 * Scalar(2);
-    out(5) = Q_1_3 - Q_1_1 * Q_1_2 + Q_2_2;
-    out(6) = x1 * Q_1_3 - Q_1_1 * Q_1_3 - Q_1_1 * t1 + Q_1_2 * x2 + Q_2_3 + Q_1_4;
-    out(7) = Q_2_4 + Q_1_2 * x3 + Q_1_1 * t2 + Q_1_3 * x2 - Q_1_1 * Q_1_4;
-    out(8) = Scalar(1) + Q_2_3 * Scalar(2) - Q_1_2 * Q_1_2;
-    out(9) = -(Q_1_3 * Q_1_2) + Q_2_2 * x2 + Q_2_4 + Q_3_3 - t1 * Q_1_2 + x1 * Q_2_3;
-    out(10) = -(Q_1_2 * Q_1_4) + t3 + Q_2_2 * x3 + Q_3_4 + Q_1_2 * t2;
-    out(11) = Scalar(2) * (x1 * Q_3_3 + t3 + Q_3_4 - t1 * Q_1_3) - Q_1_3 * Q_1_3 + Scalar(1);
-    out(12) = x1 * Q_3_4 + Q_1_3 * t2 - Q_1_3 * Q_1_4 + x3 * Q_2_3 + Q_4_4 + Q_2_4 * x2 - t1 * Q_1_4 + x2 * Q_3_3;
-    out(13) = (Q_2_4 * x3 + x2 * Q_3_4 + t2 * Q_1_4) * Scalar(2) - Q_1_4 * Q_1_4 + Scalar(1);
+    const Scalar t1 = Q_1_1 * Scalar(1.7683340878225442);
+    const Scalar t2 = Q_1_2 * Scalar(1.7683340878225442);
+    const Scalar t3 = Q_1_3 * Scalar(1.7683340878225442);
+    const Scalar t4 = Q_1_4 * Scalar(1.7683340878225442);
+    const Scalar t5 = Scalar(1) - x3;
+    const Scalar t6 = -Scalar(1) + x1 * Scalar(2) * u_;
+    const Scalar t7 = x2 * Q_2_3;
+    out(0) = x2 - t0 * t1;
+    out(1) = -(t2 * t0) + x3;
+    out(2) = -x1 + Scalar(0.5) * (x2 * x2) + x1 * x3 - t0 * t3 + x4;
+    out(3) = -x1 + (x1 * x1 + Scalar(1)) * u_ + x2 * x3 - t4 * t0;
+    out(4) = Scalar(28.302399999999999) - Q_1_1 * t1 + Q_1_2 * Scalar(2);
+    out(5) = Q_1_3 - Q_1_2 * t1 + Q_2_2;
+    out(6) = x1 * Q_1_3 - Q_1_3 * t1 - Q_1_1 * t5 + Q_1_2 * x2 + Q_2_3 + Q_1_4;
+    out(7) = Q_2_4 + Q_1_2 * x3 + Q_1_1 * t6 + Q_1_3 * x2 - Q_1_4 * t1;
+    out(8) = -(t2 * Q_1_2) + Scalar(28.302399999999999) + Q_2_3 * Scalar(2);
+    out(9) = Q_2_2 * x2 + Q_2_4 + Q_3_3 - t5 * Q_1_2 - t2 * Q_1_3 + x1 * Q_2_3;
+    out(10) = t7 + Q_2_2 * x3 + Q_3_4 - t2 * Q_1_4 + Q_1_2 * t6;
+    out(11) = -(Q_1_3 * t3) + Scalar(2) * (x1 * Q_3_3 + t7 + Q_3_4 - t5 * Q_1_3) + Scalar(28.302399999999999);
+    out(12) = x1 * Q_3_4 + Q_1_3 * t6 - t3 * Q_1_4 + x3 * Q_2_3 + Q_4_4 + Q_2_4 * x2 - t5 * Q_1_4 + x2 * Q_3_3;
+    out(13) = (Q_2_4 * x3 + x2 * Q_3_4 + t6 * Q_1_4) * Scalar(2) + Scalar(28.302399999999999) - t4 * Q_1_4;
   }
 
   /// The estimate m: the first n entries of w.
@@ -192,11 +196,18 @@ class Triangular4Riccati {
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
     const ObserverState w_prev = w_;
     bool solved = true;
+    // dt in equal RK4 sub-steps of at most 0.174 (the largest safe step)
+    const Scalar ratio = dt / Scalar(0.17399999999999999);
+    const int steps = !(ratio > Scalar(1)) ? 1
+                      : ratio >= Scalar(4096) ? 4096
+                      : static_cast<int>(ratio) + (Scalar(static_cast<int>(ratio)) < ratio ? 1 : 0);
+    const Scalar h = dt / static_cast<Scalar>(steps);
+    for (int k = 0; k < steps; ++k)
     obsynth::rk4_step<Scalar, nw>(
         [&u, &y, &solved](const ObserverState& w, ObserverState& dw) noexcept {
           solved = total_rhs(w, u, y, dw) && solved;
         },
-        dt, w_);
+        h, w_);
     if (!solved) {
       w_ = w_prev;
       return status_ = obsynth::Status::singular;

@@ -10,7 +10,7 @@
 // Observer: canonical-form Luenberger observer (Krener-Isidori; seeds 001 §7, 003)
 // Realisation: z coordinates (T and T^-1 are closed-form: the z realisation integrates a linear system)
 // T^-1: closed form
-// Error poles: -2, -5/2; K = [5, 9/2]; integrator exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)
+// Error poles: -139/25, -139/20; K = [19321/500, 1251/100]; integrator exact zero-order-hold discretisation (Phi = e^{A_cl dt}, Gamma)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
 // returned as obsynth::Status. Recommended flags: -O2 -fno-math-errno.
@@ -103,8 +103,8 @@ struct CanonicalFunctions {
   static void step_constant(const Input& u, const Output& y, State& out) noexcept {
     const Scalar u_ = u(0);
     const Scalar y_ = y(0);
-    out(0) = Scalar(4) * y_ + u_;
-    out(1) = Scalar(5.5) * y_ - (y_ * y_ * y_) * Scalar(0.33333333333333331);
+    out(0) = Scalar(37.642000000000003) * y_ + u_;
+    out(1) = -((y_ * y_ * y_) * Scalar(0.33333333333333331)) + y_ * Scalar(13.51);
   }
 
   /// zh' = A zh - K zh_n + c (the z-realisation right-hand side).
@@ -113,14 +113,14 @@ struct CanonicalFunctions {
     const Scalar c2 = c(1);
     const Scalar zh1 = z(0);
     const Scalar zh2 = z(1);
-    out(0) = c1 - Scalar(5) * zh2;
-    out(1) = zh1 + c2 - zh2 * Scalar(4.5);
+    out(0) = c1 - Scalar(38.642000000000003) * zh2;
+    out(1) = zh1 + c2 - Scalar(12.51) * zh2;
   }
 };
 
 /// Canonical-form Luenberger observer, realised in z coordinates:
 ///   zh' = A zh + l(u, y) + K (y - y0 - zh_n),  xh = T^-1(zh)
-/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles -2, -5/2.
+/// The error z - zh obeys e' = (A - K e_n^T) e exactly: poles -139/25, -139/20.
 template <class Scalar_ = double>
 class VanderpolCanonical {
  public:
@@ -196,7 +196,7 @@ class VanderpolCanonical {
 #endif
   bool discretise(Scalar dt) noexcept {
     Eigen::Matrix<Scalar, n, n> A;
-    A << Scalar(0), Scalar(-5), Scalar(1), Scalar(-4.5);
+    A << Scalar(0), Scalar(-38.642000000000003), Scalar(1), Scalar(-12.51);
     return exact_.prepare(A, dt);
   }
 

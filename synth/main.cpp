@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <optional>
 
@@ -351,8 +352,30 @@ int list_methods() {
 // the worker has to be killed), then the diagnostic, exit 1: the report is partial. A
 // complete analysis also gets the design verdicts.
 // canonical_stop: a budget stopped a canonical-form stage in an earlier run; this one skips
-// those stages (with that reason) and reports everything else.
-int check_body(const CheckCommand& c, const std::string& canonical_stop) {
+// those stages (with that reason) and reports everything else, with that stage marked stopped
+// (the report is partial: "complete": false) and the design verdicts.
+struct CanonicalStop {
+  std::string stage, reason;
+  std::string text() const { return fmt::format("stage '{}' {}", stage, reason); }
+};
+
+// The rerun's stage list says what the first run found: that stage stopped, the canonical-form
+// stages after it did not run.
+void mark_canonical_stop(Analysis& a, const CanonicalStop& stop) {
+  bool after = false;
+  for (auto& o : a.stages) {
+    if (o.name == stop.stage) {
+      o.status = StageStatus::stopped;
+      o.reason = stop.reason;
+      after = true;
+    } else if (after && is_canonical_form_stage(o.name)) {
+      o.status = StageStatus::not_run;
+      o.reason = "an earlier stage was stopped";
+    }
+  }
+}
+
+int check_body(const CheckCommand& c, const std::optional<CanonicalStop>& canonical_stop) {
   {
     const Model m = load_bound_model(c.model, c.params);
     ReportOptions ro;
@@ -360,9 +383,9 @@ int check_body(const CheckCommand& c, const std::string& canonical_stop) {
     const ReportFormat format = report_format(c.format);
     AnalysisOptions ao = analysis_options(c.common);
     ao.keep_partial = true;
-    if (!canonical_stop.empty()) {
+    if (canonical_stop) {
       ao.canonical_form = false;
-      ao.canonical_skipped = canonical_stop;
+      ao.canonical_skipped = canonical_stop->text();
     }
     ao.checkpoint_reason = kStopReasonMarker;
     PrintCache printed;  // checkpoints and the final report print each expression once
@@ -370,22 +393,23 @@ int check_body(const CheckCommand& c, const std::string& canonical_stop) {
       PrintCache::Use use(printed);
       publish_checkpoint(render_report(partial, format, ro));
     };
-    const Analysis a = analyse(m, ao);
+    Analysis a = analyse(m, ao);
     publish_checkpoint("");
     if (const StageOutcome* s = a.stopped_stage();
-        s && canonical_stop.empty() && is_canonical_form_stage(s->name)) {
+        s && !canonical_stop && is_canonical_form_stage(s->name)) {
       // An in-process stop (expression size): the same fallback as the worker's time stop.
-      const std::string why = fmt::format("stage '{}' {}", s->name, s->reason);
+      const CanonicalStop stop{s->name, s->reason};
       std::fprintf(stderr, "obsynth: note: %s; the report goes on without the canonical form\n",
-                   why.c_str());
-      const int rerun = check_body(c, why);
+                   stop.text().c_str());
+      const int rerun = check_body(c, stop);
       if (rerun != 0) return rerun;
-      print_stop(s->name, s->reason);
+      print_stop(stop.stage, stop.reason);
       return 1;
     }
     publish_stage("report");
     PrintCache::Use use(printed);
-    const StageOutcome* stopped = a.stopped_stage();
+    const StageOutcome* stopped = a.stopped_stage();  // before the rerun's marks: verdicts stay
+    if (canonical_stop) mark_canonical_stop(a, *canonical_stop);
     VerdictScope scope;
     scope.searches = c.certify;
     std::string text = stopped ? render_report(a, format, ro)
@@ -423,7 +447,7 @@ int check_body(const CheckCommand& c, const std::string& canonical_stop) {
 // then the diagnostic, exit 1 (the report is partial). Other stops end with the checkpoint.
 int run_check(const CheckCommand& c) {
   std::optional<JobStop> stop;
-  const int code = guarded(c.common, [&] { return check_body(c, ""); }, &stop);
+  const int code = guarded(c.common, [&] { return check_body(c, std::nullopt); }, &stop);
   if (!stop) return code;
   if (!is_canonical_form_stage(stop->stage)) {
     std::fputs(stop->checkpoint.c_str(), stdout);
@@ -431,10 +455,10 @@ int run_check(const CheckCommand& c) {
     print_stop(stop->stage, stop->reason);
     return 1;
   }
-  const std::string why = fmt::format("stage '{}' {}", stop->stage, stop->reason);
+  const CanonicalStop canonical{stop->stage, stop->reason};
   std::fprintf(stderr, "obsynth: note: %s; the report goes on without the canonical form\n",
-               why.c_str());
-  const int rerun = guarded(c.common, [&] { return check_body(c, why); });
+               canonical.text().c_str());
+  const int rerun = guarded(c.common, [&] { return check_body(c, canonical); });
   if (rerun != 0) return rerun;
   print_stop(stop->stage, stop->reason);
   return 1;
@@ -521,13 +545,28 @@ bool asks_auto(const std::vector<std::string>& methods) {
   return methods.empty() || std::find(methods.begin(), methods.end(), "auto") != methods.end();
 }
 
-// "<method> design" or "<method> trial" (synthesize's stage names for one design's build and
-// auto's closed-loop trial of it) -> method, else "".
+// synthesize's stage names for one design: "<method> verdict" (its certificate, for auto's
+// ranking), "<method> design" (its build) and "<method> trial" (auto's closed-loop trial).
+const std::pair<const char*, const char*> kDesignStages[] = {
+    {" verdict", "its verdict stopped: "},
+    {" design", "it applies, but its build stopped: "},
+    {" trial", "it applies, but its closed-loop trial stopped: "}};
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() > suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+// "<method> verdict|design|trial" -> method, else "".
 std::string design_of_stage(const std::string& stage) {
-  for (const std::string suffix : {" design", " trial"})
-    if (stage.size() > suffix.size() &&
-        stage.compare(stage.size() - suffix.size(), suffix.size(), suffix) == 0)
-      return stage.substr(0, stage.size() - suffix.size());
+  for (const auto& [suffix, clause] : kDesignStages)
+    if (ends_with(stage, suffix)) return stage.substr(0, stage.size() - std::strlen(suffix));
+  return "";
+}
+
+// The reason auto gives for passing over the design whose stage a budget stopped.
+std::string stop_clause(const std::string& stage) {
+  for (const auto& [suffix, clause] : kDesignStages)
+    if (ends_with(stage, suffix)) return clause;
   return "";
 }
 
@@ -558,8 +597,7 @@ int run_main_job(const MainJob& c) {
     } else if (asks_auto(methods) && !design.empty() &&
                excluded.size() < design_registry().size()) {
       std::fprintf(stderr, "obsynth: note: %s; auto tries the next design\n", why.c_str());
-      const bool trial = stop->stage.size() > 6 && stop->stage.rfind(" trial") == stop->stage.size() - 6;
-      excluded.push_back({design, (trial ? "its closed-loop trial stopped: " : "its build stopped: ") + why});
+      excluded.push_back({design, stop_clause(stop->stage) + why});
     } else {
       std::fputs(stop->checkpoint.c_str(), stdout);
       std::fflush(stdout);

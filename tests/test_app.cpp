@@ -107,25 +107,28 @@ TEST(Synthesize, AllIsEveryDesignThatApplies) {
     EXPECT_TRUE(has(s, m)) << m;
   // Lorenz, y = x1: no canonical form, not in seed 002's form in x (row 2 depends on x3); in
   // z = (h, L_f h, L_f^2 h) phi_3 has the denominator z1 = x1, zero inside the box, so
-  // kalman-theta's Theorem (phi Lipschitz) does not apply; uniformly observable for the
-  // high-gain design (det O = -100 x1 not identically 0).
+  // kalman-theta's Theorem (phi Lipschitz) does not apply; uniformly observable (det O = -100 x1
+  // not identically 0), but for the same reason high-gain's certificate has no finite Lipschitz
+  // constant: theta* is infinite and the design withdraws (issue 17: never "applies" useless).
   const auto l = resolve_methods(analysed("lorenz"), {"all"}, why);
   EXPECT_FALSE(has(l, "canonical"));
   EXPECT_FALSE(has(l, "kalman-theta"));
-  EXPECT_TRUE(has(l, "high-gain"));
+  EXPECT_FALSE(has(l, "high-gain"));
   EXPECT_TRUE(has(l, "riccati"));
   EXPECT_TRUE(resolve_methods(analysed("stuart_landau"), {"all"}, why).empty());
 }
 
-// Rayleigh has no canonical form: auto takes the first design of the registry that applies
-// (high-gain: uniformly observable) and says why the earlier ones did not. Stuart-Landau
+// Rayleigh has no canonical form: auto takes the design with the strongest guarantee (kou: its
+// condition (9) proved in Arb balls over the domain) and says why the others did not, or rank
+// below it. Stuart-Landau
 // (y = x1^2 + x2^2) is unobservable for every input: no design applies, and the message gives
 // every registered design's reason.
 TEST(Synthesize, AutoOnANonLinearizableModelListsEveryDesignsReason) {
   std::string why;
   EXPECT_EQ(resolve_methods(analysed("rayleigh"), {"auto"}, why),
-            (std::vector<std::string>{"high-gain"}));
-  EXPECT_NE(why.find("chose 'high-gain'"), std::string::npos) << why;
+            (std::vector<std::string>{"kou"}));
+  EXPECT_NE(why.find("chose 'kou' (guarantee rigorous"), std::string::npos) << why;
+  EXPECT_NE(why.find("ranked below it: "), std::string::npos) << why;
   EXPECT_NE(why.find("canonical: "), std::string::npos) << why;
   const Analysis a = analysed("stuart_landau");
   try {
@@ -144,13 +147,14 @@ TEST(Synthesize, AutoOnANonLinearizableModelListsEveryDesignsReason) {
 TEST(Synthesize, AutoPassesOverADesignWhoseBuildStopped) {
   const Analysis a = analysed("rayleigh");
   std::string why;
-  const std::vector<ExcludedDesign> excluded = {{"high-gain", "stopped: stage 'x' test"}};
+  const std::vector<ExcludedDesign> excluded = {
+      {"kou", "it applies, but its build stopped: stage 'x' test"}};
   std::string choice;
   const auto m = resolve_methods(a, {"auto"}, why, excluded, &choice);
   ASSERT_EQ(m.size(), 1u);
-  EXPECT_NE(m[0], "high-gain");
+  EXPECT_NE(m[0], "kou");
   EXPECT_EQ(choice, m[0]);
-  EXPECT_NE(why.find("high-gain: it applies, but its build stopped: stage 'x' test"),
+  EXPECT_NE(why.find("kou: it applies, but its build stopped: stage 'x' test"),
             std::string::npos)
       << why;
   SynthesisOptions so;
@@ -159,7 +163,7 @@ TEST(Synthesize, AutoPassesOverADesignWhoseBuildStopped) {
   EXPECT_EQ(s.chosen, m);
   bool report = false;
   for (const auto& f : s.files) {
-    EXPECT_EQ(f.name.find("high-gain"), std::string::npos) << f.name;
+    EXPECT_EQ(f.name.find("_kou."), std::string::npos) << f.name;
     if (f.name == "rayleigh_report.md")
       report = f.content.find("but its build stopped: stage 'x' test") != std::string::npos;
   }

@@ -405,7 +405,7 @@ TEST(Simulate, PlantParamErrors) {
 
 // auto's closed-loop trial (app/trial.hpp): the canonical observer of seed 003's example
 // converges from 20 % errors (its error decays at the poles' rate; over 300 time constants it is
-// at rounding level), and the trial says so; the same observer with its closed loop negated
+// at rounding level), and the trial says so; the same observer with its right-hand side negated
 // (poles mirrored into the right half plane, unstable by construction) leaves the box, and the
 // trial fails it. Both are deterministic.
 TEST(Trial, PassesAConvergingObserverAndFailsAnUnstableOne) {
@@ -415,10 +415,14 @@ TEST(Trial, PassesAConvergingObserverAndFailsAnUnstableOne) {
   EXPECT_EQ(pass.verdict, TrialVerdict::passed) << pass.setup << ": " << pass.text;
   EXPECT_NE(pass.setup.find("sampled"), std::string::npos) << pass.setup;
   EXPECT_EQ(closed_loop_trial(a, good).text, pass.text);
-  ObserverSpec bad = good;
-  ASSERT_FALSE(bad.closed_loop.empty());
-  for (auto& row : bad.closed_loop)
-    for (auto& v : row) v = -v;
+  ObserverSpec bad = good;  // w' = -(A_cl w + c): the poles mirrored
+  bool negated = false;
+  for (auto& f : bad.functions)
+    if (f.name == bad.roles.rhs) {
+      for (auto& e : f.outputs) e = -e;
+      negated = true;
+    }
+  ASSERT_TRUE(negated);
   const TrialOutcome fail = closed_loop_trial(a, bad);
   EXPECT_EQ(fail.verdict, TrialVerdict::failed) << fail.text;
   EXPECT_FALSE(fail.text.empty());

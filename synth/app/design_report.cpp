@@ -29,6 +29,10 @@ nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScop
                               fmt::join(only, ","))));
       continue;
     }
+    if (const auto it = scope.passed_over.find(d.name); it != scope.passed_over.end()) {
+      j.push_back(not_evaluated(d.name, it->second));
+      continue;
+    }
     if (d.verdict_searches && !scope.searches) {
       j.push_back(not_evaluated(
           d.name, fmt::format("its verdict is a certificate search or a symbolic construction "

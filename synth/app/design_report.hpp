@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,9 @@ struct GeneratedObserver {
 struct VerdictScope {
   std::vector<std::string> only;  // empty: every design; else these methods only
   bool searches = true;           // run the verdicts that are certificate searches
+  // Designs whose verdict a budget stopped in this run (auto passed over them): reported as not
+  // evaluated, with the reason, instead of running out of the budget again.
+  std::map<std::string, std::string> passed_over;
 };
 
 nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScope& scope = {});

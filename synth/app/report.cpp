@@ -502,7 +502,14 @@ ordered_json report_json(const Analysis& a, const ReportOptions& opt) {
       nom[m.inputs[i].get_name()] = to_string(i < m.nominal.size() ? m.nominal[i] : 0);
     j["nominal_input"] = {{"values", nom}, {"note", m.nominal_note}};
   }
-  if (m.feedthrough()) j["feedthrough"] = true;
+  // y depends on u: either not separably (feedthrough()), or as h0(x) + k(u), whose k(u) every
+  // design subtracts (output_offset, the analysis observes y - k(u) = h0(x)).
+  if (m.feedthrough() || !m.output_offset.empty()) j["feedthrough"] = true;
+  if (!m.output_offset.empty()) {
+    ordered_json k = ordered_json::array();
+    for (const auto& e : m.output_offset) k.push_back(to_string(e));
+    j["output_offset"] = k;
+  }
   add_canonical_json(a, j);
   ordered_json t = ordered_json::object();
   for (const auto& [stage, ms] : a.timings_ms) t[stage] = opt.timings ? ms : 0.0;

@@ -99,9 +99,12 @@ std::string choose_auto(const Analysis& a, std::string& explanation,
     const auto skip = std::find_if(excluded.begin(), excluded.end(),
                                    [&](const ExcludedDesign& e) { return e.method == d.name; });
     if (skip != excluded.end()) {
-      rejected.push_back(fmt::format("{}: it applies, but {}", d.name, skip->reason));
+      rejected.push_back(fmt::format("{}: {}", d.name, skip->reason));
       continue;
     }
+    // Its own stage: a budget stop in one design's certificate search passes over that design
+    // (main.cpp), as a stop in its build does.
+    publish_stage(d.name + " verdict");
     Verdict v = design_verdict(d, a);
     if (v.applies)
       applying.push_back({&d, std::move(v), i});
@@ -285,7 +288,7 @@ class TrialChoice {
     std::fprintf(stderr,
                  "obsynth: note: auto chose '%s', but its %s; auto tries the next design\n",
                  method.c_str(), found.c_str());
-    excluded_.push_back({method, "its " + found});
+    excluded_.push_back({method, "it applies, but its " + found});
     attempt.explanation += "; its " + found;
     std::optional<TrialFallback>& keep = trial.verdict == TrialVerdict::slow ? slow_ : failed_;
     if (!keep) {
@@ -346,7 +349,8 @@ BuiltSpecs build_chosen(const Analysis& a, const SynthesisOptions& opt,
         specs.emplace_back(method, build_design(a, method, opt.design));
       } catch (const BudgetExceeded& e) {
         if (method != auto_choice) throw;
-        why = fmt::format("its build stopped: stage '{}' {}", e.stage(), e.reason());
+        why = fmt::format("it applies, but its build stopped: stage '{}' {}", e.stage(),
+                          e.reason());
       }
       if (!why.empty()) {
         failed = method;
@@ -363,7 +367,7 @@ BuiltSpecs build_chosen(const Analysis& a, const SynthesisOptions& opt,
       continue;
     }
     std::fprintf(stderr, "obsynth: note: auto chose '%s', but %s; auto tries the next design\n",
-                 failed.c_str(), why.c_str());
+                 failed.c_str(), why.substr(std::string("it applies, but ").size()).c_str());
     excluded.push_back({failed, why});
   }
 }
@@ -438,6 +442,8 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
       auto_asked || std::find(opt.methods.begin(), opt.methods.end(), "all") != opt.methods.end();
   VerdictScope scope;
   if (!every) scope.only = s.chosen;
+  for (const auto& e : excluded)
+    if (e.reason.rfind("its verdict stopped", 0) == 0) scope.passed_over[e.method] = e.reason;
   publish_stage("report");
   const auto verdicts = design_verdicts_json(a, scope);
   std::string md;

@@ -13,8 +13,8 @@
 
 namespace obsynth {
 
-// Designs auto passes over, with the reason (a budget stopped their build, or their
-// closed-loop trial failed): "it applies, but <reason>".
+// Designs auto passes over, with the reason, a clause that follows "<method>: " (a budget
+// stopped their verdict or build, or their closed-loop trial failed).
 struct ExcludedDesign {
   std::string method, reason;
 };

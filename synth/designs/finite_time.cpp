@@ -368,7 +368,9 @@ Choices choose(const Analysis& a, const DesignOptions& o) {
   choose_grid(o, m, c);
   choose_levels(o, m, c);
   choose_kernel(o, c);
-  c.slope = m.m() > 0 && c.levels > 1 &&
+  // The correction reads the window's inputs and interpolates like q: only with the
+  // window-interpolate rule.
+  c.slope = m.m() > 0 && c.levels > 1 && c.window_mean && c.interpolate &&
             choice_option(o, "input-slope", {"correct", "ignore"}).value_or("correct") == "correct";
   return c;
 }
@@ -981,7 +983,7 @@ void set_guarantee(Verdict& v, const Choices& c, const Tables& t) {
   }
 }
 
-// The default design's guarantee per model, recorded by a build without options: applies() stays
+// The guarantee of the tables built in this run, per model (recorded by build()): applies() stays
 // cheap (the main job's report asks every design's verdict; the search takes seconds) and
 // carries the guarantee once the tables exist.
 std::map<std::string, std::pair<Guarantee, std::string>>& guarantee_memo() {
@@ -1220,7 +1222,8 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Tables t = design_tables(m, c);
   Verdict g;
   set_guarantee(g, c, t);
-  if (o.values.empty()) guarantee_memo()[model_key(m)] = {g.guarantee, g.guarantee_text};
+  // The verdict of this run carries the guarantee of the tables it built (defaults or not).
+  guarantee_memo()[model_key(m)] = {g.guarantee, g.guarantee_text};
   const std::size_t pz = c.lambda.size();
 
   ObserverSpec s;

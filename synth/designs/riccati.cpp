@@ -433,8 +433,8 @@ Verdict applies(const Analysis& a) {
         r, n, a.under_inputs.generic_rank));
     v.guarantee = Guarantee::none;
     v.guarantee_text =
-        "neither Theorem 2.1 nor Corollary 2.1 applies: the drift is not observable and the "
-        "inputs that make the model observable are not known in advance";
+        "neither Theorem 2.1 nor Corollary 2.1 applies: the drift alone does not observe the "
+        "state, and the inputs that do are not known in advance";
     return v;
   }
   if (r < n) {

@@ -62,17 +62,18 @@ check "non-separable feedthrough: canonical says why" grep -q "direct feedthroug
 "$bin" "$models/feedthrough_nonseparable.sym" -o "$tmp/fn3" --method finite-time >"$tmp/out" 2>"$tmp/err"
 check "non-separable feedthrough: finite-time exits 1, no crash" test $? -eq 1
 
-# 2. A stall in a canonical-form stage costs only those stages: the cart-pole's frame does not
-#    finish, the main job still writes an observer (riccati) within the total budget, and check
-#    still prints the verdicts of the designs that do not need the canonical form.
+# 2. A stop in a canonical-form stage costs only those stages: a canonical budget of 0.2 s stops
+#    the cart-pole's frame (about 1.5 s here; it stalled for a minute before the work-counted
+#    rank), the main job still writes an observer within the total budget, and check still
+#    prints the verdicts of the designs that do not need the canonical form.
 start=$(date +%s)
-"$bin" "$models/cartpole_position.sym" -o "$tmp/cp" --canonical-seconds 3 >"$tmp/out" 2>"$tmp/err"
+"$bin" "$models/cartpole_position.sym" -o "$tmp/cp" --canonical-seconds 0.2 >"$tmp/out" 2>"$tmp/err"
 code=$?
 check "cart-pole: the main job exits 0 after the frame's stop" test $code -eq 0
-check "cart-pole: a note names the stopped stage" grep -q "stage 'frame' exceeded its time budget of 3 s" "$tmp/err"
+check "cart-pole: a note names the stopped stage" grep -q "stage 'frame' exceeded its time budget of 0.2 s" "$tmp/err"
 check "cart-pole: an observer is written" sh -c "ls '$tmp/cp' | grep -q 'cartpole_position_.*\.hpp'"
 check "cart-pole: within the total budget" test $(($(date +%s) - start)) -le 60
-"$bin" check "$models/cartpole_position.sym" --canonical-seconds 3 --no-timings >"$tmp/out" 2>"$tmp/err"
+"$bin" check "$models/cartpole_position.sym" --canonical-seconds 0.2 --no-timings >"$tmp/out" 2>"$tmp/err"
 check "cart-pole check: exit 1 (the report is partial)" test $? -eq 1
 check "cart-pole check: high-gain's verdict is printed" grep -Eq "high-gain +(applies|does not apply)" "$tmp/out"
 check "cart-pole check: the diagnostic names the stage" grep -q "error: stage 'frame'" "$tmp/err"
