@@ -149,11 +149,9 @@ bool check_structure(Scalar c0, Scalar c1) noexcept {
   State col1;
   F::z_rhs(State(lit(1), lit(0)), zero, col0);
   F::z_rhs(State(lit(0), lit(1)), zero, col1);
-  const bool companion = col0(0) == lit(0) && col0(1) == lit(1) && col1(0) == -c0 &&
-                         col1(1) == -c1;
-  std::printf("generated Acl = [[%g, %g], [%g, %g]] (expected [[0, %g], [1, %g]]) %s\n",
-              d(col0(0)), d(col1(0)), d(col0(1)), d(col1(1)), d(-c0), d(-c1),
-              companion ? "ok" : "FAIL");
+  const bool companion = col0(0) == lit(0) && col0(1) == lit(1) && col1(0) == -c0 && col1(1) == -c1;
+  std::printf("generated Acl = [[%g, %g], [%g, %g]] (expected [[0, %g], [1, %g]]) %s\n", d(col0(0)),
+              d(col1(0)), d(col0(1)), d(col1(1)), d(-c0), d(-c1), companion ? "ok" : "FAIL");
   ok = ok && companion;
   // step_constant(u, y) - l(u, y) = K y at a few (u, y); exact up to rounding of the sums.
   const Scalar samples[3][2] = {{lit(0.25), lit(-1.5)}, {lit(-0.75), lit(2)}, {lit(1), lit(0.5)}};
@@ -169,8 +167,8 @@ bool check_structure(Scalar c0, Scalar c1) noexcept {
     const State k_y = c - l;
     const Scalar tol = lit(1e-5) * (lit(1) + obsynth::inf_norm(c));
     if (!(std::abs(k_y(0) - c0 * s[1]) <= tol && std::abs(k_y(1) - c1 * s[1]) <= tol)) {
-      std::printf("FAIL: step_constant - l = (%g, %g) != K y = (%g, %g) at u=%g y=%g\n",
-                  d(k_y(0)), d(k_y(1)), d(c0 * s[1]), d(c1 * s[1]), d(s[0]), d(s[1]));
+      std::printf("FAIL: step_constant - l = (%g, %g) != K y = (%g, %g) at u=%g y=%g\n", d(k_y(0)),
+                  d(k_y(1)), d(c0 * s[1]), d(c1 * s[1]), d(s[0]), d(s[1]));
       ok = false;
     }
   }
@@ -204,8 +202,9 @@ int main() {
     ok = false;
   }
 
-  std::printf("#    t             x1            x2            xh1           xh2           dev"
-              "           |e_z|         |e_pred|\n");
+  std::printf(
+      "#    t             x1            x2            xh1           xh2           dev"
+      "           |e_z|         |e_pred|\n");
   std::uint32_t hash = 2166136261u;
   Scalar max_dev = Scalar(0);
   Scalar max_dev_t = Scalar(0);
@@ -228,8 +227,7 @@ int main() {
     if (k % print_every == 0) {
       const State& xh = obs.estimate();
       std::printf("traj %.6e %.6e %.6e %.6e %.6e %.6e %.6e %.6e\n", d(t), d(x(0)), d(x(1)),
-                  d(xh(0)), d(xh(1)), d(dev), d(obsynth::inf_norm(ez)),
-                  d(obsynth::inf_norm(ep)));
+                  d(xh(0)), d(xh(1)), d(dev), d(obsynth::inf_norm(ez)), d(obsynth::inf_norm(ep)));
     }
     if (k == steps) break;
 
@@ -271,12 +269,12 @@ int main() {
   }
   std::printf("|e_z(0)|_inf = %.3e, |e_z(5)|_inf = %.3e, |e_pred(5)|_inf = %.3e\n",
               d(obsynth::inf_norm(e0)), d(obsynth::inf_norm(e_end)),
-              d(obsynth::inf_norm(predicted_error(c0, c1, pole1, pole2,
-                                                  static_cast<Scalar>(steps) * dt, e0))));
-  std::printf("max |e - e_pred|_inf = %.3e = %.1f dt at t=%.3f (bound %.3e), "
-              "final |x - xh|_inf = %.3e (bound %.3e)\n",
-              d(max_dev), d(max_dev / dt), d(max_dev_t), d(dev_bound), d(final_err),
-              d(final_bound));
+              d(obsynth::inf_norm(
+                  predicted_error(c0, c1, pole1, pole2, static_cast<Scalar>(steps) * dt, e0))));
+  std::printf(
+      "max |e - e_pred|_inf = %.3e = %.1f dt at t=%.3f (bound %.3e), "
+      "final |x - xh|_inf = %.3e (bound %.3e)\n",
+      d(max_dev), d(max_dev / dt), d(max_dev_t), d(dev_bound), d(final_err), d(final_bound));
   std::printf("hash %08lx (FNV-1a of x, zh and xh at every step)\n",
               static_cast<unsigned long>(hash));
   if (obsynth_embedded::kStackProbeAvailable) {

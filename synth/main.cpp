@@ -163,12 +163,11 @@ int guarded(const CommonOptions& c, const std::function<int()>& job,
   if (!stopped) return run_watched(body, limits);
   const WorkerResult r = run_in_worker(body, limits);
   if (r.stop != WorkerStop::none) {
-    const std::string reason = r.stop == WorkerStop::time
-                                   ? stage_time_budget_reason(r.stage, c.stage_seconds,
-                                                              c.canonical_seconds)
-                               : r.stop == WorkerStop::total_time
-                                   ? total_time_budget_reason(c.total_seconds)
-                                   : memory_budget_reason(c.max_memory_bytes);
+    const std::string reason =
+        r.stop == WorkerStop::time
+            ? stage_time_budget_reason(r.stage, c.stage_seconds, c.canonical_seconds)
+        : r.stop == WorkerStop::total_time ? total_time_budget_reason(c.total_seconds)
+                                           : memory_budget_reason(c.max_memory_bytes);
     const std::string checkpoint = fill_checkpoint(r.checkpoint, reason);
     if (stopped && r.stop != WorkerStop::total_time) {  // the total budget admits no rerun
       *stopped = JobStop{r.stage, reason, checkpoint};  // the caller prints it, or reruns
@@ -447,7 +446,8 @@ int check_body(const CheckCommand& c, const std::optional<CanonicalStop>& canoni
 // then the diagnostic, exit 1 (the report is partial). Other stops end with the checkpoint.
 int run_check(const CheckCommand& c) {
   std::optional<JobStop> stop;
-  const int code = guarded(c.common, [&] { return check_body(c, std::nullopt); }, &stop);
+  const int code = guarded(
+      c.common, [&] { return check_body(c, std::nullopt); }, &stop);
   if (!stop) return code;
   if (!is_canonical_form_stage(stop->stage)) {
     std::fputs(stop->checkpoint.c_str(), stdout);
@@ -553,7 +553,8 @@ const std::pair<const char*, const char*> kDesignStages[] = {
     {" trial", "it applies, but its closed-loop trial stopped: "}};
 
 bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() > suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+  return s.size() > suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
 // "<method> verdict|design|trial" -> method, else "".

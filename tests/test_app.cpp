@@ -154,8 +154,7 @@ TEST(Synthesize, AutoPassesOverADesignWhoseBuildStopped) {
   ASSERT_EQ(m.size(), 1u);
   EXPECT_NE(m[0], "kou");
   EXPECT_EQ(choice, m[0]);
-  EXPECT_NE(why.find("kou: it applies, but its build stopped: stage 'x' test"),
-            std::string::npos)
+  EXPECT_NE(why.find("kou: it applies, but its build stopped: stage 'x' test"), std::string::npos)
       << why;
   SynthesisOptions so;
   so.auto_excluded = excluded;

@@ -170,7 +170,6 @@ void run_stages(const Model& m, const AnalysisOptions& opt, Budget& budget, Anal
     analyse_canonical(m, a.observability, budget, opt.canonical, &a.canonical);
 }
 
-
 // y = h(x, u) with h(x, u) - h(x, u0) free of x: h0 = h(x, u0), k(u) = h(x, u) - h0 (a battery's
 // terminal voltage OCV(soc) - v1 - R0 i). Every design then observes y - k(u) = h0(x).
 Model split_output_offset(const Model& m) {

@@ -25,7 +25,7 @@ bool is_canonical_form_stage(const std::string& stage);
 constexpr double kCanonicalStageSeconds = 15.0;
 
 struct BudgetLimits {
-  double stage_seconds = 60.0;                // per stage
+  double stage_seconds = 60.0;  // per stage
   // Each canonical-form stage: min(this, stage_seconds).
   double canonical_stage_seconds = kCanonicalStageSeconds;
   std::size_t max_expression_size = 2000000;  // nodes in one stored expression

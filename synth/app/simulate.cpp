@@ -13,6 +13,7 @@
 
 #include "app/svg_plot.hpp"
 #include "app/synthesize.hpp"
+#include "certify/sampling.hpp"
 #include "designs/registry.hpp"
 #include "emit/dag.hpp"
 #include "front/parse.hpp"
@@ -143,14 +144,9 @@ bool finite(const Vec& v) {
   return true;
 }
 
-// The radical-inverse (Halton) point i in base b, in [0, 1).
+// The Halton point i in base b, counted from 1 (0 is the box's corner), in (0, 1).
 double halton_point(std::size_t i, unsigned base) {
-  double f = 1, r = 0;
-  for (std::size_t k = i + 1; k > 0; k /= base) {
-    f /= base;
-    r += f * static_cast<double>(k % base);
-  }
-  return r;
+  return radical_inverse(i + 1, base);
 }
 
 // The spec's functions as numeric maps: inputs are the arguments' symbols in order; the

@@ -285,8 +285,7 @@ class TrialChoice {
           trial.verdict == TrialVerdict::inconclusive ? " (inconclusive about the observer)" : "");
       return true;
     }
-    std::fprintf(stderr,
-                 "obsynth: note: auto chose '%s', but its %s; auto tries the next design\n",
+    std::fprintf(stderr, "obsynth: note: auto chose '%s', but its %s; auto tries the next design\n",
                  method.c_str(), found.c_str());
     excluded_.push_back({method, "it applies, but its " + found});
     attempt.explanation += "; its " + found;
@@ -349,8 +348,8 @@ BuiltSpecs build_chosen(const Analysis& a, const SynthesisOptions& opt,
         specs.emplace_back(method, build_design(a, method, opt.design));
       } catch (const BudgetExceeded& e) {
         if (method != auto_choice) throw;
-        why = fmt::format("it applies, but its build stopped: stage '{}' {}", e.stage(),
-                          e.reason());
+        why =
+            fmt::format("it applies, but its build stopped: stage '{}' {}", e.stage(), e.reason());
       }
       if (!why.empty()) {
         failed = method;
@@ -410,12 +409,11 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   publish_stage("verdicts");
   std::vector<ExcludedDesign> excluded = opt.auto_excluded;
   std::vector<std::string> trial_warnings;
-  const BuiltSpecs specs =
-      build_chosen(a, opt, excluded, s.chosen, s.explanation, trial_warnings);
+  const BuiltSpecs specs = build_chosen(a, opt, excluded, s.chosen, s.explanation, trial_warnings);
   s.warnings = guarantee_warnings(a, s.chosen);
   s.warnings.insert(s.warnings.end(), trial_warnings.begin(), trial_warnings.end());
-  for (const auto& spec : specs) s.warnings.insert(s.warnings.end(), spec.second.warnings.begin(),
-                                                   spec.second.warnings.end());
+  for (const auto& spec : specs)
+    s.warnings.insert(s.warnings.end(), spec.second.warnings.begin(), spec.second.warnings.end());
   std::vector<GeneratedObserver> generated;
   for (const auto& [method, spec] : specs) {
     const bool c = opt.emit.language == Language::c;

@@ -38,8 +38,9 @@ struct Synthesis {
 };
 
 // The methods to build: `auto` resolved through the registry (of the designs that apply, the one
-// with the strongest guarantee, then the cheapest: registry order; passing over `excluded`), names checked. `explanation` says why auto chose
-// what it chose; `auto_choice`, when given, receives that choice.
+// with the strongest guarantee, then the cheapest: registry order; passing over `excluded`), names
+// checked. `explanation` says why auto chose what it chose; `auto_choice`, when given, receives
+// that choice.
 std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<std::string>& asked,
                                          std::string& explanation,
                                          const std::vector<ExcludedDesign>& excluded = {},

@@ -118,8 +118,7 @@ double box_error(const std::vector<double>& x, const std::vector<double>& xh, co
 
 bool outside(const std::vector<double>& x, const Box& box, double slack) {
   for (std::size_t i = 0; i < x.size(); ++i)
-    if (x[i] < box.lo[i] - slack * box.width[i] ||
-        x[i] > box.lo[i] + (1 + slack) * box.width[i])
+    if (x[i] < box.lo[i] - slack * box.width[i] || x[i] > box.lo[i] + (1 + slack) * box.width[i])
       return true;
   return false;
 }
@@ -133,9 +132,9 @@ RunJudgement judge(const SimulationResult& r, const Box& box, double t_end) {
     }
   for (std::size_t k = 0; k < valid; ++k)
     if (outside(r.xh[k], box, kEstimateSlack))
-      return {TrialVerdict::failed, 0,
-              fmt::format("the estimate left the box by more than two widths at t = {:.3g}",
-                          r.t[k])};
+      return {
+          TrialVerdict::failed, 0,
+          fmt::format("the estimate left the box by more than two widths at t = {:.3g}", r.t[k])};
   const bool plant_ok = valid == r.t.size();
   if (plant_ok && !r.diverged.empty() && r.diverged.find("the plant") == std::string::npos)
     return {TrialVerdict::failed, 0, r.diverged.substr(r.diverged.find(':') + 2)};
@@ -149,15 +148,15 @@ RunJudgement judge(const SimulationResult& r, const Box& box, double t_end) {
     return {TrialVerdict::passed, final_error, ""};
   if (final_error < kInitialError)
     return {plant_ok ? TrialVerdict::slow : TrialVerdict::inconclusive, final_error,
-            plant_ok ? fmt::format("its error fell, but only to {:.3g} % of the box",
-                                   100 * final_error)
-                     : fmt::format("the plant left the box at t = {:.3g}", r.t[valid])};
+            plant_ok
+                ? fmt::format("its error fell, but only to {:.3g} % of the box", 100 * final_error)
+                : fmt::format("the plant left the box at t = {:.3g}", r.t[valid])};
   if (!plant_ok || t_valid < (1 - kFinalWindow) * t_end)
     return {TrialVerdict::inconclusive, final_error,
             fmt::format("the plant left the box at t = {:.3g}", r.t[valid])};
-  return {TrialVerdict::failed, final_error,
-          fmt::format("its error did not fall ({:.3g} % of the box at the end)",
-                      100 * final_error)};
+  return {
+      TrialVerdict::failed, final_error,
+      fmt::format("its error did not fall ({:.3g} % of the box at the end)", 100 * final_error)};
 }
 
 SimulationResult run(const Analysis& a, const ObserverSpec& spec, SimulationOptions opt,
@@ -195,8 +194,10 @@ TrialOutcome closed_loop_trial(const Analysis& a, const ObserverSpec& spec) {
       100 * kInitialError, opt.u_text, opt.t_end, opt.dt);
   // The runs' verdicts combine worst first: failed, slow, inconclusive, passed.
   const auto severity = [](TrialVerdict v) {
-    return v == TrialVerdict::failed ? 3 : v == TrialVerdict::slow ? 2
-                                         : v == TrialVerdict::inconclusive ? 1 : 0;
+    return v == TrialVerdict::failed         ? 3
+           : v == TrialVerdict::slow         ? 2
+           : v == TrialVerdict::inconclusive ? 1
+                                             : 0;
   };
   double worst = 0;
   out.verdict = TrialVerdict::passed;

@@ -11,6 +11,7 @@
 #include <memory>
 #include <queue>
 
+#include "certify/sampling.hpp"
 #include "certify/tape.hpp"
 
 namespace obsynth::certify {
@@ -25,16 +26,6 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // ----- deterministic sample points -------------------------------------------------------
-
-double radical_inverse(std::size_t i, unsigned base) {
-  double f = 1, r = 0;
-  while (i > 0) {
-    f /= base;
-    r += f * static_cast<double>(i % base);
-    i /= base;
-  }
-  return r;
-}
 
 std::vector<std::vector<double>> sample_points(const Box& box, std::size_t n) {
   static const unsigned primes[] = {2,  3,  5,  7,  11, 13, 17, 19, 23, 29, 31, 37, 41,

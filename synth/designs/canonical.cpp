@@ -11,9 +11,9 @@
 #include "analysis/conditions.hpp"
 #include "designs/options.hpp"
 #include "front/fresh_names.hpp"
-#include "symbolic/zero_test.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
+#include "symbolic/zero_test.hpp"
 
 namespace obsynth {
 
@@ -144,7 +144,8 @@ double predicted_peaking(const std::vector<numeric>& poles, const std::vector<nu
     A(i, n - 1) -= K[static_cast<std::size_t>(i)].to_double();
   }
   Eigen::VectorXd s(n);
-  for (Eigen::Index i = 0; i < n; ++i) s(i) = range[static_cast<std::size_t>(i)] > 0 ? range[static_cast<std::size_t>(i)] : 1;
+  for (Eigen::Index i = 0; i < n; ++i)
+    s(i) = range[static_cast<std::size_t>(i)] > 0 ? range[static_cast<std::size_t>(i)] : 1;
   A = s.cwiseInverse().asDiagonal() * A * s.asDiagonal();
   double fast = 0, slow = HUGE_VAL;
   for (const auto& q : poles) {
@@ -180,8 +181,9 @@ std::string peaking_text(double peaking) {
       "{:.3g}: an initial error of 20 % of the box (in each z_i, scaled by its range over the "
       "box) grows to at most {:.3g} box widths before it decays (sampled ranges)",
       peaking, 0.2 * peaking);
-  return 0.2 * peaking > 1 ? base + "; the estimate leaves the domain box on the way: choose "
-                                    "slower or better-spread poles (--poles)"
+  return 0.2 * peaking > 1 ? base +
+                                 "; the estimate leaves the domain box on the way: choose "
+                                 "slower or better-spread poles (--poles)"
                            : base;
 }
 

@@ -11,6 +11,7 @@
 
 #include <Eigen/Dense>
 
+#include "certify/sampling.hpp"
 #include "designs/options.hpp"
 #include "emit/dag.hpp"
 #include "symbolic/expr_print.hpp"
@@ -136,7 +137,7 @@ struct Choices {
   std::size_t bound_samples = 300;
   bool whiten = true;
   bool nearest = true, window_mean = true, interpolate = true;
-  double rate = 0;                 // --input-rate: |u'| of the ramps the sampled bound covers
+  double rate = 0;  // --input-rate: |u'| of the ramps the sampled bound covers
   bool rate_given = false;
   // --input-slope correct: a second table per level, dq/du' (the map's sensitivity to a ramp of
   // the input over the window), applied with the slope the runtime fits to the window's inputs.
@@ -475,19 +476,15 @@ Eigen::VectorXd kernel_inverse(const Eigen::MatrixXd& table, const Eigen::Matrix
   return (grid.transpose() * w.matrix()) / w.sum();
 }
 
+// The Halton point i, counted from 1 (0 is the box's corner).
 double halton(std::size_t i, unsigned base) {
-  double f = 1, r = 0;
-  for (std::size_t k = i + 1; k > 0; k /= base) {
-    f /= base;
-    r += f * static_cast<double>(k % base);
-  }
-  return r;
+  return radical_inverse(i + 1, base);
 }
 
 struct Tables {
   std::vector<Eigen::MatrixXd> q;   // per level: N x pz
   std::vector<Eigen::MatrixXd> dq;  // per level, with the slope correction: dq/du' (N x pz)
-  Eigen::MatrixXd grid;            // N x n
+  Eigen::MatrixXd grid;             // N x n
   double eps = 0;
   double scale = 1;        // median sensitivity after whitening
   Eigen::MatrixXd metric;  // q is stored as metric * q (whitening / scale)
@@ -967,8 +964,7 @@ void set_guarantee(Verdict& v, const Choices& c, const Tables& t) {
       "states, u frozen{}), target {}, tables {} as float (budget {})",
       t.bound(), percent(t.relative_error), t.tested,
       ramp_rate(c) > 0 ? fmt::format(" or ramping at +-{:.3g}", ramp_rate(c)) : std::string(),
-      percent(c.target),
-      memory_text(o.entries * 4), memory_text(c.budget_bytes));
+      percent(c.target), memory_text(o.entries * 4), memory_text(c.budget_bytes));
   if (o.target_met && o.within_budget) {
     v.guarantee = Guarantee::partial;
     v.guarantee_text = "finite-time: target met (sampled, not a proof): " + measured;
@@ -1060,15 +1056,21 @@ std::vector<ConstTable> const_tables(const Choices& c, const Tables& t, double T
     gain.values.push_back(std::expm1(l * c.dt) / l);
     delay.values.push_back(std::exp(l * T));
   }
-  ConstTable map{"observation_map",
-                 {c.levels, N, pz},
-                 {},
-                 "q_k(x_i): [input level k][grid point i][filter j], by backward simulation"};
-  map.values.reserve(c.levels * N * pz);
-  for (std::size_t k = 0; k < c.levels; ++k)
-    for (std::size_t i = 0; i < N; ++i)
-      for (std::size_t j = 0; j < pz; ++j)
-        map.values.push_back(t.q[k](static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
+  // One table per input level, [level k][grid point i][filter j].
+  const auto per_level = [&](const char* name, const std::vector<Eigen::MatrixXd>& tables,
+                             const char* doc) {
+    ConstTable table{name, {c.levels, N, pz}, {}, doc};
+    table.values.reserve(c.levels * N * pz);
+    for (std::size_t k = 0; k < c.levels; ++k)
+      for (std::size_t i = 0; i < N; ++i)
+        for (std::size_t j = 0; j < pz; ++j)
+          table.values.push_back(
+              tables[k](static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
+    return table;
+  };
+  const ConstTable map =
+      per_level("observation_map", t.q,
+                "q_k(x_i): [input level k][grid point i][filter j], by backward simulation");
   ConstTable metric{"kernel_metric",
                     {pz, pz},
                     {},
@@ -1077,26 +1079,22 @@ std::vector<ConstTable> const_tables(const Choices& c, const Tables& t, double T
     for (std::size_t j = 0; j < pz; ++j)
       metric.values.push_back(t.metric(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
   if (!c.slope) return {decay, gain, delay, metric, map};
-  ConstTable slope{"observation_slope",
-                   {c.levels, N, pz},
-                   {},
-                   "dq_k/du'(x_i): the maps' sensitivity to the input's slope over the window"};
-  slope.values.reserve(c.levels * N * pz);
-  for (std::size_t k = 0; k < c.levels; ++k)
-    for (std::size_t i = 0; i < N; ++i)
-      for (std::size_t j = 0; j < pz; ++j)
-        slope.values.push_back(
-            t.dq[k](static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)));
-  return {decay, gain, delay, metric, map, slope};
+  return {decay,
+          gain,
+          delay,
+          metric,
+          map,
+          per_level("observation_slope", t.dq,
+                    "dq_k/du'(x_i): the maps' sensitivity to the input's slope over the window")};
 }
 
 // Title, description, class documentation and constants; bound is the sampled error bound.
 void describe_finite_time(ObserverSpec& s, const Choices& c, const Tables& t, double T,
                           double bound, const Verdict& g) {
   const std::size_t N = static_cast<std::size_t>(t.grid.rows());
-  const std::string covered =
-      ramp_rate(c) > 0 ? fmt::format("frozen or ramping at up to {:.3g}", ramp_rate(c))
-                       : std::string("frozen");
+  const std::string covered = ramp_rate(c) > 0
+                                  ? fmt::format("frozen or ramping at up to {:.3g}", ramp_rate(c))
+                                  : std::string("frozen");
   s.title = "Finite-time epsilon-T observer (Kreisselmeier-Engel filter bank, tabulated inverse)";
   s.description = {
       "Observer: finite-time epsilon-T observer (Garcia & Hernandez, seed 004, eq. 10, 15)",
@@ -1199,11 +1197,12 @@ void report_finite_time(ObserverSpec& s, const Model& m, const Choices& c, const
        fmt::format("{:.4g} = max |Q_k(q_u(x)) - x| over {} Halton states in the box and u "
                    "frozen at the levels ({:.3g}) and between them ({:.3g}){}",
                    bound, t.tested, t.level_error, t.between_error,
-                   ramp_rate(c) > 0 ? fmt::format(", and u ramping at +-{:.3g} over the window ({:.3g}); "
-                                            "faster inputs are not covered",
-                                            ramp_rate(c), t.ramp_error)
-                              : std::string("; a time-varying u adds to it (--input-rate covers "
-                                            "ramps)"))},
+                   ramp_rate(c) > 0
+                       ? fmt::format(", and u ramping at +-{:.3g} over the window ({:.3g}); "
+                                     "faster inputs are not covered",
+                                     ramp_rate(c), t.ramp_error)
+                       : std::string("; a time-varying u adds to it (--input-rate covers "
+                                     "ramps)"))},
   };
   for (const auto& note : c.notes) s.report.push_back({"default", note});
   s.summary = fmt::format(

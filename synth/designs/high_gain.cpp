@@ -709,8 +709,7 @@ void assess(const Analysis& a, Verdict& v) {
         "uniformly observable, but its certificate makes it useless here: theta* = {} ({} L = "
         "{}){}; no theta up to the cap {:g} is covered by the theorem",
         up6(cert.theta_star), cert.rigorous ? "rigorous" : "sampled", up6(cert.L),
-        cert.unbounded ? " (phi has no finite Lipschitz bound on the domain box)" : "",
-        kThetaCap)};
+        cert.unbounded ? " (phi has no finite Lipschitz bound on the domain box)" : "", kThetaCap)};
     return;
   }
   if (singular && singular->find("inside the domain box") != std::string::npos) {
@@ -720,9 +719,9 @@ void assess(const Analysis& a, Verdict& v) {
     return;
   }
   const numeric theta = automatic_theta(cert.theta_star);
-  const std::string claim = fmt::format("theta = {} > theta* = {} (L = {}, {})", to_string(theta),
-                                        up6(cert.theta_star), up6(cert.L),
-                                        cert.rigorous ? "Arb bound over the box" : "sampled");
+  const std::string claim =
+      fmt::format("theta = {} > theta* = {} (L = {}, {})", to_string(theta), up6(cert.theta_star),
+                  up6(cert.L), cert.rigorous ? "Arb bound over the box" : "sampled");
   if (singular) {
     v.guarantee = Guarantee::none;
     v.guarantee_text = claim + " gives zh -> z, but " + *singular;
@@ -763,8 +762,7 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   describe_hg(s, g, cert, c, where_singular);
   report_hg(s, st, g, cert, c, where_singular, o);
   if (!c.guaranteed)
-    s.warnings.push_back("the high-gain observer as built is " +
-                         convergence_text(g, cert, c));
+    s.warnings.push_back("the high-gain observer as built is " + convergence_text(g, cert, c));
   return s;
 }
 

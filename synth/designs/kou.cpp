@@ -755,7 +755,7 @@ Design kou_design() {
                {"kou-p", "Kou observer: P, n diagonal entries or n*n row-major", "searched"}};
   d.applies = applies;
   d.build = build;
-  d.verdict_searches = true;  // a search over gains with Arb bounds: seconds
+  d.verdict_searches = true;     // a search over gains with Arb bounds: seconds
   d.accepts_feedthrough = true;  // L (h(xh, u) - y), condition (9) over the input box too
   return d;
 }

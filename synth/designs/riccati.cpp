@@ -10,6 +10,7 @@
 
 #include "certify/enclosure.hpp"
 #include "certify/riccati_certificate.hpp"
+#include "certify/sampling.hpp"
 #include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
 #include "symbolic/expr_print.hpp"
@@ -235,12 +236,7 @@ Eigen::MatrixXd matrix_at(const GiNaC::matrix& M, const certify::Box& box,
 }
 
 double halton(std::size_t i, unsigned base) {
-  double f = 1, r = 0;
-  for (std::size_t k = i; k > 0; k /= base) {
-    f /= base;
-    r += f * static_cast<double>(k % base);
-  }
-  return r;
+  return radical_inverse(i, base);
 }
 
 std::vector<std::vector<double>> box_samples(const certify::Box& box) {

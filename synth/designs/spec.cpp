@@ -97,10 +97,9 @@ std::vector<GeneratedFunction> model_functions(const Model& m) {
   return {map_function("f", "Drift f(x).", {state_arg(m)}, m.f, "State"),
           map_function("g", "Input part g(x, u), zero at u = 0.", {state_arg(m), input_arg(m)}, m.g,
                        "State"),
-          m.feedthrough()
-              ? map_function("h", "Output map h(x, u) (direct feedthrough).",
-                             {state_arg(m), input_arg(m)}, m.h, "Output")
-              : map_function("h", "Output map h(x).", {state_arg(m)}, m.h, "Output")};
+          m.feedthrough() ? map_function("h", "Output map h(x, u) (direct feedthrough).",
+                                         {state_arg(m), input_arg(m)}, m.h, "Output")
+                          : map_function("h", "Output map h(x).", {state_arg(m)}, m.h, "Output")};
 }
 
 std::vector<RuntimeParam> runtime_params(const Model& m) {

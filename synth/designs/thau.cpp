@@ -1024,9 +1024,9 @@ Verdict applies(const Analysis& a) {
       box_text(a.model, r.region.box), 100 * share, r.region.scale, k, k == 1 ? "" : "s");
   if (r.region.scale < kUsefulRegionScale) {
     v.applies = false;
-    v.reasons.push_back(fmt::format(
-        "the certified region is too small to rely on: {} (below {:g} of the width)", where,
-        kUsefulRegionScale));
+    v.reasons.push_back(
+        fmt::format("the certified region is too small to rely on: {} (below {:g} of the width)",
+                    where, kUsefulRegionScale));
     return v;
   }
   v.guarantee = Guarantee::partial;

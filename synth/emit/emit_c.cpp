@@ -1110,12 +1110,12 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
                                 : "")
             : ""},
        {"q_next_advance",
-        slope ? fmt::format(", q1 += {0}_filters, dq += {0}_filters, dq1 += {0}_filters",
-                            b.prefix())
+        slope
+            ? fmt::format(", q1 += {0}_filters, dq += {0}_filters, dq1 += {0}_filters", b.prefix())
         : interpolate ? fmt::format(", q1 += {}_filters", b.prefix())
                       : ""},
-       {"q_entry", slope ? "q[j] + o->frac * (q1[j] - q[j]) +\n"
-                           "                       o->slope * (dq[j] + o->frac * (dq1[j] - dq[j]))"
+       {"q_entry", slope         ? "q[j] + o->frac * (q1[j] - q[j]) +\n"
+                                   "                       o->slope * (dq[j] + o->frac * (dq1[j] - dq[j]))"
                    : interpolate ? "q[j] + o->frac * (q1[j] - q[j])"
                                  : "q[j]"},
        {"frac_reset", std::string(interpolate ? "  o->frac = " + b.lit(0) + ";\n" : "") +

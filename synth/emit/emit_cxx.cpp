@@ -1120,15 +1120,16 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const 
   // interpolation, which the design gives it.
   const bool slope = !d.slope_table.empty() && interpolate && d.level_window_mean;
   const std::string slope_fit =
-      slope ? "      Scalar sxy = Scalar(0), sxx = Scalar(0);  // least-squares slope, same samples\n"
-              "      for (int a = 0; a < delay_steps; ++a) {  // a = 0: this step's sample\n"
-              "        const Scalar da = Scalar(a) - Scalar(delay_steps - 1) / Scalar(2);\n"
-              "        const int k = head_ >= a ? head_ - a : head_ - a + delay_steps + 1;\n"
-              "        sxy += da * (u_ring_[k] - v);\n"
-              "        sxx += da * da;\n"
-              "      }\n"
-              "      slope_ = sxx > Scalar(0) ? -sxy / (dt * sxx) : Scalar(0);\n"
-            : "";
+      slope
+          ? "      Scalar sxy = Scalar(0), sxx = Scalar(0);  // least-squares slope, same samples\n"
+            "      for (int a = 0; a < delay_steps; ++a) {  // a = 0: this step's sample\n"
+            "        const Scalar da = Scalar(a) - Scalar(delay_steps - 1) / Scalar(2);\n"
+            "        const int k = head_ >= a ? head_ - a : head_ - a + delay_steps + 1;\n"
+            "        sxy += da * (u_ring_[k] - v);\n"
+            "        sxx += da * da;\n"
+            "      }\n"
+            "      slope_ = sxx > Scalar(0) ? -sxy / (dt * sxx) : Scalar(0);\n"
+          : "";
   const std::string level =
       d.levels > 1
           ? render_template(
@@ -1172,12 +1173,13 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const 
                                               precision_name(p), d.slope_table)
                                 : "")
             : ""},
-       {"q_next_advance",
-        slope ? ", q1 += filters, dq += filters, dq1 += filters" : interpolate ? ", q1 += filters" : ""},
+       {"q_next_advance", slope         ? ", q1 += filters, dq += filters, dq1 += filters"
+                          : interpolate ? ", q1 += filters"
+                                        : ""},
        {"q_entry",
-        slope ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j])) +\n"
-                "                       slope_ * (Scalar(dq[j]) + frac_ * (Scalar(dq1[j]) - "
-                "Scalar(dq[j])))"
+        slope         ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j])) +\n"
+                        "                       slope_ * (Scalar(dq[j]) + frac_ * (Scalar(dq1[j]) - "
+                        "Scalar(dq[j])))"
         : interpolate ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j]))"
                       : "Scalar(q[j])"},
        {"level_doc", interpolate ? " (the lower table; frac() weights the next)" : ""},
