@@ -29,9 +29,9 @@ struct ObservabilityOptions {
   RankMethod rank_method = RankMethod::automatic;
   // automatic: the work budget (allocations, budget.hpp WorkScope) of the symbolic chain and
   // O's rank; past it the jets decide the rank. Work, not time: the same model takes the same
-  // path on any machine under any load. 2e7 allocations are 2 to 5 s here (chain8 needs 7.8e6,
+  // path on any machine under any load. 1e7 allocations are 1 to 2.5 s here (chain8 needs 7.8e6,
   // STRIKE-GOLDD's goodwin_b 3.4e7 and goes to the jets).
-  std::uint64_t symbolic_work = 20000000;
+  std::uint64_t symbolic_work = 10000000;
   JetsOptions jets;
 };
 
