@@ -4,15 +4,7 @@
 set -u
 bin=$1
 src=$2
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-pass=0
-fail=0
-check() {  # name, condition (a command)
-  local name=$1
-  shift
-  if "$@"; then pass=$((pass + 1)); else fail=$((fail + 1)); echo "FAIL: $name"; fi
-}
+. "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 # Which stage a time budget stops first depends on the binary's speed: under the sanitizers
 # (5-20x slower) an earlier stage stops first. Those checks run in the Release pass only.
 sanitized=0
