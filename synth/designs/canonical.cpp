@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "analysis/conditions.hpp"
+#include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
 #include "front/fresh_names.hpp"
 #include "symbolic/expr_print.hpp"
@@ -510,27 +511,14 @@ Verdict applies(const Analysis& a) {
   v.reasons = canonical_form_failures(a);
   v.applies = v.reasons.empty();
   if (!v.applies) return v;
-  const std::vector<std::string> unproven = unproven_steps(a.canonical);
-  if (unproven.empty()) {
-    v.reasons.push_back(
-        "the bracket conditions hold and l(u, y) is closed-form: the error dynamics in z are "
-        "exactly linear");
-    v.guarantee = Guarantee::rigorous;
-    v.guarantee_text =
-        "rigorous: the error z - zh obeys e' = (A - K e_n^T) e exactly (brackets, T and l(u, y) "
-        "proved symbolically)";
-    return v;
-  }
-  const std::string list = fmt::format("{}", fmt::join(unproven, "; "));
-  v.reasons.push_back(fmt::format(
-      "no bracket condition is refuted and l(u, y) is closed-form, but unproven: {}; the error "
-      "dynamics in z are exactly linear only if these hold",
-      list));
-  v.guarantee = Guarantee::partial;
-  v.guarantee_text = fmt::format(
-      "partial (numeric): e' = (A - K e_n^T) e exactly only if what is numerically zero is "
-      "zero, not proved: {}",
-      list);
+  set_exactness(v, a.canonical,
+                {"the bracket conditions hold and l(u, y) is closed-form",
+                 "no bracket condition is refuted and l(u, y) is closed-form",
+                 "the error dynamics in z are exactly linear",
+                 "rigorous: the error z - zh obeys e' = (A - K e_n^T) e exactly (brackets, T and "
+                 "l(u, y) proved symbolically)",
+                 "partial (numeric): e' = (A - K e_n^T) e exactly only if what is numerically "
+                 "zero is zero"});
   return v;
 }
 

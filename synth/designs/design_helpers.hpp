@@ -9,6 +9,8 @@
 #include <utility>
 #include <vector>
 
+#include "analysis/conditions.hpp"
+#include "designs/registry.hpp"
 #include "designs/spec.hpp"
 #include "symbolic/expr_print.hpp"
 
@@ -62,6 +64,31 @@ inline std::string design_cache_key(const Model& m) {
     k += fmt::format("{}#{}[{},{}]", s.get_name(), s.gethash(), to_string(b.lo), to_string(b.hi));
   }
   return k;
+}
+
+// A design exact by the observer canonical form: rigorous when the brackets, T and l(u, y) are
+// proved symbolically; partial (numeric) when a zero among them is only numeric, with the list.
+struct ExactnessClaim {
+  std::string proved_lead;    // "<proved_lead>: <claim>"
+  std::string unproven_lead;  // "<unproven_lead>, but unproven: <list>; <claim> only if these hold"
+  std::string claim;
+  std::string rigorous;  // the guarantee line when proved
+  std::string partial;   // "<partial>, not proved: <list>"
+};
+
+inline void set_exactness(Verdict& v, const CanonicalForm& cf, const ExactnessClaim& c) {
+  const std::vector<std::string> unproven = unproven_steps(cf);
+  if (unproven.empty()) {
+    v.reasons.push_back(c.proved_lead + ": " + c.claim);
+    v.guarantee = Guarantee::rigorous;
+    v.guarantee_text = c.rigorous;
+    return;
+  }
+  const std::string list = fmt::format("{}", fmt::join(unproven, "; "));
+  v.reasons.push_back(
+      fmt::format("{}, but unproven: {}; {} only if these hold", c.unproven_lead, list, c.claim));
+  v.guarantee = Guarantee::partial;
+  v.guarantee_text = fmt::format("{}, not proved: {}", c.partial, list);
 }
 
 }  // namespace obsynth

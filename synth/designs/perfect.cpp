@@ -6,6 +6,7 @@
 
 #include "analysis/conditions.hpp"
 #include "designs/canonical.hpp"
+#include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
 #include "front/fresh_names.hpp"
 #include "symbolic/symbolic.hpp"
@@ -81,25 +82,13 @@ Verdict applies(const Analysis& a) {
     return v;
   }
   v.applies = true;
-  const std::vector<std::string> unproven = unproven_steps(cf);
-  if (unproven.empty()) {
-    v.reasons.push_back("T and l are closed-form: the state is a function of the output jets");
-    v.guarantee = Guarantee::rigorous;
-    v.guarantee_text =
-        "rigorous: x = T^-1(z(y, y', ..., u, ...)) exactly (brackets, T and l(u, y) proved "
-        "symbolically; exact jets assumed)";
-    return v;
-  }
-  const std::string list = fmt::format("{}", fmt::join(unproven, "; "));
-  v.reasons.push_back(fmt::format(
-      "T and l are closed-form, but unproven: {}; the state is a function of the output jets "
-      "only if these hold",
-      list));
-  v.guarantee = Guarantee::partial;
-  v.guarantee_text = fmt::format(
-      "partial (numeric): the reconstruction is exact only if what is numerically zero is "
-      "zero, not proved: {}",
-      list);
+  set_exactness(v, cf,
+                {"T and l are closed-form", "T and l are closed-form",
+                 "the state is a function of the output jets",
+                 "rigorous: x = T^-1(z(y, y', ..., u, ...)) exactly (brackets, T and l(u, y) "
+                 "proved symbolically; exact jets assumed)",
+                 "partial (numeric): the reconstruction is exact only if what is numerically "
+                 "zero is zero"});
   return v;
 }
 
