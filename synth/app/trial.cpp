@@ -159,9 +159,8 @@ RunJudgement judge(const SimulationResult& r, const Box& box, double t_end) {
       fmt::format("its error did not fall ({:.3g} % of the box at the end)", 100 * final_error)};
 }
 
-SimulationResult run(const Analysis& a, const ObserverSpec& spec, SimulationOptions opt,
-                     double sign) {
-  const Box box = state_box(a.model);
+SimulationResult run(const Analysis& a, const ObserverSpec& spec, const Box& box,
+                     SimulationOptions opt, double sign) {
   opt.x0.clear();
   opt.xhat0.clear();
   for (std::size_t i = 0; i < a.model.n(); ++i) {
@@ -202,14 +201,14 @@ TrialOutcome closed_loop_trial(const Analysis& a, const ObserverSpec& spec) {
   double worst = 0;
   out.verdict = TrialVerdict::passed;
   for (double sign : {1.0, -1.0}) {
-    SimulationResult r = run(a, spec, opt, sign);
+    SimulationResult r = run(a, spec, box, opt, sign);
     RunJudgement j = judge(r, box, opt.t_end);
     if (j.verdict == TrialVerdict::failed && r.diverged.find("finite") != std::string::npos &&
         !spec.sampled_delay) {  // a step too long for the observer's own speed: once more
       SimulationOptions fine = opt;
       fine.dt = opt.dt / 10;
       fine.t_end = std::min(opt.t_end, fine.dt * static_cast<double>(kMaxSteps));
-      j = judge(run(a, spec, fine, sign), box, fine.t_end);
+      j = judge(run(a, spec, box, fine, sign), box, fine.t_end);
     }
     worst = std::max(worst, j.final_error);
     if (severity(j.verdict) > severity(out.verdict)) {
