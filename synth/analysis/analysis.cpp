@@ -196,6 +196,8 @@ Analysis analyse(const Model& given, const AnalysisOptions& opt) {
   const Model m = split_output_offset(given);
   Analysis a;
   a.model = m;
+  a.definedness = certify::check_definedness(m);
+  if (auto errors = a.definedness.errors(); !errors.empty()) throw UserError(std::move(errors));
   StageLog log(a, opt);
   Budget budget(opt.budget, [&](const std::string& stage) { log.began(stage); });
   log.attach(budget);

@@ -13,6 +13,7 @@
 #include "analysis/canonical.hpp"
 #include "analysis/observability.hpp"
 #include "analysis/observability_inputs.hpp"
+#include "certify/definedness.hpp"
 #include "front/model.hpp"
 
 namespace obsynth {
@@ -53,6 +54,10 @@ struct AnalysisOptions {
 
 struct Analysis {
   Model model;
+  // Where f + g and h are defined on the domain box (poles, roots and logs of negatives,
+  // magnitudes), decided before any stage: a model undefined on its whole box, or with values
+  // beyond double's headroom, ends analyse() with a UserError.
+  certify::Definedness definedness;
   Observability observability;
   // Observability with the inputs as constant symbols, uniform observability (issue 8);
   // computed right after the drift observability, under its own budget.

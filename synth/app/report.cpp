@@ -371,6 +371,33 @@ std::string drift_deficit_text(const Analysis& a) {
 namespace {
 
 // The model: schema, name, symbols, parameters and the maps.
+const char* defined_status_name(certify::DefinedStatus s) {
+  switch (s) {
+    case certify::DefinedStatus::violated_everywhere:
+      return "fails everywhere";
+    case certify::DefinedStatus::violated_somewhere:
+      return "fails somewhere";
+    case certify::DefinedStatus::not_excluded:
+      break;
+  }
+  return "not proved";
+}
+
+// Where f + g and h are defined on the box: the conditions checked and those not proved.
+ordered_json definedness_json(const certify::Definedness& d) {
+  ordered_json findings = ordered_json::array();
+  for (const auto& f : d.findings)
+    findings.push_back({{"component", f.component},
+                        {"requirement", f.requirement},
+                        {"status", defined_status_name(f.status)},
+                        {"where", f.sub_box},
+                        {"witness", f.witness}});
+  return {{"conditions", d.conditions},
+          {"defined_on_box", d.findings.empty()},
+          {"findings", findings},
+          {"summary", d.summary()}};
+}
+
 void add_model_json(const Analysis& a, ordered_json& j) {
   const Model& m = a.model;
   // Schema 2: T_inverse is a list of elimination steps {state, equation (1-based), value}
@@ -389,6 +416,7 @@ void add_model_json(const Analysis& a, ordered_json& j) {
   j["f"] = expr_list(m.f);
   j["g"] = expr_list(m.g);
   j["h"] = expr_list(m.h);
+  j["definedness"] = definedness_json(a.definedness);
 }
 
 // The "observability" object: rank, its method, O, indices, det and the rank drop.
@@ -641,6 +669,7 @@ std::string render_text(const Analysis& a, const ReportOptions& opt) {
   line(fmt::format("  f = {}", vec_text(m.f)));
   line(fmt::format("  g = {}", vec_text(m.g)));
   line(fmt::format("  h = {}", vec_text(m.h)));
+  line("  definedness: " + a.definedness.summary());
   text_observability(a, marks, line);
   text_canonical(a, marks, line);
   s.resize(marks.cut_position(a));
@@ -756,6 +785,8 @@ std::string render_markdown(const Analysis& a, const ReportOptions& opt) {
   line("");
   line(fmt::format("$$f = {}, \\quad g = {}, \\quad h = {}$$", vec_latex(m.f), vec_latex(m.g),
                    vec_latex(m.h)));
+  line("");
+  line("Definedness: " + a.definedness.summary() + ".");
   line("");
   markdown_observability(a, marks, line);
   markdown_canonical(a, marks, line);

@@ -118,12 +118,20 @@ std::string choose_auto(const Analysis& a, std::string& explanation,
     if (guarantee) *guarantee = applying.front().verdict.guarantee;
     return applying.front().design->name;
   }
-  throw UserError(
-      SourceLoc{a.model.file, 0, 0},
-      fmt::format("no implemented observer design applies to model '{}': {}{}; not implemented "
-                  "yet: {}",
-                  a.model.name, fmt::join(rejected, "; "), not_observable_note(a),
-                  fmt::join(planned_methods(), ", ")));
+  // The model's own definedness findings come first, at their place in the file.
+  std::vector<Diagnostic> diags;
+  for (const auto& f : a.definedness.findings)
+    if (f.status != certify::DefinedStatus::not_excluded)
+      diags.push_back({Severity::error, f.loc, f.text()});
+  const std::string planned =
+      planned_methods().empty()
+          ? std::string()
+          : fmt::format("; not implemented yet: {}", fmt::join(planned_methods(), ", "));
+  diags.push_back(
+      {Severity::error, SourceLoc{a.model.file, 0, 0},
+       fmt::format("no implemented observer design applies to model '{}': {}{}{}", a.model.name,
+                   fmt::join(rejected, "; "), not_observable_note(a), planned)});
+  throw UserError(std::move(diags));
 }
 
 }  // namespace
@@ -400,6 +408,26 @@ BuiltDesign choose_and_build(const Analysis& a, const std::string& method,
   return {specs.front().first, std::move(specs.front().second)};
 }
 
+namespace {
+
+// The header (and C source) of one design; an emission error (a constant the precision cannot
+// represent) names the model file and the design.
+EmittedHeader emit_for(const Analysis& a, const std::string& method, const ObserverSpec& spec,
+                       const EmitOptions& opt) {
+  try {
+    return opt.language == Language::c ? emit_c_pair(a, spec, opt) : emit_cxx_header(a, spec, opt);
+  } catch (const UserError& e) {
+    std::vector<Diagnostic> diags = e.diagnostics();
+    for (auto& d : diags) {
+      if (d.loc.file.empty()) d.loc.file = a.model.file;
+      d.message = fmt::format("the '{}' observer: {}", method, d.message);
+    }
+    throw UserError(std::move(diags));
+  }
+}
+
+}  // namespace
+
 Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   Synthesis s;
   with_model_options(a.model, opt.design);  // unknown option lines fail before any work
@@ -417,7 +445,7 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   std::vector<GeneratedObserver> generated;
   for (const auto& [method, spec] : specs) {
     const bool c = opt.emit.language == Language::c;
-    const EmittedHeader h = c ? emit_c_pair(a, spec, opt.emit) : emit_cxx_header(a, spec, opt.emit);
+    const EmittedHeader h = emit_for(a, method, spec, opt.emit);
     s.files.push_back({h.filename, h.text});
     if (c) s.files.push_back({h.source_filename, h.source_text});
     // C has no namespaces: its observer is the struct type <model>_<method>_observer.

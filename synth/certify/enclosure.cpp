@@ -25,6 +25,8 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+}  // namespace
+
 // ----- deterministic sample points -------------------------------------------------------
 
 std::vector<std::vector<double>> sample_points(const Box& box, std::size_t n) {
@@ -53,6 +55,8 @@ std::vector<std::vector<double>> sample_points(const Box& box, std::size_t n) {
   }
   return pts;
 }
+
+namespace {
 
 // ----- point values: the tape in doubles, or GiNaC when the tape cannot evaluate ---------
 

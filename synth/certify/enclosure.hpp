@@ -60,6 +60,10 @@ struct EnclosureBudget {
   std::size_t max_work = 0;
 };
 
+// Deterministic sample points of the box: its centre, its corners (up to 2^12 of them) and a
+// Halton sequence, n in all.
+std::vector<std::vector<double>> sample_points(const Box& box, std::size_t n);
+
 // sup over the box of |e|: rigorous when Arb can evaluate e, else falls back to sampled and
 // says so.
 Bound sup_abs(const GiNaC::ex& e, const Box& box, const EnclosureBudget& = {});

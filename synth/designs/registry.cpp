@@ -35,6 +35,32 @@ std::string Verdict::text() const {
   return fmt::format("{}", fmt::join(reasons, "; "));
 }
 
+namespace {
+
+bool undefined_in_box(const Analysis& a, Verdict& v) {
+  if (!a.definedness.undefined_somewhere()) return false;
+  std::vector<std::string> where;
+  for (const auto& f : a.definedness.findings)
+    if (f.status != certify::DefinedStatus::not_excluded) where.push_back(f.short_text());
+  v.reasons.push_back(fmt::format(
+      "the model is undefined inside the domain box, where this design's guarantee and its "
+      "generated code evaluate it ({}; shrink the box to exclude it)",
+      fmt::join(where, "; ")));
+  return true;
+}
+
+// A rigorous guarantee over the box needs the model defined on all of it: when a condition could
+// not be proved (nor a failure), the guarantee is partial and says which.
+void downgrade_unproved_definedness(const Analysis& a, Verdict& v) {
+  if (a.definedness.findings.empty() || !v.applies) return;
+  v.reasons.push_back("note: " + a.definedness.summary());
+  if (v.guarantee != Guarantee::rigorous) return;
+  v.guarantee = Guarantee::partial;
+  v.guarantee_text += "; only where the model is defined: " + a.definedness.summary();
+}
+
+}  // namespace
+
 Verdict design_verdict(const Design& d, const Analysis& a, bool assess) {
   const Model& m = a.model;
   Verdict v;
@@ -51,9 +77,12 @@ Verdict design_verdict(const Design& d, const Analysis& a, bool assess) {
         "(direct feedthrough y = h(x, u)); this design needs y = h(x)");
     return v;
   }
-  // A design that evaluates the model where it is undefined (a pole of f inside the box, the
-  // expansion point on it) does not apply there: GiNaC's division by zero is a verdict, never an
-  // internal error.
+  // Every design's guarantee holds on the domain box, and its generated code evaluates the model
+  // there: a model proved undefined somewhere in the box (a pole of f, sqrt of a negative) gets
+  // no design, with the place named.
+  if (undefined_in_box(a, v)) return v;
+  // A design that evaluates the model where it is undefined (the expansion point on a pole)
+  // does not apply there: GiNaC's division by zero is a verdict, never an internal error.
   try {
     v = d.applies(a);
     if (v.applies && d.assess) {
@@ -62,6 +91,7 @@ Verdict design_verdict(const Design& d, const Analysis& a, bool assess) {
       else
         v.guarantee_text = "not assessed (its certificate runs with `obsynth check --certify`)";
     }
+    downgrade_unproved_definedness(a, v);
   } catch (const std::domain_error& e) {  // GiNaC::pole_error derives from it
     v = Verdict{};
     v.reasons.push_back(fmt::format(

@@ -5,6 +5,7 @@
 #include <cctype>
 #include <cmath>
 #include <functional>
+#include <limits>
 
 #include "front/diagnostics.hpp"
 
@@ -112,10 +113,31 @@ std::string c_field_identifier(const std::string& name) {
   return s == "N" || s == "K" ? s + "_" : s;
 }
 
+namespace {
+
+// The constant as a double that the chosen precision represents: a value beyond its range
+// (or below its smallest normal number, where float code would flush it) is a user error, never
+// an "inf" literal that does not compile or a silent zero.
+double representable(const GiNaC::numeric& v, Precision p) {
+  const double d = v.to_double();
+  const bool single = p == Precision::single;
+  const double max = single ? 3.4028234663852886e38 : std::numeric_limits<double>::max();
+  const double min = single ? 1.1754943508222875e-38 : std::numeric_limits<double>::min();
+  const double a = std::abs(d);
+  if (std::isfinite(d) && a <= max && (a == 0 || a >= min)) return d;
+  throw UserError(SourceLoc{},
+                  fmt::format("the generated code needs the constant {:.6g}, which {} cannot "
+                              "represent (its normal range is [{:.3g}, {:.3g}]){}",
+                              d, precision_name(p), min, max,
+                              single ? "; use --precision double" : "; rescale the model"));
+}
+
+}  // namespace
+
 std::string scalar_literal(const GiNaC::numeric& v, Precision p) {
   if (v.is_integer() && GiNaC::abs(v) < GiNaC::numeric(1L << 24))
     return fmt::format("Scalar({})", v.to_long());
-  const double d = v.to_double();
+  const double d = representable(v, p);
   if (p == Precision::single) {
     std::string s = fmt::format("{:.9g}", static_cast<float>(d));
     if (s.find_first_of(".e") == std::string::npos) s += ".0";
@@ -127,7 +149,7 @@ std::string scalar_literal(const GiNaC::numeric& v, Precision p) {
 }
 
 std::string c_scalar_literal(const GiNaC::numeric& v, Precision p) {
-  const double d = v.to_double();
+  const double d = representable(v, p);
   std::string s = p == Precision::single ? fmt::format("{:.9g}", static_cast<float>(d))
                                          : fmt::format("{:.17g}", d);
   if (s.find_first_of(".e") == std::string::npos) s += ".0";
