@@ -89,6 +89,19 @@ TEST(Definedness, SqrtOnARangeStartingAtZeroIsDefined) {
   EXPECT_TRUE(d.findings.empty()) << d.summary();
 }
 
+TEST(Definedness, RangeConditionsNameAFailingPointOfTheirOwn) {
+  // x1^(1/3) needs x1 >= 0: on [-1, 1] it fails at x1 = -1 (not at 0, where it holds);
+  // log(x1) needs x1 > 0: on [0, 1] it fails at x1 = 0.
+  const auto root = definedness_of("x2, -x1^(1/3)", "x1 in [-1, 1], x2 in [-1, 1]");
+  ASSERT_EQ(root.findings.size(), 1u);
+  EXPECT_NE(root.findings[0].witness.find("fails at x1 = -1 "), std::string::npos)
+      << root.findings[0].witness;
+  const auto log0 = definedness_of("x2, -log(x1)", "x1 in [0, 1], x2 in [-1, 1]");
+  ASSERT_EQ(log0.findings.size(), 1u);
+  EXPECT_NE(log0.findings[0].witness.find("fails at x1 = 0 "), std::string::npos)
+      << log0.findings[0].witness;
+}
+
 TEST(Definedness, RootsOfSquaresAreDefinedThroughZero) {
   // sqrt(x1^2) (seed 004's |x1|) and sqrt(x1^2 + x2^4) reach 0 exactly at the box's centre.
   const auto d = definedness_of("x2, -sqrt(x1^2) - sqrt(x1^2 + x2^4) + log(exp(x1) + x2^2)",

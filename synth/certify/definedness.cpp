@@ -208,11 +208,16 @@ std::optional<DefinednessFinding> decide_on_variable(const Condition& c, std::si
   f.requirement = requirement_text(c);
   const std::string name = box.vars[k].get_name();
   f.status = nowhere ? DefinedStatus::violated_everywhere : DefinedStatus::violated_somewhere;
-  const double bad_hi = c.need == Need::nonzero ? 0 : std::min(hi, 0.0);
+  // A failing point: the zero of x != 0, the lower end for x >= 0, the nonpositive end for x > 0.
+  const double bad = c.need == Need::nonzero       ? 0
+                     : c.need == Need::nonnegative ? lo
+                                                   : std::min(hi, 0.0);
   f.sub_box = c.need == Need::nonzero ? fmt::format("{} = 0", name)
-                                      : fmt::format("{} in [{:.4g}, {:.4g}]", name, lo, bad_hi);
+              : c.need == Need::nonnegative
+                  ? fmt::format("{} in [{:.4g}, {:.4g})", name, lo, std::min(hi, 0.0))
+                  : fmt::format("{} in [{:.4g}, {:.4g}]", name, lo, std::min(hi, 0.0));
   f.witness = fmt::format("fails at {} = {:.6g} (the box's range of {} is [{:.6g}, {:.6g}])", name,
-                          bad_hi, name, lo, hi);
+                          bad, name, lo, hi);
   return f;
 }
 
