@@ -27,7 +27,8 @@ thread_local WorkCounter t_work;
 }  // namespace
 
 // The replaceable global allocation function, counting for WorkScope. libstdc++'s array and
-// nothrow forms call this one; the default operator delete calls free(), which matches.
+// nothrow forms call this one. Its deallocation functions are replaced with it: free() must
+// release what malloc() gave (AddressSanitizer's own operator delete reports a mismatch).
 void* operator new(std::size_t size) {
   if (t_work.active && ++t_work.count > t_work.limit &&
       (t_work.count - t_work.limit - 1) % kWorkRethrowEvery == 0)
@@ -40,6 +41,26 @@ void* operator new(std::size_t size) {
     handler();
   }
 }
+
+// The other forms, replaced too: a sanitizer runtime supplies its own for each one it intercepts,
+// and every pair must agree on malloc() and free().
+void* operator new[](std::size_t size) { return ::operator new(size); }
+void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
+  try {
+    return ::operator new(size);
+  } catch (...) {
+    return nullptr;
+  }
+}
+void* operator new[](std::size_t size, const std::nothrow_t& tag) noexcept {
+  return ::operator new(size, tag);
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
 
 namespace obsynth {
 
