@@ -389,6 +389,8 @@ std::vector<Diagnostic> Definedness::errors() const {
 }
 
 std::string Definedness::summary() const {
+  if (findings.empty() && conditions == 0)
+    return "defined everywhere (no division, root, log or tan)";
   if (findings.empty())
     return fmt::format("defined on the domain box ({} condition{} proved)", conditions,
                        conditions == 1 ? "" : "s");
