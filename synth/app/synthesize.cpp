@@ -164,6 +164,9 @@ std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<st
     }
     if (std::find(methods.begin(), methods.end(), name) == methods.end()) methods.push_back(name);
   }
+  // `all` with no design that applies: the main job writes no observer, so it fails as `auto`
+  // does, with every design's reason.
+  if (methods.empty()) choose_auto(a, explanation, excluded, nullptr);
   return methods;
 }
 
