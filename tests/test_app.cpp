@@ -115,7 +115,16 @@ TEST(Synthesize, AllIsEveryDesignThatApplies) {
   EXPECT_FALSE(has(l, "kalman-theta"));
   EXPECT_FALSE(has(l, "high-gain"));
   EXPECT_TRUE(has(l, "riccati"));
-  EXPECT_TRUE(resolve_methods(analysed("stuart_landau"), {"all"}, why).empty());
+  // No design applies: `all` fails as auto does (the main job writes no observer), with every
+  // design's reason.
+  try {
+    resolve_methods(analysed("stuart_landau"), {"all"}, why);
+    ADD_FAILURE() << "all on Stuart-Landau returned without an error";
+  } catch (const UserError& e) {
+    EXPECT_NE(std::string(e.what()).find("no implemented observer design applies"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 // Rayleigh has no canonical form: auto takes the design with the strongest guarantee (kou: its

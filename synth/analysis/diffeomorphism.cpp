@@ -3,10 +3,12 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <memory>
 
 #include "analysis/flint_products.hpp"
 #include "analysis/output_function.hpp"
+#include "certify/sampling.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/integrate.hpp"
 #include "symbolic/symbolic.hpp"
@@ -15,16 +17,53 @@ namespace obsynth {
 
 using GiNaC::ex;
 
-ExVec choose_base_point(const Model& m) {
-  ExVec x0;
+namespace {
+
+// Whether every expression is defined at x0 (states substituted; inputs and parameters stay):
+// no pole met by the substitution, and a numeric value that is real.
+bool defined_at(const Model& m, const ExVec& x0, const std::vector<ExVec>& exprs) {
+  GiNaC::exmap at;
+  for (std::size_t i = 0; i < m.n(); ++i) at[m.states[i]] = x0[i];
+  try {
+    for (const auto& v : exprs)
+      for (const auto& e : v) {
+        const ex value = e.subs(at).evalf();
+        if (GiNaC::is_a<GiNaC::numeric>(value) && !GiNaC::ex_to<GiNaC::numeric>(value).is_real())
+          return false;
+      }
+  } catch (const std::domain_error&) {  // GiNaC::pole_error
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+ExVec choose_base_point(const Model& m, const std::vector<ExVec>& also_defined) {
+  std::vector<ExVec> exprs = {m.field(), m.h};
+  exprs.insert(exprs.end(), also_defined.begin(), also_defined.end());
+  // The origin (coordinate-wise, where the box holds 0) for the simplest T; else the box's centre;
+  // else deterministic points of the box, until the model and the frame are defined there.
+  ExVec origin, centre;
   for (const auto& s : m.states) {
     const Interval b = m.box(s);
-    if (b.lo <= 0 && b.hi >= 0)
-      x0.push_back(0);
-    else
-      x0.push_back((b.lo + b.hi) / 2);
+    centre.push_back((b.lo + b.hi) / 2);
+    origin.push_back(b.lo <= 0 && b.hi >= 0 ? ex(0) : centre.back());
   }
-  return x0;
+  if (defined_at(m, origin, exprs)) return origin;
+  if (defined_at(m, centre, exprs)) return centre;
+  static const unsigned primes[] = {2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37};
+  for (std::size_t k = 1; k <= 32; ++k) {
+    ExVec x0;
+    for (std::size_t i = 0; i < m.n(); ++i) {
+      const Interval b = m.box(m.states[i]);
+      // A rational fraction of the box (k-th Halton point, 1/64 resolution): an exact base point.
+      const long q = std::lround(64 * radical_inverse(k, primes[i % 12]));
+      x0.push_back(b.lo + (b.hi - b.lo) * GiNaC::numeric(q, 64));
+    }
+    if (defined_at(m, x0, exprs)) return x0;
+  }
+  return origin;  // undefined everywhere tried: the definedness stage has said where
 }
 
 namespace {
@@ -280,7 +319,7 @@ void ginac_diffeomorphism(const Context& c, Budget& budget, CanonicalForm& cf) {
 
 void build_diffeomorphism(const Model& m, const FrameRing& fr, Budget& budget,
                           const CanonicalOptions& opt, CanonicalForm& cf) {
-  cf.base_point = choose_base_point(m);
+  cf.base_point = choose_base_point(m, cf.frame);
   const Context c{m,
                   cf,
                   SampleBoxes::from_model(m),

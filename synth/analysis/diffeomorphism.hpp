@@ -17,7 +17,8 @@ namespace obsynth {
 void build_diffeomorphism(const Model& m, const FrameRing& fr, Budget& budget,
                           const CanonicalOptions& opt, CanonicalForm& cf);
 
-// Base point: the origin when the domain box contains it, else the box centre.
-ExVec choose_base_point(const Model& m);
+// Base point: the origin (coordinate-wise, where the box holds 0), else the box centre, else a
+// point of the box, where f, g, h and also_defined (the frame) are defined.
+ExVec choose_base_point(const Model& m, const std::vector<ExVec>& also_defined = {});
 
 }  // namespace obsynth

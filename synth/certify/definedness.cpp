@@ -401,7 +401,15 @@ std::string Definedness::summary() const {
 
 Definedness check_definedness(const Model& m) {
   Definedness d;
-  const Box box = model_box(m);
+  // The magnitudes are sampled at the box's points as doubles; the conditions need the box
+  // rounded outward (Arb), built only when there is one (a polynomial model never loads FLINT).
+  Box sample_box;
+  for (const auto& s : m.all_symbols()) {
+    const Interval iv = m.box(s);
+    sample_box.vars.push_back(s);
+    sample_box.ranges.push_back({iv.lo.to_double(), iv.hi.to_double()});
+  }
+  std::optional<Box> outward;
   for (const auto& c : components(m)) {
     const std::size_t coefficient_errors = d.magnitude_errors.size();
     check_coefficients(c.expr, c.name, c.loc, d.magnitude_errors);
@@ -410,7 +418,8 @@ Definedness check_definedness(const Model& m) {
     d.conditions += conditions.size();
     bool all_hold = true;
     for (const auto& cond : conditions) {
-      std::optional<DefinednessFinding> f = decide(cond, box);
+      if (!outward) outward = model_box(m);
+      std::optional<DefinednessFinding> f = decide(cond, *outward);
       if (!f) continue;
       all_hold = false;
       f->component = c.name;
@@ -419,7 +428,7 @@ Definedness check_definedness(const Model& m) {
       d.findings.push_back(std::move(*f));
     }
     if (d.magnitude_errors.size() == coefficient_errors)  // one diagnostic per cause
-      check_values(c.expr, c.name, c.loc, box, all_hold, d.magnitude_errors);
+      check_values(c.expr, c.name, c.loc, sample_box, all_hold, d.magnitude_errors);
   }
   return d;
 }

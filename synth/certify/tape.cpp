@@ -302,6 +302,13 @@ double rational_upper(const numeric& v) {
 Tape::Tape(const std::vector<ex>& outputs, const std::vector<GiNaC::symbol>& vars)
     : nvars_(vars.size()) {
   for (const auto& o : outputs) outputs_.push_back(compile(o, vars));
+}
+
+// The balls of the constants, on the first ball evaluation: a tape used only in doubles (the
+// definedness stage's magnitudes) never loads FLINT and Arb (lazy_libraries.cpp).
+void Tape::init_balls() {
+  if (balls_ready_) return;
+  balls_ready_ = true;
   consts_ = BallVec(nodes_.size());
   work_ = BallVec(nodes_.size());
   if (!supported()) return;
@@ -398,6 +405,7 @@ int Tape::compile(const ex& e, const std::vector<GiNaC::symbol>& vars) {
 }
 
 bool Tape::eval_box(const std::vector<double>& lo, const std::vector<double>& hi, BallVec& out) {
+  init_balls();
   Arf a, b;
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
     if (nodes_[i].op != Op::var) continue;
@@ -410,6 +418,7 @@ bool Tape::eval_box(const std::vector<double>& lo, const std::vector<double>& hi
 }
 
 bool Tape::eval_point(const std::vector<double>& x, BallVec& out) {
+  init_balls();
   for (std::size_t i = 0; i < nodes_.size(); ++i)
     if (nodes_[i].op == Op::var) arb_set_d(work_[i], x[static_cast<std::size_t>(nodes_[i].var)]);
   return run(out);

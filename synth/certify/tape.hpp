@@ -102,12 +102,14 @@ class Tape {
   int compile(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& vars);
   std::uint64_t key(const GiNaC::ex& e);
   bool run(BallVec& out);
+  void init_balls();
 
   std::vector<Node> nodes_;
   std::vector<int> outputs_;
   std::size_t nvars_;
   std::string why_;
   bool clamped_ = false;
+  bool balls_ready_ = false;
   BallVec consts_;  // ball value of constant nodes (indexed like nodes_)
   BallVec work_;
   std::map<GiNaC::ex, int, GiNaC::ex_is_less> memo_;

@@ -71,7 +71,11 @@ std::string poles_list(const std::vector<numeric>& v) {
   return fmt::format("{}", fmt::join(s, ", "));
 }
 
+// NaN (a value undefined or complex at the base point) and infinity are said in words, never
+// printed as numbers.
 std::string num_text(double v) {
+  if (std::isnan(v)) return "not a real number (the model is undefined or complex there)";
+  if (std::isinf(v)) return "infinite (a pole there)";
   return fmt::format("{:.6g}", v);
 }
 

@@ -53,10 +53,13 @@ const char* const kCxxKeywords[] = {"alignas",       "alignof",     "and",
 // template parameter Scalar (a parameter field named Scalar would shadow it): never an
 // identifier taken from the model.
 const char* const kReservedIdentifiers[] = {
-    "restrict", "Scalar",    "NAN",        "INFINITY",
-    "HUGE_VAL", "HUGE_VALF", "errno",      "assert",
-    "EOF",      "NULL",      "isfinite",   "isnan",
-    "isinf",    "signbit",   "fpclassify", "math_errhandling"};
+    "restrict", "Scalar", "NAN", "INFINITY", "HUGE_VAL", "HUGE_VALF", "errno", "assert", "EOF",
+    "NULL", "isfinite", "isnan", "isinf", "signbit", "fpclassify", "math_errhandling",
+    // <cmath>'s (POSIX) constants, macros in glibc
+    "M_E", "M_LOG2E", "M_LOG10E", "M_LN2", "M_LN10", "M_PI", "M_PI_2", "M_PI_4", "M_1_PI", "M_2_PI",
+    "M_2_SQRTPI", "M_SQRT2", "M_SQRT1_2", "FP_NAN", "FP_INFINITE", "FP_ZERO", "FP_NORMAL",
+    "FP_SUBNORMAL", "HUGE_VALL", "FLT_EVAL_METHOD", "MATH_ERRNO", "MATH_ERREXCEPT", "isnormal",
+    "isgreater", "isless", "isunordered", "FP_FAST_FMA", "FP_ILOGB0"};
 // Names the generated code itself uses in observer classes and functions; "N" and "K" are
 // macros of the C source, "I" is <complex.h>'s, sinf ... the float calls of the C back end.
 const char* const kGeneratedNames[] = {

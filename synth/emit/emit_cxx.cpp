@@ -627,7 +627,12 @@ class HeaderBuilder {
     return render_template(kParamsStruct, {{"fields", fields}});
   }
 
-  std::string namespace_name() const { return cxx_identifier(a_.model.name); }
+  // The model's name, unless it would hide a namespace the generated code names unqualified
+  // (a model called obsynth would make obsynth::Status resolve to itself).
+  std::string namespace_name() const {
+    const std::string s = cxx_identifier(a_.model.name);
+    return s == "obsynth" || s == "Eigen" || s == "std" || s == "obsynth_gen" ? s + "_" : s;
+  }
 
   std::string indices() {
     const Model& m = a_.model;

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Hostile but valid models (tests/models/hostile/, issue 20, and the minimised findings of
 # fuzz/pipeline_fuzz.cpp): the main job and `check` on each end with the exit status its header
-# expects (`# expect-exit:`), print every `# expect-stderr:` text, never exit 2 or die of a
-# signal, and an exit 1 leaves no file in the output folder.
+# expects (`# expect-exit:`), print every `# expect-stderr:` text and none of the
+# `# reject-output:` texts (nor does the report), never exit 2 or die of a signal, and an exit 1
+# leaves no file in the output folder.
 # usage: run_hostile_models.sh OBSYNTH SOURCE_DIR
 set -u
 bin=$1
@@ -27,6 +28,9 @@ run_model() {  # model
   while IFS= read -r text; do
     check "$name: prints '$text'" grep -qF -- "$text" "$log"
   done < <(header "$model" expect-stderr)
+  while IFS= read -r text; do
+    check "$name: does not print '$text'" bash -c "! grep -qF -- '$text' '$log' $out/*.md 2>/dev/null"
+  done < <(header "$model" reject-output)
   check "$name: no internal error" bash -c "! grep -q 'internal error' '$log'"
   if [ "$want" = 1 ]; then
     check "$name: nothing written on exit 1" bash -c "[ ! -e '$out' ] || [ -z \"\$(ls -A '$out')\" ]"
