@@ -63,13 +63,13 @@ const char* const kReservedIdentifiers[] = {
 // Names the generated code itself uses in observer classes and functions; "N" and "K" are
 // macros of the C source, "I" is <complex.h>'s, sinf ... the float calls of the C back end.
 const char* const kGeneratedNames[] = {
-    "N",     "I",      "sinf",   "cosf",    "tanf",   "expf",   "logf",  "sqrtf",   "tanhf",
-    "atanf", "powf",   "fabsf",  "atanhf",  "Scalar", "Eigen",  "std",   "obsynth", "State",
-    "Input", "Output", "Matrix", "Status",  "dt",     "n",      "m",     "p",       "x",
-    "u",     "y",      "z",      "out",     "tau",    "xh",     "zh",    "dz",      "dx",
-    "K",     "y0",     "jet",    "ujet",    "main",   "assert", "errno", "NAN",     "INFINITY",
-    "sin",   "cos",    "tan",    "exp",     "log",    "sqrt",   "tanh",  "atan",    "atanh",
-    "pow",   "abs",    "fabs",   "isfinite"};
+    "N",     "I",      "sinf",   "cosf",     "tanf",   "expf",   "logf",  "sqrtf",   "tanhf",
+    "atanf", "powf",   "fabsf",  "atanhf",   "Scalar", "Eigen",  "std",   "obsynth", "State",
+    "Input", "Output", "Matrix", "Status",   "dt",     "n",      "m",     "p",       "x",
+    "u",     "y",      "z",      "out",      "tau",    "xh",     "zh",    "dz",      "dx",
+    "K",     "y0",     "jet",    "ujet",     "main",   "assert", "errno", "NAN",     "INFINITY",
+    "sin",   "cos",    "tan",    "exp",      "log",    "sqrt",   "tanh",  "atan",    "atanh",
+    "pow",   "abs",    "fabs",   "isfinite", "w",      "c",      "yj"};
 
 bool is_temporary_name(const std::string& s) {
   if (s.size() < 2 || s[0] != 't') return false;

@@ -364,8 +364,7 @@ const char* kPerfectClass =
     if (s != obsynth::Status::ok) return status_ = s;
     const typename F::YJet yj = y_diff_.jet();
     typename F::UJet uj;
-    for (int j = 0; j < m; ++j) uj.row(j) = u_diff_[static_cast<unsigned>(j)].jet().transpose();
-{{reconstruct}}    return status_;
+{{fill_input_jets}}{{reconstruct}}    return status_;
   }
 
   const State& estimate() const noexcept { return xh_; }
@@ -1005,6 +1004,12 @@ std::string jets_class(const Analysis& a, const ObserverSpec& s, const EmitOptio
        {"params_api", c.params_api},
        {"P", c.P},
        {"reconstruct", reconstruct},
+       // Without inputs the jet matrix has no rows (and for n = 1 it is a vector type whose row()
+       // does not match the jet): nothing to fill.
+       {"fill_input_jets", c.common.at("m") == "0"
+                               ? std::string()
+                               : "    for (int j = 0; j < m; ++j) uj.row(j) = "
+                                 "u_diff_[static_cast<unsigned>(j)].jet().transpose();\n"},
        {"members", c.params_member}});
 }
 
