@@ -160,6 +160,13 @@ TEST(Definedness, HugeAndTinyCoefficientsAreRefusedWithTheirPlace) {
   EXPECT_TRUE(fine.errors().empty());
 }
 
+TEST(Definedness, BoxEndpointsBeyondTheLimitAreRefused) {
+  EXPECT_EQ(definedness_of("x2, -x1", "x1 in [0, 1e-300], x2 in [-1, 1]").errors().size(), 1u);
+  EXPECT_EQ(definedness_of("x2, -x1", "x1 in [-1e200, 1e200], x2 in [-1, 1]").errors().size(),
+            3u);  // the box, and f2 = -x1 and h1 = x1 reaching 1e200
+  EXPECT_TRUE(definedness_of("x2, -x1", "x1 in [0, 1e-100], x2 in [-1, 1]").errors().empty());
+}
+
 TEST(Definedness, ValuesBeyondTheLimitAreRefused) {
   // exp(400 x1) reaches e^400 = 5.2e173 at x1 = 1: each factor is fine, the value is not.
   const auto d = definedness_of("x2, -exp(400*x1)", "x1 in [-1, 1], x2 in [-1, 1]");

@@ -399,8 +399,34 @@ std::string Definedness::summary() const {
   return fmt::format("{}", fmt::join(parts, "; "));
 }
 
+namespace {
+
+// A box endpoint beyond the limit, or nonzero below its inverse, leaves the sampled and
+// certified figures (widths, their squares) no headroom either.
+void check_box(const Model& m, std::vector<Diagnostic>& out) {
+  const auto it = m.locations.find("domain");
+  const SourceLoc loc = it != m.locations.end() ? it->second : SourceLoc{m.file, 0, 0};
+  auto outside = [](double v) {
+    const double a = std::abs(v);
+    return a != 0 && (a > kMagnitudeLimit || a < 1 / kMagnitudeLimit);
+  };
+  for (const auto& s : m.all_symbols()) {
+    const Interval iv = m.box(s);
+    const double lo = iv.lo.to_double(), hi = iv.hi.to_double();
+    if (!outside(lo) && !outside(hi)) continue;
+    out.push_back({Severity::error, loc,
+                   fmt::format("the box of {} is [{:.3g}, {:.3g}]: an endpoint outside [1e-150, "
+                               "1e150] in magnitude leaves double precision no headroom; rescale "
+                               "{}",
+                               s.get_name(), lo, hi, s.get_name())});
+  }
+}
+
+}  // namespace
+
 Definedness check_definedness(const Model& m) {
   Definedness d;
+  check_box(m, d.magnitude_errors);
   // The magnitudes are sampled at the box's points as doubles; the conditions need the box
   // rounded outward (Arb), built only when there is one (a polynomial model never loads FLINT).
   Box sample_box;
