@@ -54,6 +54,15 @@ TEST(Definedness, PoleInsideTheBoxIsProvedAtItsZero) {
   EXPECT_TRUE(d.errors().empty());  // defined on most of the box: designs exclude themselves
 }
 
+TEST(Definedness, TheVanishingFactorOfADivisorIsNamed) {
+  // x1 x2 - x1 + x2 - 1 = (x1 + 1)(x2 - 1): on x1 in [-2, 2], x2 in [2, 3] only x1 + 1 vanishes
+  // (at x1 = -1); x2 - 1 >= 1 there.
+  const auto d = definedness_of("x2, 1/(x1*x2 - x1 + x2 - 1)", "x1 in [-2, 2], x2 in [2, 3]");
+  ASSERT_EQ(d.findings.size(), 1u) << d.summary();
+  EXPECT_EQ(d.findings[0].requirement, "x1+1 != 0 (a factor of a denominator)");
+  EXPECT_EQ(d.conditions, 2u);
+}
+
 TEST(Definedness, PoleOutsideTheBoxIsNoFinding) {
   const auto d = definedness_of("x2, -1/x1", "x1 in [0.5, 2], x2 in [-1, 1]");
   EXPECT_TRUE(d.findings.empty()) << d.summary();

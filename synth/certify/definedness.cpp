@@ -37,6 +37,22 @@ void add_condition(std::vector<Condition>& out, const ex& arg, Need need, std::s
   out.push_back({arg, need, std::move(what)});
 }
 
+// A divisor's factors each give a condition (the finding then names the factor that vanishes:
+// x1 - 1 in 1/(x1 x2 - x1 + x2 - 1)), when the divisor is a polynomial GiNaC can factor.
+void add_divisor(std::vector<Condition>& out, const ex& divisor) {
+  ex factored = divisor;
+  if (divisor.info(GiNaC::info_flags::rational_polynomial)) factored = GiNaC::factor(divisor);
+  if (!GiNaC::is_a<GiNaC::mul>(factored)) {
+    add_condition(out, divisor, Need::nonzero, "a denominator");
+    return;
+  }
+  for (std::size_t i = 0; i < factored.nops(); ++i) {
+    ex f = factored.op(i);
+    if (GiNaC::is_a<GiNaC::power>(f) && f.op(1).info(GiNaC::info_flags::posint)) f = f.op(0);
+    add_condition(out, f, Need::nonzero, "a factor of a denominator");
+  }
+}
+
 void power_conditions(const GiNaC::power& p, std::vector<Condition>& out) {
   const ex base = p.op(0), exponent = p.op(1);
   if (!GiNaC::is_a<GiNaC::numeric>(exponent)) {
@@ -45,7 +61,7 @@ void power_conditions(const GiNaC::power& p, std::vector<Condition>& out) {
   }
   const auto e = GiNaC::ex_to<GiNaC::numeric>(exponent);
   if (e.is_integer()) {
-    if (e.is_negative()) add_condition(out, base, Need::nonzero, "a denominator");
+    if (e.is_negative()) add_divisor(out, base);
     return;
   }
   const bool is_sqrt = e == GiNaC::numeric(1, 2) || e == GiNaC::numeric(-1, 2);
