@@ -38,10 +38,14 @@ void add_condition(std::vector<Condition>& out, const ex& arg, Need need, std::s
 }
 
 // A divisor's factors each give a condition (the finding then names the factor that vanishes:
-// x1 - 1 in 1/(x1 x2 - x1 + x2 - 1)), when the divisor is a polynomial GiNaC can factor.
+// x1 + 1 in 1/(x1 x2 - x1 + x2 - 1)), when the divisor is a small polynomial.
 void add_divisor(std::vector<Condition>& out, const ex& divisor) {
   ex factored = divisor;
-  if (divisor.info(GiNaC::info_flags::rational_polynomial)) factored = GiNaC::factor(divisor);
+  // Small divisors only: GiNaC's multivariate factorisation has no budget of its own.
+  constexpr std::size_t kMaxTermsToFactor = 24;
+  if (divisor.info(GiNaC::info_flags::rational_polynomial) &&
+      GiNaC::expand(divisor).nops() <= kMaxTermsToFactor)
+    factored = GiNaC::factor(divisor);
   if (!GiNaC::is_a<GiNaC::mul>(factored)) {
     add_condition(out, divisor, Need::nonzero, "a denominator");
     return;
