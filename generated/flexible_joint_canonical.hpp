@@ -192,7 +192,7 @@ class FlexibleJointCanonical {
     const State w = exact_.apply(zh_, b);
     State x;
     F::T_inverse(w, x);
-    if (!obsynth::all_finite(w, x)) return status_ = obsynth::Status::non_finite;
+    if (!obsynth::all_finite(x)) return status_ = obsynth::Status::non_finite;
     zh_ = w;
     xh_ = x;
     return status_ = obsynth::Status::ok;

@@ -154,14 +154,11 @@ class Slawinski17Canonical {
     if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
     State c;
     F::step_constant(u, y, c);  // constant over the step
-    const State before = zh_;  // the new state is stored at once, restored on a rejection
-    zh_ = exact_.apply(before, c);
+    const State w = exact_.apply(zh_, c);
     State x;
-    F::T_inverse(zh_, x);
-    if (!obsynth::all_finite(zh_, x)) {
-      zh_ = before;
-      return status_ = obsynth::Status::non_finite;
-    }
+    F::T_inverse(w, x);
+    if (!obsynth::all_finite(x)) return status_ = obsynth::Status::non_finite;
+    zh_ = w;
     xh_ = x;
     return status_ = obsynth::Status::ok;
   }

@@ -12,7 +12,6 @@
 #include "front/parse.hpp"
 #include "support/construct.hpp"
 #include "support/expect.hpp"
-#include "symbolic/lie.hpp"
 #include "symbolic/symbolic.hpp"
 
 using namespace obsynth;
@@ -40,7 +39,7 @@ TEST_P(Chain, RecoversTLAndInverse) {
   const auto& x = c.model.states;
   GiNaC::exmap y_is_h{{c.y, x[0]}}, u0{{c.model.inputs[0], 0}};
   for (std::size_t i = 0; i < n; ++i)
-    ASSERT_TRUE(same(lie_derivative(c.T[i], c.model.f, x),
+    ASSERT_TRUE(same(derivative_along(c.T[i], c.model.f, x),
                      (i ? c.T[i - 1] : ex(0)) + c.l[i].subs(u0).subs(y_is_h)));
 
   // Symbolic rank: the automatic method gives the Lie chain a quarter of the stage budget and
@@ -60,7 +59,7 @@ TEST_P(Chain, RecoversTLAndInverse) {
   // The frame is dual to dT: check with the constructed T (not the pipeline's).
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t j = 0; j < n; ++j)
-      EXPECT_TRUE(same(lie_derivative(c.T[i], cf.frame[j], x), ex(i == j ? 1 : 0)));
+      EXPECT_TRUE(same(derivative_along(c.T[i], cf.frame[j], x), ex(i == j ? 1 : 0)));
   ASSERT_EQ(cf.l_kind, Availability::symbolic) << cf.l_note;
   GiNaC::exmap rename{{c.y, cf.y}};
   ExVec expected_l;
@@ -134,10 +133,10 @@ TEST_P(FamilyChain, FindsTInClosedFormWithDualFrame) {
   GiNaC::exmap y_is_h{{c.y, x[0]}}, u0{{m.inputs[0], 0}};
   for (std::size_t i = 0; i < n; ++i)
     for (const auto& at : points) {
-      ASSERT_TRUE(equal_at(lie_derivative(c.T[i], m.f, x),
+      ASSERT_TRUE(equal_at(derivative_along(c.T[i], m.f, x),
                            (i ? c.T[i - 1] : ex(0)) + c.l[i].subs(u0).subs(y_is_h), at));
       ASSERT_TRUE(
-          equal_at(lie_derivative(c.T[i], m.g, x), (c.l[i] - c.l[i].subs(u0)).subs(y_is_h), at));
+          equal_at(derivative_along(c.T[i], m.g, x), (c.l[i] - c.l[i].subs(u0)).subs(y_is_h), at));
     }
 
   const Analysis a = analyse(m);

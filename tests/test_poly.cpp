@@ -8,6 +8,7 @@
 #include "analysis/budget.hpp"
 #include "analysis/observability.hpp"
 #include "front/parse.hpp"
+#include "support/expect.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/lie.hpp"
 #include "symbolic/poly.hpp"
@@ -19,28 +20,8 @@ namespace {
 using GiNaC::ex;
 using GiNaC::symbol;
 
-// a == b: expanded difference zero, or (the ring writes exp(x)^2 as exp(2*x) and sin(2x) as
-// 2 sin(x) cos(x)) equal to 45 digits at three exact rational points.
-bool same(const ex& a, const ex& b) {
-  const ex d = GiNaC::expand(a - b);
-  if (d.is_zero()) return true;
-  GiNaC::lst syms;
-  for (const auto& s : symbols_in(a - b)) syms.append(s);
-  const long saved = GiNaC::Digits;
-  GiNaC::Digits = 50;
-  bool equal = true;
-  for (int k = 0; k < 3 && equal; ++k) {
-    GiNaC::exmap at;
-    for (std::size_t i = 0; i < syms.nops(); ++i)
-      at[syms.op(i)] = GiNaC::numeric(static_cast<long>(7 * i + 3 * k + 1), 11 + 2 * k) - 1;
-    const ex scale = GiNaC::evalf(GiNaC::abs(a.subs(at)) + GiNaC::abs(b.subs(at)) + 1);
-    const ex v = GiNaC::evalf(GiNaC::abs(d.subs(at)) / scale);
-    const GiNaC::numeric tolerance("1e-45");
-    equal = GiNaC::is_a<GiNaC::numeric>(v) && GiNaC::ex_to<GiNaC::numeric>(v) < tolerance;
-  }
-  GiNaC::Digits = saved;
-  return equal;
-}
+using obsynth::testing::derivative_along;
+using obsynth::testing::same;
 
 struct Fixture {
   symbol x1{"x1"}, x2{"x2"}, x3{"x3"}, k{"k"};
@@ -85,7 +66,7 @@ TEST(PolyRing, RoundTripDerivativeAndProductAgreeWithGinac) {
     const std::vector<Poly> field{*pb, *pa, *ring->from_ex(1)};
     std::vector<Poly> grad;
     for (std::size_t j = 0; j < 3; ++j) grad.push_back(ring->derivative(*pa, j));
-    EXPECT_TRUE(same(ring->to_ex(PolyRing::dot(grad, field)), lie_derivative(a, {b, a, 1}, f.x)));
+    EXPECT_TRUE(same(ring->to_ex(PolyRing::dot(grad, field)), derivative_along(a, {b, a, 1}, f.x)));
   }
 }
 

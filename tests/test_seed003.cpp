@@ -4,6 +4,7 @@
 
 #include "analysis/analysis.hpp"
 #include "designs/registry.hpp"
+#include "designs/spec.hpp"
 #include "front/parse.hpp"
 #include "support/expect.hpp"
 
@@ -125,6 +126,53 @@ TEST_F(Seed003, PerfectObserverFromJets) {
   GiNaC::exmap zs{{cf.z[0], z1}, {cf.z[1], z2}};
   ExVec xh{cf.T_inverse[0].subs(zs), cf.T_inverse[1].subs(zs)};
   EXPECT_TRUE(same(xh, ExVec{y, -yd + (1 + y) * u}));
+}
+
+}  // namespace
+
+// ---- outputs_carry_nonfinite: when the step may test the estimate alone -------------------
+
+namespace {
+
+using GiNaC::ex;
+
+GeneratedFunction estimate_of(const std::vector<GiNaC::symbol>& w, const ExVec& outputs,
+                              std::vector<LetStep> lets = {}) {
+  GeneratedFunction f;
+  f.name = "estimate";
+  f.args = {vector_arg("z", "State", w, FunctionArg::Kind::observer_state)};
+  f.lets = std::move(lets);
+  f.outputs = outputs;
+  f.out_rows = outputs.size();
+  return f;
+}
+
+TEST(CarriesNonfinite, PolynomialReadingEveryComponent) {
+  GiNaC::symbol z1("z1"), z2("z2"), k("k");
+  // seed 003's T^-1 (eq. 29): x = (z2, z2^2 / 2 - z1); inf in z1 gives -inf in x2, NaN in
+  // either gives NaN.
+  EXPECT_TRUE(outputs_carry_nonfinite(estimate_of({z1, z2}, {z2, z2 * z2 / 2 - z1}), 0));
+  // coefficients free of z (a parameter, its sine, a quotient by it) keep it polynomial
+  EXPECT_TRUE(outputs_carry_nonfinite(
+      estimate_of({z1, z2}, {GiNaC::sin(k) * z1, z2 / k + GiNaC::pow(z1, 3)}), 0));
+  // through an elimination sequence: t = z1 - z2^2, x = (t, t z2)
+  GiNaC::symbol t("t");
+  EXPECT_TRUE(outputs_carry_nonfinite(estimate_of({z1, z2}, {t, t * z2}, {{t, z1 - z2 * z2}}), 0));
+}
+
+TEST(CarriesNonfinite, NotWhereAFiniteValueCanHideOne) {
+  GiNaC::symbol z1("z1"), z2("z2"), t("t");
+  // 1 / inf = 0, tanh(inf) = 1, exp(-inf) = 0: finite estimates from a non-finite state
+  EXPECT_FALSE(outputs_carry_nonfinite(estimate_of({z1, z2}, {z2, 1 / z1}), 0));
+  EXPECT_FALSE(outputs_carry_nonfinite(estimate_of({z1, z2}, {z2, GiNaC::tanh(z1)}), 0));
+  EXPECT_FALSE(outputs_carry_nonfinite(estimate_of({z1, z2}, {z2, GiNaC::exp(-z1)}), 0));
+  EXPECT_FALSE(outputs_carry_nonfinite(estimate_of({z1, z2}, {z2, GiNaC::sqrt(z1)}), 0));
+  // z1 never read: its value cannot show
+  EXPECT_FALSE(outputs_carry_nonfinite(estimate_of({z1, z2}, {z2, z2 * z2}), 0));
+  // hidden in a let: t = 1 / z1
+  EXPECT_FALSE(outputs_carry_nonfinite(estimate_of({z1, z2}, {t, z2}, {{t, 1 / z1}}), 0));
+  // no such argument
+  EXPECT_FALSE(outputs_carry_nonfinite(estimate_of({z1, z2}, {z1, z2}), 1));
 }
 
 }  // namespace

@@ -84,7 +84,8 @@ int main(int argc, char** argv) {
   // Same observer? Compare the estimates of both implementations step by step first.
   constexpr std::size_t kCheckSteps = 1000;
   // The generated step is the exact zero-order-hold discretisation and the hand-written ones
-  // are RK4: they agree up to RK4's truncation error (O(dt^5) per step), not to rounding.
+  // are RK4: they agree up to RK4's truncation error (O(dt^5) per step, ~(|pole| dt)^5 / 120
+  // relative: 6e-9 over 1000 steps with the poles -2.74, -3.43), not to rounding.
   const Agreement d = check_seed003_agreement<double>(kCheckSteps);
   const Agreement f = check_seed003_agreement<float>(kCheckSteps);
   const Agreement de = check_seed003_agreement<double, Expert003<double>>(kCheckSteps);
@@ -92,8 +93,8 @@ int main(int argc, char** argv) {
                describe("double", d).c_str(), describe("float", f).c_str());
   std::fprintf(stderr, "seed003 expert agreement: %s\n", describe("double", de).c_str());
   if (d.failures != 0 || f.failures != 0 || de.failures != 0 ||
-      !(d.max_abs_diff <= 1e-9 * std::max(1.0, d.max_abs_x)) ||
-      !(de.max_abs_diff <= 1e-9 * std::max(1.0, de.max_abs_x)) ||
+      !(d.max_abs_diff <= 2e-8 * std::max(1.0, d.max_abs_x)) ||
+      !(de.max_abs_diff <= 2e-8 * std::max(1.0, de.max_abs_x)) ||
       !(f.max_abs_diff <= 1e-4 * std::max(1.0, f.max_abs_x))) {
     std::fprintf(stderr,
                  "generated and hand-written seed 003 observers disagree: not timing them\n");
@@ -102,7 +103,8 @@ int main(int argc, char** argv) {
   benchmark::AddCustomContext("compile_flags", OBSYNTH_BENCH_FLAGS);
   benchmark::AddCustomContext("seed003_agreement_double", describe("double", d));
   benchmark::AddCustomContext("seed003_agreement_float", describe("float", f));
-  benchmark::AddCustomContext("poles", "-2, -2.5 (K = [5, 4.5]) for both seed003 observers");
+  benchmark::AddCustomContext("poles",
+                              "-2.74, -3.43 (K = [9.3982, 6.17]) for every seed003 observer");
 
   register_seed003();
 #ifdef OBSYNTH_BENCH_CHAINS

@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 
 #include <cctype>
+#include <map>
+#include <set>
 #include <utility>
 
 #include "symbolic/expr_print.hpp"
@@ -120,6 +122,50 @@ std::vector<std::pair<GiNaC::symbol, GiNaC::ex>> let_pairs(const GeneratedFuncti
   std::vector<std::pair<GiNaC::symbol, GiNaC::ex>> out;
   for (const auto& l : f.lets) out.emplace_back(l.symbol, l.value);
   return out;
+}
+
+bool outputs_carry_nonfinite(const GeneratedFunction& f, std::size_t arg) {
+  if (arg >= f.args.size() || f.args[arg].symbols.empty()) return false;
+  const FunctionArg* a = &f.args[arg];
+  // The argument's symbols and the lets that depend on them, each a variable of the polynomial
+  // test; `reaches` maps every such variable to the argument components it depends on.
+  GiNaC::lst variables;
+  std::map<GiNaC::ex, std::set<std::size_t>, GiNaC::ex_is_less> reaches;
+  for (std::size_t i = 0; i < a->symbols.size(); ++i) {
+    variables.append(a->symbols[i]);
+    reaches[a->symbols[i]] = {i};
+  }
+  auto polynomial = [&](const GiNaC::ex& e) {
+    for (const auto& v : variables)
+      if (!e.is_polynomial(v)) return false;
+    return true;
+  };
+  auto components_of = [&](const GiNaC::ex& e) {
+    std::set<std::size_t> out;
+    for (const auto& [v, comps] : reaches)
+      if (e.has(v)) out.insert(comps.begin(), comps.end());
+    return out;
+  };
+  for (const auto& l : f.lets) {
+    const std::set<std::size_t> comps = components_of(l.value);
+    if (comps.empty()) continue;
+    if (!polynomial(l.value)) return false;
+    variables.append(l.symbol);
+    reaches[l.symbol] = comps;
+  }
+  std::set<std::size_t> reached;
+  for (const auto& out : f.outputs) {
+    const std::set<std::size_t> comps = components_of(out);
+    if (!comps.empty() && !polynomial(out)) return false;
+    reached.insert(comps.begin(), comps.end());
+  }
+  return reached.size() == a->symbols.size();
+}
+
+bool estimate_shows_nonfinite_state(const ObserverSpec& s) {
+  if (s.estimate != EstimateKind::function) return false;
+  const GeneratedFunction* estimate = s.function(s.roles.estimate);
+  return estimate && outputs_carry_nonfinite(*estimate, 0);
 }
 
 std::string pascal_case(const std::string& name) {

@@ -282,6 +282,18 @@ FunctionArg vector_arg(const std::string& name, const std::string& type,
 
 std::string pascal_case(const std::string& name);
 
+// Whether a non-finite component of argument number `arg` always makes some output of f
+// non-finite: every component reaches an output (through the lets), and only through +, -, *,
+// division by terms free of the argument and positive integer powers. In IEEE arithmetic each
+// of these gives a non-finite result for a non-finite operand (inf * 0 and inf - inf are NaN),
+// so testing f's outputs for finiteness also tests the argument. False for anything else (a
+// quotient by the argument, tanh, atan, exp(-w) can map a non-finite value to a finite one).
+bool outputs_carry_nonfinite(const GeneratedFunction& f, std::size_t arg);
+
+// outputs_carry_nonfinite for the spec's closed-form estimate x = estimate(w, ...): a step may
+// then test x alone (false without such an estimate).
+bool estimate_shows_nonfinite_state(const ObserverSpec& s);
+
 // A function's let-steps as (symbol, value) pairs, for Dag::let and NumericFunction.
 std::vector<std::pair<GiNaC::symbol, GiNaC::ex>> let_pairs(const GeneratedFunction& f);
 

@@ -165,9 +165,10 @@ const char* kCommitThenEstimate = R"(  if (!all_finite(w, N)) return o->status =
 )";
 
 // ... or, with a closed-form estimate, as the C++ step does: the estimate first, then one test
-// of both, so that a non-finite value in either keeps the state and the estimate.
+// of both (of x alone when estimate_shows_nonfinite_state), so that a non-finite value in
+// either keeps the state and the estimate.
 const char* kEstimateThenCommit = R"(  {{estimate}}(w{{PRM}}, x);
-  if (!all_finite(w, N) || !all_finite(x, {{P}}_n)) return o->status = {{P}}_non_finite;
+  if ({{w_test}}!all_finite(x, {{P}}_n)) return o->status = {{P}}_non_finite;
   for (i = 0; i < N; ++i) o->w[i] = w[i];
   for (i = 0; i < {{P}}_n; ++i) o->xh[i] = x[i];
   return o->status = {{P}}_ok;
@@ -896,7 +897,10 @@ std::string step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b
     const std::string commit =
         fused ? render_template(
                     kEstimateThenCommit,
-                    {{"P", b.prefix()}, {"estimate", b.fn(s.roles.estimate)}, {"PRM", prm}})
+                    {{"P", b.prefix()},
+                     {"estimate", b.fn(s.roles.estimate)},
+                     {"PRM", prm},
+                     {"w_test", estimate_shows_nonfinite_state(s) ? "" : "!all_finite(w, N) || "}})
               : render_template(kCommitThenEstimate, {{"P", b.prefix()}});
     const std::string x_decl = fused ? fmt::format(", x[{}_n]", b.prefix()) : "";
     if (!s.input_map.empty())

@@ -3,6 +3,7 @@
 // the exact zero-order-hold step, and the firmware step() in closed loop at every run-time
 // parameter point, in the pair's scalar type (float or double, one per generated pair).
 #include <cmath>
+#include <initializer_list>
 #include <cstdio>
 #include <limits>
 
@@ -211,6 +212,28 @@ bool keeps_state_on_non_finite_estimate() {
   return true;
 }
 
+// As the C++ test: a NaN or infinite measurement is rejected, state and estimate kept.
+void keeps_state_on_non_finite_measurement() {
+  for (const Scalar bad : {std::numeric_limits<Scalar>::quiet_NaN(),
+                           std::numeric_limits<Scalar>::infinity(),
+                           -std::numeric_limits<Scalar>::infinity()}) {
+    C_(observer) obs;
+    C_(init)(&obs);
+    set_observer_params(obs, 0);
+    constexpr int N = static_cast<int>(sizeof obs.w / sizeof obs.w[0]);
+    Scalar w0[N], x0[n];
+    for (int i = 0; i < N; ++i) w0[i] = obs.w[i];
+    for (int i = 0; i < n; ++i) x0[i] = obs.xh[i];
+    Scalar u[m > 0 ? m : 1] = {}, y[1] = {bad};
+    const auto st = C_(step)(&obs, static_cast<Scalar>(1e-3), u, y);
+    expect(st == C_(non_finite), "non-finite measurement: status non_finite");
+    bool same = true;
+    for (int i = 0; i < N; ++i) same = same && obs.w[i] == w0[i];
+    for (int i = 0; i < n; ++i) same = same && obs.xh[i] == x0[i];
+    expect(same, "non-finite measurement: state and estimate kept");
+  }
+}
+
 }  // namespace
 
 int main() {
@@ -218,6 +241,7 @@ int main() {
   numeric_equivalence(single ? 1e-5 : 1e-12);
   std::printf("non-finite estimate rejected: %s\n",
               keeps_state_on_non_finite_estimate() ? "yes" : "no (linear T^-1)");
+  keeps_state_on_non_finite_measurement();
   for (int set = 0; set < (OBSYNTH_HAS_PARAMS ? ref::kParamSets : 1); ++set) {
     const double e1 = closed_loop_zoh(2e-3, set), e2 = closed_loop_zoh(1e-3, set);
     // From 0.2 down to the O(dt) zero-order-hold floor; in double it halves with dt.

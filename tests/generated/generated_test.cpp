@@ -11,6 +11,7 @@
 #include OBSYNTH_REFERENCE_HEADER
 
 #include <cmath>
+#include <initializer_list>
 #include <cstdio>
 #include <limits>
 
@@ -315,6 +316,31 @@ bool keeps_state_on_non_finite_estimate() {
   expect(same, "non-finite estimate: state and estimate kept");
   return true;
 }
+
+// A NaN or an infinite measurement makes the new state non-finite: the step must be rejected
+// with the state and the estimate kept, whether the step tests the state itself or (when T^-1
+// carries a non-finite state into the estimate) the estimate alone.
+template <class Scalar>
+void keeps_state_on_non_finite_measurement() {
+  using S = F<Scalar>;
+  for (const Scalar bad : {std::numeric_limits<Scalar>::quiet_NaN(),
+                           std::numeric_limits<Scalar>::infinity(),
+                           -std::numeric_limits<Scalar>::infinity()}) {
+    gen::OBSYNTH_CLASS<Scalar> obs;
+    set_observer_params(obs, 0);
+    obs.reset(S::State::Constant(Scalar(0.1)));
+    const typename S::State w0 = obs.observer_state();
+    const typename S::State x0 = obs.estimate();
+    const typename S::Input u = S::Input::Zero();
+    const typename S::Output y = S::Output::Constant(bad);
+    const obsynth::Status st = obs.step(static_cast<Scalar>(1e-3), u, y);
+    expect(st == obsynth::Status::non_finite, "non-finite measurement: status non_finite");
+    bool same = true;
+    for (int i = 0; i < gen::n; ++i)
+      same = same && obs.observer_state()(i) == w0(i) && obs.estimate()(i) == x0(i);
+    expect(same, "non-finite measurement: state and estimate kept");
+  }
+}
 #endif
 
 }  // namespace
@@ -326,6 +352,8 @@ int main() {
   {
     const bool d = keeps_state_on_non_finite_estimate<double>();
     const bool f = keeps_state_on_non_finite_estimate<float>();
+    keeps_state_on_non_finite_measurement<double>();
+    keeps_state_on_non_finite_measurement<float>();
     std::printf("non-finite estimate rejected: double %s, float %s\n",
                 d ? "yes" : "no (linear T^-1)", f ? "yes" : "no (linear T^-1)");
   }
