@@ -3,8 +3,8 @@
 // the exact zero-order-hold step, and the firmware step() in closed loop at every run-time
 // parameter point, in the pair's scalar type (float or double, one per generated pair).
 #include <cmath>
-#include <initializer_list>
 #include <cstdio>
+#include <initializer_list>
 #include <limits>
 
 #include OBSYNTH_C_HEADER
@@ -214,9 +214,9 @@ bool keeps_state_on_non_finite_estimate() {
 
 // As the C++ test: a NaN or infinite measurement is rejected, state and estimate kept.
 void keeps_state_on_non_finite_measurement() {
-  for (const Scalar bad : {std::numeric_limits<Scalar>::quiet_NaN(),
-                           std::numeric_limits<Scalar>::infinity(),
-                           -std::numeric_limits<Scalar>::infinity()}) {
+  for (const Scalar bad :
+       {std::numeric_limits<Scalar>::quiet_NaN(), std::numeric_limits<Scalar>::infinity(),
+        -std::numeric_limits<Scalar>::infinity()}) {
     C_(observer) obs;
     C_(init)(&obs);
     set_observer_params(obs, 0);

@@ -11,8 +11,8 @@
 #include OBSYNTH_REFERENCE_HEADER
 
 #include <cmath>
-#include <initializer_list>
 #include <cstdio>
+#include <initializer_list>
 #include <limits>
 
 #include "alloc_counter.hpp"
@@ -323,9 +323,9 @@ bool keeps_state_on_non_finite_estimate() {
 template <class Scalar>
 void keeps_state_on_non_finite_measurement() {
   using S = F<Scalar>;
-  for (const Scalar bad : {std::numeric_limits<Scalar>::quiet_NaN(),
-                           std::numeric_limits<Scalar>::infinity(),
-                           -std::numeric_limits<Scalar>::infinity()}) {
+  for (const Scalar bad :
+       {std::numeric_limits<Scalar>::quiet_NaN(), std::numeric_limits<Scalar>::infinity(),
+        -std::numeric_limits<Scalar>::infinity()}) {
     gen::OBSYNTH_CLASS<Scalar> obs;
     set_observer_params(obs, 0);
     obs.reset(S::State::Constant(Scalar(0.1)));
