@@ -35,7 +35,7 @@
 #include "analysis/analysis.hpp"
 #include "app/worker.hpp"
 #include "families.hpp"
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 #include "front/parse.hpp"
 
 namespace {

@@ -14,6 +14,8 @@
 #     [PRECISION float|double]                 # literal precision and default Scalar
 #     [POLES -2,-3]                            # canonical error poles (comma list or CMake list)
 #     [REALISATION z|x]                        # canonical observer realisation
+#     [OPTIONS <name>=<value>...]              # any design option, passed as --<name>=<value>
+#                                              # (e.g. theta=20 kou-gain=1,2 "el-poles=-1,-2")
 #     [OUTPUT_DIR <dir>]                       # default <binary dir>/obsynth_gen/<target>
 #     [SCOPE PRIVATE|PUBLIC|INTERFACE]         # how <target> gets the include dir and runtime;
 #                                              # default PRIVATE (INTERFACE for INTERFACE libs)
@@ -41,6 +43,11 @@
 #
 # The model name is read at configure time, so the model file is a configure dependency:
 # renaming the model re-runs CMake and the output names follow.
+#
+# When the obsynth executable already exists at configure time (find_package(obsynth), or a
+# path), METHOD and the OPTIONS names are checked against `obsynth --list-methods --format
+# json` there, with a configure error that lists the known ones; inside the obsynth build tree
+# obsynth itself checks them when it runs.
 
 include_guard(GLOBAL)
 # The functions below keep these policy settings wherever they are called from.
@@ -89,9 +96,69 @@ function(_obsynth_split_list out_var)
   set(${out_var} "${items}" PARENT_SCOPE)
 endfunction()
 
+# Checks METHOD and OPTIONS names against the registry of an obsynth executable that exists at
+# configure time (`--list-methods --format json`); a target built later is skipped (obsynth
+# checks them itself when it runs).
+function(_obsynth_check_methods fn exe methods option_names)
+  set(path "")
+  if(TARGET "${exe}")
+    get_target_property(imported "${exe}" IMPORTED)
+    if(imported)
+      foreach(prop IMPORTED_LOCATION IMPORTED_LOCATION_RELEASE IMPORTED_LOCATION_NOCONFIG
+                   IMPORTED_LOCATION_RELWITHDEBINFO IMPORTED_LOCATION_DEBUG)
+        get_target_property(loc "${exe}" ${prop})
+        if(loc AND EXISTS "${loc}")
+          set(path "${loc}")
+          break()
+        endif()
+      endforeach()
+    endif()
+  elseif(EXISTS "${exe}")
+    set(path "${exe}")
+  endif()
+  if(path STREQUAL "")
+    return()
+  endif()
+  execute_process(COMMAND "${path}" --list-methods --format json OUTPUT_VARIABLE listing
+                  RESULT_VARIABLE rc ERROR_QUIET)
+  if(NOT rc EQUAL 0)
+    return()  # an older obsynth without the JSON listing: it checks the names itself
+  endif()
+  set(known_methods auto all)
+  set(known_options "")
+  string(JSON n LENGTH "${listing}" methods)
+  math(EXPR last "${n} - 1")
+  foreach(i RANGE ${last})
+    string(JSON name GET "${listing}" methods ${i} name)
+    list(APPEND known_methods "${name}")
+    string(JSON k LENGTH "${listing}" methods ${i} options)
+    if(k GREATER 0)
+      math(EXPR klast "${k} - 1")
+      foreach(j RANGE ${klast})
+        string(JSON oname GET "${listing}" methods ${i} options ${j} name)
+        list(APPEND known_options "${oname}")
+      endforeach()
+    endif()
+  endforeach()
+  list(REMOVE_DUPLICATES known_options)
+  foreach(m IN LISTS methods)
+    if(NOT m IN_LIST known_methods)
+      string(REPLACE ";" ", " known "${known_methods}")
+      message(FATAL_ERROR "${fn}: METHOD '${m}' is not an obsynth design (known: ${known})")
+    endif()
+  endforeach()
+  foreach(o IN LISTS option_names)
+    if(NOT o IN_LIST known_options)
+      string(REPLACE ";" ", " known "${known_options}")
+      message(FATAL_ERROR "${fn}: OPTIONS '${o}' is not an option of any obsynth design "
+                          "(known: ${known})")
+    endif()
+  endforeach()
+endfunction()
+
 function(obsynth_add_observer target)
   set(one_value MODEL PRECISION REALISATION OUTPUT_DIR SCOPE OBSYNTH_EXECUTABLE HEADERS_VAR)
-  set(multi_value METHOD POLES)
+  set(multi_value METHOD POLES OPTIONS)
   cmake_parse_arguments(PARSE_ARGV 1 arg "" "${one_value}" "${multi_value}")
   set(fn "obsynth_add_observer(${target})")
   set(poles "")
@@ -163,6 +230,16 @@ function(obsynth_add_observer target)
     list(APPEND cli_options --realisation "${arg_REALISATION}")
   endif()
 
+  set(option_names "")
+  foreach(o IN LISTS arg_OPTIONS)
+    if(NOT o MATCHES "^([A-Za-z][A-Za-z0-9-]*)=(.*)$")
+      message(FATAL_ERROR "${fn}: OPTIONS entries are <name>=<value>, not '${o}'")
+    endif()
+    list(APPEND option_names "${CMAKE_MATCH_1}")
+    # "--name=value": a separate "-1,-2" argument would look like an option.
+    list(APPEND cli_options "--${o}")
+  endforeach()
+
   get_target_property(target_type "${target}" TYPE)
   if(NOT "${arg_SCOPE}" STREQUAL "")
     if(NOT arg_SCOPE MATCHES "^(PRIVATE|PUBLIC|INTERFACE)$")
@@ -205,6 +282,8 @@ function(obsynth_add_observer target)
     set(exe_command "${exe}")
     set(exe_depends "${exe}")
   endif()
+
+  _obsynth_check_methods("${fn}" "${exe}" "${methods}" "${option_names}")
 
   if(TARGET obsynth::runtime)
     set(runtime obsynth::runtime)

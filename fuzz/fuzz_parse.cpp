@@ -16,7 +16,7 @@
 #include <string>
 #include <string_view>
 
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 #include "front/parse.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <cstring>
 #include <iostream>
 #include <optional>
 
@@ -14,12 +13,13 @@
 #include "app/output_dir.hpp"
 #include "app/report.hpp"
 #include "app/simulate.hpp"
+#include "app/stages.hpp"
 #include "app/synthesize.hpp"
 #include "app/worker.hpp"
 #include "designs/registry.hpp"
 #include "emit/cxx.hpp"
+#include "foundation/diagnostics.hpp"
 #include "front/bind.hpp"
-#include "front/diagnostics.hpp"
 #include "front/parse.hpp"
 #include "symbolic/expr_print.hpp"
 
@@ -260,6 +260,7 @@ struct MainJob {
   std::vector<std::string> params;
   DesignOptions design;
   bool list_methods = false;
+  std::string list_format = "text";
   CommonOptions common;
 };
 
@@ -327,6 +328,10 @@ void add_main_job(CLI::App& app, MainJob& c) {
       ->check(CLI::IsMember({"cpp", "c"}))
       ->capture_default_str();
   app.add_flag("--list-methods", c.list_methods, "list the observer designs and exit");
+  app.add_option("--format", c.list_format,
+                 "with --list-methods: text, or json (traits and options of every design)")
+      ->check(CLI::IsMember({"text", "json"}))
+      ->capture_default_str();
   add_design_options(&app, c.design);
   add_param_option(&app, c.params);
   add_common(&app, c.common);
@@ -339,7 +344,11 @@ ReportFormat report_format(const std::string& name) {
                               : ReportFormat::text;
 }
 
-int list_methods() {
+int list_methods(const std::string& format) {
+  if (format == "json") {
+    std::printf("%s\n", methods_json().dump(2).c_str());
+    return 0;
+  }
   for (const auto& d : design_registry())
     std::printf("%-24s %s\n", d.name.c_str(), d.summary.c_str());
   for (const auto& p : planned_methods())
@@ -498,13 +507,6 @@ int run_simulate(const SimulateCommand& c) {
   });
 }
 
-// auto and all may pick a design that does not need the canonical form (the stages after the
-// observability rank): a budget stop in those stages then skips them instead of ending the job.
-bool may_skip_canonical_form(const std::vector<std::string>& methods) {
-  return methods.empty() || std::find(methods.begin(), methods.end(), "auto") != methods.end() ||
-         std::find(methods.begin(), methods.end(), "all") != methods.end();
-}
-
 int main_job_body(const MainJob& c, const std::string& canonical_stop,
                   const std::vector<ExcludedDesign>& excluded) {
   SynthesisOptions so;
@@ -541,36 +543,6 @@ int main_job_body(const MainJob& c, const std::string& canonical_stop,
   return 0;
 }
 
-bool asks_auto(const std::vector<std::string>& methods) {
-  return methods.empty() || std::find(methods.begin(), methods.end(), "auto") != methods.end();
-}
-
-// synthesize's stage names for one design: "<method> verdict" (its certificate, for auto's
-// ranking), "<method> design" (its build) and "<method> trial" (auto's closed-loop trial).
-const std::pair<const char*, const char*> kDesignStages[] = {
-    {" verdict", "its verdict stopped: "},
-    {" design", "it applies, but its build stopped: "},
-    {" trial", "it applies, but its closed-loop trial stopped: "}};
-
-bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() > suffix.size() &&
-         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-
-// "<method> verdict|design|trial" -> method, else "".
-std::string design_of_stage(const std::string& stage) {
-  for (const auto& [suffix, clause] : kDesignStages)
-    if (ends_with(stage, suffix)) return stage.substr(0, stage.size() - std::strlen(suffix));
-  return "";
-}
-
-// The reason auto gives for passing over the design whose stage a budget stopped.
-std::string stop_clause(const std::string& stage) {
-  for (const auto& [suffix, clause] : kDesignStages)
-    if (ends_with(stage, suffix)) return clause;
-  return "";
-}
-
 int run_main_job(const MainJob& c) {
   if (c.out.empty()) {
     std::fprintf(stderr,
@@ -579,32 +551,19 @@ int run_main_job(const MainJob& c) {
     return 1;
   }
   const auto methods = split_list(c.methods);
-  std::string canonical_why;
-  std::vector<ExcludedDesign> excluded;
-  // A time or memory stop kills the worker; auto/all then run once more without the
-  // canonical-form stages (when they stopped), and auto without the design whose build stopped.
+  RetryState retry;
+  // A time or memory stop kills the worker; the retry policy (app/stages.hpp) decides whether
+  // to run again without the canonical-form stages or without the design that stopped.
   for (;;) {
     std::optional<JobStop> stop;
     const int code = guarded(
-        c.common, [&] { return main_job_body(c, canonical_why, excluded); }, &stop);
+        c.common, [&] { return main_job_body(c, retry.canonical_skipped, retry.excluded); }, &stop);
     if (!stop) return code;
-    const std::string why = fmt::format("stage '{}' {}", stop->stage, stop->reason);
-    const std::string design = design_of_stage(stop->stage);
-    if (canonical_why.empty() && may_skip_canonical_form(methods) &&
-        is_canonical_form_stage(stop->stage)) {
-      std::fprintf(stderr, "obsynth: note: %s; continuing without the canonical form\n",
-                   why.c_str());
-      canonical_why = why;
-    } else if (asks_auto(methods) && !design.empty() &&
-               excluded.size() < design_registry().size()) {
-      std::fprintf(stderr, "obsynth: note: %s; auto tries the next design\n", why.c_str());
-      excluded.push_back({design, stop_clause(stop->stage) + why});
-    } else {
-      std::fputs(stop->checkpoint.c_str(), stdout);
-      std::fflush(stdout);
-      print_stop(stop->stage, stop->reason);
-      return 1;
-    }
+    if (after_stop(methods, stop->stage, stop->reason, retry) == AfterStop::rerun) continue;
+    std::fputs(stop->checkpoint.c_str(), stdout);
+    std::fflush(stdout);
+    print_stop(stop->stage, stop->reason);
+    return 1;
   }
 }
 
@@ -625,7 +584,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 1;
   }
-  if (job.list_methods) return list_methods();
+  if (job.list_methods) return list_methods(job.list_format);
   if (*check_cmd) return run_check(check);
   if (*sim_cmd) return run_simulate(sim);
   if (!job.model.empty()) return run_main_job(job);

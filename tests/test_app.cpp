@@ -204,3 +204,93 @@ TEST(Synthesize, TheCReportShowsCUsage) {
   EXPECT_EQ(md.find("set_params()"), std::string::npos);
   EXPECT_NE(md.find("`prm` member"), std::string::npos);
 }
+
+// ---- Plans: a design's verdict and build share its work, held by the caller -----------------
+
+namespace {
+
+// Counts what a design's plan is asked to do (a fake design, so the counts are exact).
+struct Counts {
+  int plans = 0, computes = 0, verdicts = 0, builds = 0;
+};
+Counts counts;
+
+struct Work {
+  int value = 0;
+};
+Work compute(const Model&, const DesignOptions& o) {
+  ++counts.computes;
+  return Work{o.find("k") ? std::stoi(*o.find("k")) : 1};
+}
+Verdict verdict_of(const Analysis&, const Lazy<Work>& w) {
+  ++counts.verdicts;
+  Verdict v;
+  v.applies = w.get().value > 0;
+  v.guarantee = Guarantee::partial;
+  return v;
+}
+ObserverSpec build_from(const Analysis&, const Work& w) {
+  ++counts.builds;
+  ObserverSpec s;
+  s.summary = std::to_string(w.value);
+  return s;
+}
+std::unique_ptr<Plan> counting_plan(const Analysis& a, const DesignOptions& o) {
+  ++counts.plans;
+  return work_plan<Work, compute, verdict_of, build_from>(a, o);
+}
+
+Design counting_design() {
+  Design d;
+  d.name = "counting";
+  d.plan = counting_plan;
+  d.needs_canonical_form = false;
+  return d;
+}
+
+}  // namespace
+
+TEST(Plans, VerdictAndBuildShareOneComputation) {
+  const Analysis a = analysed("slawinski17");
+  const Design d = counting_design();
+  counts = {};
+  DesignOptions o;
+  o.values["k"] = "7";
+  PlanSet plans(a, o);
+  EXPECT_TRUE(plans.verdict(d).applies);
+  EXPECT_TRUE(plans.verdict(d).applies);   // memoised: no second verdict
+  EXPECT_EQ(plans.build(d).summary, "7");  // the plan's options reach the build
+  EXPECT_EQ(counts.plans, 1);
+  EXPECT_EQ(counts.computes, 1);  // the search ran once for verdict and build
+  EXPECT_EQ(counts.verdicts, 1);
+  EXPECT_EQ(counts.builds, 1);
+  // A build may sharpen the verdict (finite-time's tables): asked again, it is recomputed on the
+  // same plan, still without a new search.
+  EXPECT_TRUE(plans.verdict(d).applies);
+  EXPECT_EQ(counts.verdicts, 2);
+  EXPECT_EQ(counts.computes, 1);
+}
+
+TEST(Plans, NothingOutlivesThePlanSet) {
+  const Analysis a = analysed("slawinski17");
+  const Design d = counting_design();
+  counts = {};
+  for (int k = 0; k < 2; ++k) {
+    PlanSet plans(a, DesignOptions{});
+    EXPECT_TRUE(plans.verdict(d).applies);
+  }
+  EXPECT_EQ(counts.computes, 2);  // no hidden cache: each plan set computes its own
+}
+
+TEST(Plans, SingleOutputDesignsRefuseTwoOutputsThroughTheRegistry) {
+  const Model m =
+      parse_model("model two\nstates x1 x2\nf = [ x2, -x1 ]\nh = [ x1, x2 ]\n", "two.sym");
+  const Analysis a = analyse(m);
+  for (const auto& d : design_registry()) {
+    if (d.max_outputs != 1) continue;
+    const Verdict v = design_verdict(d, a);
+    EXPECT_FALSE(v.applies) << d.name;
+    EXPECT_NE(v.text().find("the model has p = 2"), std::string::npos)
+        << d.name << ": " << v.text();
+  }
+}

@@ -17,9 +17,9 @@
 #include "analysis/flint_products.hpp"
 #include "app/report.hpp"
 #include "designs/registry.hpp"
-#include "emit/dag.hpp"
 #include "front/parse.hpp"
 #include "support/expect.hpp"
+#include "symbolic/dag.hpp"
 #include "symbolic/poly.hpp"
 
 using namespace obsynth;

@@ -39,7 +39,7 @@
 #include "designs/registry.hpp"
 #include "emit/emit_c.hpp"
 #include "emit/emit_cxx.hpp"
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 #include "front/parse.hpp"
 
 using namespace obsynth;
@@ -499,14 +499,16 @@ TEST(FiniteTime, SlopeCorrectionIsWhatMeetsTheLastSecondFigure) {
 }
 
 // The design's own report for the defaults (the main job without options): target, budget and
-// guarantee lines; the verdict carries the guarantee once the default tables are built (before,
-// it says they are not built, and claims nothing).
+// guarantee lines; the verdict carries the guarantee once its plan has built the default tables
+// (before, and on another plan, it says they are not built, and claims nothing).
 TEST(FiniteTime, DefaultsMeetTheTargetWithinTheBudget) {
   const Analysis a = garcia14();
   const Design* d = find_design("finite-time");
-  const ObserverSpec s = build_design(a, "finite-time", DesignOptions{});
+  PlanSet plans(a, DesignOptions{});  // the verdict reads the tables its own plan built
+  EXPECT_EQ(plans.verdict(*d).guarantee, Guarantee::none);  // not built yet
+  const ObserverSpec s = build_design(plans, "finite-time");
   EXPECT_LE(s.table("observation_map")->size() * 4, 256u * 1024u);
-  const Verdict v = d->applies(a);
+  const Verdict v = plans.verdict(*d);
   EXPECT_EQ(v.guarantee, Guarantee::partial) << v.guarantee_text;
   EXPECT_NE(v.guarantee_text.find("sampled"), std::string::npos) << v.guarantee_text;
   bool met = false;

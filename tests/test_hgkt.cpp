@@ -14,7 +14,7 @@
 #include "app/simulate.hpp"
 #include "designs/high_gain.hpp"
 #include "designs/registry.hpp"
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 #include "front/parse.hpp"
 
 using namespace obsynth;

@@ -16,7 +16,7 @@
 #include "designs/kou.hpp"
 #include "designs/registry.hpp"
 #include "designs/thau.hpp"
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 #include "front/parse.hpp"
 
 using namespace obsynth;

@@ -12,7 +12,7 @@
 #include <string_view>
 #include <vector>
 
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 #include "front/fresh_names.hpp"
 #include "front/model.hpp"
 #include "front/parse.hpp"

@@ -5,8 +5,8 @@
 
 #include <random>
 
-#include "analysis/budget.hpp"
 #include "analysis/observability.hpp"
+#include "foundation/budget.hpp"
 #include "front/parse.hpp"
 #include "support/expect.hpp"
 #include "symbolic/expr_print.hpp"

@@ -8,7 +8,7 @@
 #include <iostream>
 
 #include "certify/riccati_certificate.hpp"
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 #include "front/parse.hpp"
 
 using namespace obsynth;

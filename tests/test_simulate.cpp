@@ -18,8 +18,8 @@
 #include "app/svg_plot.hpp"
 #include "app/synthesize.hpp"
 #include "app/trial.hpp"
+#include "foundation/diagnostics.hpp"
 #include "front/bind.hpp"
-#include "front/diagnostics.hpp"
 #include "front/parse.hpp"
 
 using namespace obsynth;

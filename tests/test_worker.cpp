@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "analysis/budget.hpp"
 #include "app/worker.hpp"
+#include "foundation/budget.hpp"
 
 using namespace obsynth;
 

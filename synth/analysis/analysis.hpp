@@ -9,11 +9,11 @@
 #include <string>
 #include <vector>
 
-#include "analysis/budget.hpp"
 #include "analysis/canonical.hpp"
 #include "analysis/observability.hpp"
 #include "analysis/observability_inputs.hpp"
 #include "certify/definedness.hpp"
+#include "foundation/budget.hpp"
 #include "front/model.hpp"
 
 namespace obsynth {

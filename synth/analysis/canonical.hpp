@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "analysis/budget.hpp"
 #include "analysis/observability.hpp"
+#include "foundation/budget.hpp"
 #include "front/model.hpp"
 #include "symbolic/lie.hpp"
 #include "symbolic/zero_test.hpp"

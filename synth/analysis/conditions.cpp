@@ -397,7 +397,7 @@ void check_conditions(const Model& m, FrameRing& fr, Budget& budget, const Canon
                       CanonicalForm& cf) {
   StageScope stage(budget, "conditions");
   const std::size_t n = m.n();
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const SampleBoxes boxes = m.sample_boxes();
   // Numeric screen first: every bracket evaluated at one point of the domain from the values
   // of tau_k and their Jacobians. A clearly nonzero value proves failure without the symbolic
   // expansion (which dominates on large models); vanishing brackets get the full test.

@@ -5,9 +5,9 @@
 #include <string>
 #include <vector>
 
-#include "analysis/budget.hpp"
 #include "analysis/canonical.hpp"
 #include "analysis/frame.hpp"
+#include "foundation/budget.hpp"
 #include "front/model.hpp"
 
 namespace obsynth {

@@ -322,7 +322,7 @@ void build_diffeomorphism(const Model& m, const FrameRing& fr, Budget& budget,
   cf.base_point = choose_base_point(m, cf.frame);
   const Context c{m,
                   cf,
-                  SampleBoxes::from_model(m),
+                  m.sample_boxes(),
                   opt.zero,
                   point_map(m.states, cf.base_point),
                   simplify(m.h[0].subs(point_map(m.states, cf.base_point)))};

@@ -6,9 +6,9 @@
 #include <optional>
 #include <vector>
 
-#include "analysis/budget.hpp"
 #include "analysis/canonical.hpp"
 #include "analysis/observability.hpp"
+#include "foundation/budget.hpp"
 #include "front/model.hpp"
 #include "symbolic/poly.hpp"
 

@@ -180,7 +180,7 @@ void build_inverse(const Model& m, Budget& budget, const CanonicalOptions& opt, 
     return;
   }
   cf.T_inverse_verdict =
-      verify_steps(cf.T, x, cf.z, *steps, triangular, SampleBoxes::from_model(m), opt.zero);
+      verify_steps(cf.T, x, cf.z, *steps, triangular, m.sample_boxes(), opt.zero);
   if (cf.T_inverse_verdict == ZeroVerdict::nonzero) {
     cf.T_inverse_note =
         "elimination gave a branch that does not invert T; runtime Newton solve with [tau] as "

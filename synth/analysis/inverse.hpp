@@ -7,8 +7,8 @@
 
 #include <optional>
 
-#include "analysis/budget.hpp"
 #include "analysis/canonical.hpp"
+#include "foundation/budget.hpp"
 #include "front/model.hpp"
 
 namespace obsynth {

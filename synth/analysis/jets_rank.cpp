@@ -881,8 +881,7 @@ void ball_ranks(const Problem& pb, const Symbols& symbols, std::size_t inputs_fr
                 const JetsOptions& opt, const Budget* budget, JetsRank& out) {
   Symbols sampled(pb.m.states);
   sampled.insert(sampled.end(), symbols.begin(), symbols.end());
-  const auto points =
-      sample_points(sampled, SampleBoxes::from_model(pb.m), 8 * opt.points, opt.seed);
+  const auto points = sample_points(sampled, pb.m.sample_boxes(), 8 * opt.points, opt.seed);
   for (const auto& pt : points) {
     if (out.points >= opt.points || proven(out)) break;
     long prec = 0;

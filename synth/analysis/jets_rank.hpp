@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "analysis/budget.hpp"
+#include "foundation/budget.hpp"
 #include "front/model.hpp"
 
 namespace obsynth {

@@ -518,7 +518,7 @@ bool triangular_rank_of_rows(const Model& m, Observability& ob, std::vector<ExMa
         diagonal.push_back(rows.ring->to_ex(O[k][(*cols)[k]]));
         ob.rows.push_back({0, k});
       }
-      if (triangular_rank_from_diagonal(ob, *cols, diagonal, SampleBoxes::from_model(m), m.states))
+      if (triangular_rank_from_diagonal(ob, *cols, diagonal, m.sample_boxes(), m.states))
         return true;
       ob.rows.clear();
     }
@@ -544,7 +544,7 @@ Observability& rank_and_determinant(const Model& m, Budget& budget, const Observ
       ob.O.push_back(std::move(grads[i][k]));
       ob.rows.push_back({i, k});
     }
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const SampleBoxes boxes = m.sample_boxes();
   // Ring polynomials (Laurent only in exp bases) have no denominators.
   if (!ring_rows.ring) ob.undefined = denominators(ob.O, x);
   if (triangular_rank(ob, boxes, x)) return keep_ring(ob, ring_rows);
@@ -660,8 +660,7 @@ std::optional<Observability> observability_of_triangular_form(const Model& froze
     diagonal.push_back(simplify(product));
     ob.rows.push_back({0, k});
   }
-  if (!triangular_rank_from_diagonal(ob, t.order, diagonal, SampleBoxes::from_model(frozen),
-                                     frozen.states))
+  if (!triangular_rank_from_diagonal(ob, t.order, diagonal, frozen.sample_boxes(), frozen.states))
     return std::nullopt;
   return ob;
 }

@@ -9,8 +9,8 @@
 #include <optional>
 #include <vector>
 
-#include "analysis/budget.hpp"
 #include "analysis/jets_rank.hpp"
+#include "foundation/budget.hpp"
 #include "front/model.hpp"
 #include "symbolic/lie.hpp"
 #include "symbolic/poly.hpp"

@@ -14,12 +14,6 @@ namespace obsynth {
 using GiNaC::ex;
 using GiNaC::numeric;
 
-std::string persistent_input_designs(const ObservabilityUnderInputs& u) {
-  std::string s = "riccati (James-Baras), kalman-theta (Kalman-like, strongly persistent inputs)";
-  if (u.uniformly_observable != false) s += ", high-gain (if uniformly observable)";
-  return s;
-}
-
 Model frozen_input_model(const Model& m) {
   Model mu = m;
   mu.f = m.field();
@@ -139,7 +133,7 @@ bool append_rows_at(const std::vector<ExMatrix>& grads, const GiNaC::exmap& pt, 
 std::size_t observation_space_rank(const Model& m, Budget& budget,
                                    const ObservabilityOptions& opt) {
   const std::size_t n = m.n();
-  SampleBoxes boxes = SampleBoxes::from_model(m);
+  SampleBoxes boxes = m.sample_boxes();
   const InputCopies copies = input_copies(m, boxes);
   const std::vector<ExMatrix> grads = word_gradients(m, copies.to_v, budget);
   bool exact = true;
@@ -308,7 +302,7 @@ void decide(const Model& m, const Observability& drift, ObservabilityUnderInputs
         drift.generic_rank < n
             ? fmt::format(" (the drift alone, u = 0, has rank {} < n = {})", drift.generic_rank, n)
             : "";
-    decide_triangular(*r.triangular, drift, SampleBoxes::from_model(m), drift_note, r);
+    decide_triangular(*r.triangular, drift, m.sample_boxes(), drift_note, r);
     return;
   }
   decide_from_singular_inputs(m, r);
@@ -348,7 +342,7 @@ ObservabilityUnderInputs analyse_observability_under_inputs(const Model& m,
     if (!ob.jets && ob.generic_rank == r.n && ob.selected.size() == r.n) {
       r.det = ob.det;
       r.rank_drop = ob.rank_drop;
-      const SampleBoxes boxes = SampleBoxes::from_model(m);
+      const SampleBoxes boxes = m.sample_boxes();
       for (const auto& f : dependent_factors(ob.det, m.inputs))
         if (!depends_on(f, m.states)) r.singular.push_back({f, zeros_in_box(f, boxes)});
     }

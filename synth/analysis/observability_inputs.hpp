@@ -62,8 +62,4 @@ ObservabilityUnderInputs analyse_observability_under_inputs(const Model& m,
                                                             const ObservabilityOptions& opt = {},
                                                             const BudgetLimits& limits = {});
 
-// The designs that work under persistent inputs, for messages (high-gain only when uniform
-// observability is not refuted).
-std::string persistent_input_designs(const ObservabilityUnderInputs& u);
-
 }  // namespace obsynth

@@ -4,9 +4,9 @@
 
 #include <optional>
 
-#include "analysis/budget.hpp"
 #include "analysis/observability.hpp"
 #include "analysis/triangular_form.hpp"
+#include "foundation/budget.hpp"
 #include "front/model.hpp"
 
 namespace obsynth {

@@ -9,8 +9,8 @@
 
 #include "analysis/observability.hpp"
 #include "analysis/triangular_form.hpp"
-#include "emit/dag.hpp"
 #include "front/parse.hpp"
+#include "symbolic/dag.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
 #include "symbolic/zero_test.hpp"
@@ -30,7 +30,7 @@ std::optional<TriangularInX> triangular_in_x(const Model& m, std::string* why) {
   if (!(m.h[0] - m.states[0]).is_zero())
     return fail(fmt::format("the output is not the first state (y = {}, the form needs y = {})",
                             to_string(m.h[0]), m.states[0].get_name()));
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const SampleBoxes boxes = m.sample_boxes();
   const ExVec F = m.field();
   TriangularInX t;
   for (std::size_t i = 0; i < n; ++i) {
@@ -93,7 +93,7 @@ PhiLipschitz phi_lipschitz_on_box(const Model& m, const std::vector<GiNaC::symbo
                                   const ExVec& phi, const ExVec& z_of_x) {
   GiNaC::exmap at_x;
   for (std::size_t i = 0; i < z_of_x.size() && i < z.size(); ++i) at_x[z[i]] = z_of_x[i];
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const SampleBoxes boxes = m.sample_boxes();
   std::vector<std::string> unknown;
   std::size_t entries = 0;
   for (std::size_t i = 0; i < phi.size(); ++i)

@@ -18,7 +18,32 @@ nlohmann::ordered_json not_evaluated(const std::string& method, const std::strin
 
 }  // namespace
 
+nlohmann::ordered_json methods_json() {
+  nlohmann::ordered_json methods = nlohmann::ordered_json::array();
+  for (const auto& d : design_registry()) {
+    nlohmann::ordered_json options = nlohmann::ordered_json::array();
+    for (const auto& o : d.options)
+      options.push_back({{"name", o.name}, {"help", o.help}, {"default", o.default_text}});
+    methods.push_back({{"name", d.name},
+                       {"summary", d.summary},
+                       {"in_auto", d.in_all},
+                       {"needs_canonical_form", d.needs_canonical_form},
+                       {"max_outputs", d.max_outputs},
+                       {"accepts_feedthrough", d.accepts_feedthrough},
+                       {"observes_output_offset", d.observes_output_offset},
+                       {"observes_along_inputs", d.observes_along_inputs},
+                       {"options", options}});
+  }
+  return {{"methods", methods}, {"planned", planned_methods()}};
+}
+
 nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScope& scope) {
+  PlanSet plans(a, DesignOptions{});
+  return design_verdicts_json(plans, scope);
+}
+
+nlohmann::ordered_json design_verdicts_json(PlanSet& plans, const VerdictScope& scope) {
+  const Analysis& a = plans.analysis();
   nlohmann::ordered_json j = nlohmann::ordered_json::array();
   for (const auto& d : design_registry()) {
     const auto& only = scope.only;
@@ -41,7 +66,7 @@ nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScop
                               d.name)));
       continue;
     }
-    const Verdict v = design_verdict(d, a, scope.searches);
+    const Verdict& v = plans.verdict(d, scope.searches);
     nlohmann::ordered_json e = {{"method", d.name}, {"applies", v.applies}, {"reasons", v.reasons}};
     if (v.applies) {
       e["guarantee"] = guarantee_name(v.guarantee);

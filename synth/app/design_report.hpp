@@ -11,6 +11,7 @@
 
 #include "analysis/analysis.hpp"
 #include "app/report.hpp"
+#include "designs/registry.hpp"
 #include "designs/spec.hpp"
 
 namespace obsynth {
@@ -33,6 +34,12 @@ struct VerdictScope {
   std::map<std::string, std::string> passed_over;
 };
 
+nlohmann::ordered_json design_verdicts_json(PlanSet& plans, const VerdictScope& scope = {});
+// The registered designs with their traits and options, for `obsynth --list-methods --format
+// json` (the CMake function validates METHOD and OPTIONS against it).
+nlohmann::ordered_json methods_json();
+
+// The same with a plan set of its own (default options).
 nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScope& scope = {});
 // The free parameters' boxes: [{"name", "lo", "hi"}].
 nlohmann::ordered_json parameter_box_json(const Model& m);

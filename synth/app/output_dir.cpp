@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 
 namespace obsynth {
 

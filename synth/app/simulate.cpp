@@ -15,9 +15,9 @@
 #include "app/synthesize.hpp"
 #include "certify/sampling.hpp"
 #include "designs/registry.hpp"
-#include "emit/dag.hpp"
 #include "front/parse.hpp"
 #include "obsynth/differentiator.hpp"
+#include "symbolic/dag.hpp"
 #include "symbolic/expr_print.hpp"
 
 namespace obsynth {

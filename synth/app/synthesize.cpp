@@ -10,6 +10,7 @@
 #include "app/design_report.hpp"
 #include "app/report.hpp"
 #include "app/simulate.hpp"
+#include "app/stages.hpp"
 #include "app/trial.hpp"
 #include "app/worker.hpp"
 #include "designs/registry.hpp"
@@ -88,8 +89,9 @@ std::string auto_explanation(const Candidate& best, const std::vector<Candidate>
 
 // auto ranks the designs that apply by the guarantee their own certificate gives on this model
 // (rigorous over the domain > on a sub-box or sampled > none), then by cost (registry order).
-std::string choose_auto(const Analysis& a, std::string& explanation,
+std::string choose_auto(PlanSet& plans, std::string& explanation,
                         const std::vector<ExcludedDesign>& excluded, Guarantee* guarantee) {
+  const Analysis& a = plans.analysis();
   std::vector<std::string> rejected;
   std::vector<Candidate> applying;
   const auto& registry = design_registry();
@@ -104,10 +106,10 @@ std::string choose_auto(const Analysis& a, std::string& explanation,
     }
     // Its own stage: a budget stop in one design's certificate search passes over that design
     // (main.cpp), as a stop in its build does.
-    publish_stage(d.name + " verdict");
-    Verdict v = design_verdict(d, a);
+    publish_stage(design_stage_name(d.name, DesignStage::verdict));
+    const Verdict& v = plans.verdict(d);
     if (v.applies)
-      applying.push_back({&d, std::move(v), i});
+      applying.push_back({&d, v, i});
     else
       rejected.push_back(fmt::format("{}: {}", d.name, v.text()));
   }
@@ -140,18 +142,26 @@ std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<st
                                          std::string& explanation,
                                          const std::vector<ExcludedDesign>& excluded,
                                          std::string* auto_choice, Guarantee* auto_guarantee) {
+  PlanSet plans(a, with_model_options(a.model, DesignOptions{}));
+  return resolve_methods(plans, asked, explanation, excluded, auto_choice, auto_guarantee);
+}
+
+std::vector<std::string> resolve_methods(PlanSet& plans, const std::vector<std::string>& asked,
+                                         std::string& explanation,
+                                         const std::vector<ExcludedDesign>& excluded,
+                                         std::string* auto_choice, Guarantee* auto_guarantee) {
   std::vector<std::string> methods;
   for (const auto& m : asked) {
     std::string name = m;
     if (m == "all") {
       for (const auto& d : design_registry())
-        if (d.in_all && design_verdict(d, a).applies &&
+        if (d.in_all && plans.verdict(d).applies &&
             std::find(methods.begin(), methods.end(), d.name) == methods.end())
           methods.push_back(d.name);
       continue;
     }
     if (m == "auto") {
-      name = choose_auto(a, explanation, excluded, auto_guarantee);
+      name = choose_auto(plans, explanation, excluded, auto_guarantee);
       if (auto_choice) *auto_choice = name;
     } else if (!find_design(m)) {
       const auto& planned = planned_methods();
@@ -239,17 +249,23 @@ void add_safe_period_row(const Analysis& a, ObserverSpec& s) {
 }  // namespace
 
 ObserverSpec build_design(const Analysis& a, const std::string& method, const DesignOptions& o) {
+  PlanSet plans(a, with_model_options(a.model, o));
+  return build_design(plans, method);
+}
+
+ObserverSpec build_design(PlanSet& plans, const std::string& method) {
+  const Analysis& a = plans.analysis();
   const Design* d = find_design(method);
   OBSYNTH_ASSERT(d != nullptr, "build_design: unresolved method " + method);
   if (!d->observes_output_offset || (a.model.feedthrough() && !d->accepts_feedthrough)) {
-    const Verdict v = design_verdict(*d, a);
+    const Verdict& v = plans.verdict(*d);
     if (!v.applies)
       throw UserError(SourceLoc{a.model.file, 0, 0},
                       fmt::format("method '{}' does not apply: {}", method, v.text()));
   }
   ObserverSpec s;
   try {
-    s = d->build(a, with_model_options(a.model, o));
+    s = plans.build(*d);
   } catch (const std::domain_error& e) {  // GiNaC's division by zero (pole_error derives from it)
     throw UserError(SourceLoc{a.model.file, 0, 0},
                     fmt::format("method '{}': the model is undefined where the design evaluates "
@@ -287,7 +303,7 @@ class TrialChoice {
   // True when this choice is taken; false when auto tries the next design.
   bool accept(const std::string& method, const ObserverSpec& spec, TrialFallback attempt,
               std::string& explanation) {
-    publish_stage(method + " trial");
+    publish_stage(design_stage_name(method, DesignStage::trial));
     const TrialOutcome trial = closed_loop_trial(a_, spec);
     const std::string found = fmt::format("{}: {}", trial.setup, trial.text);
     if (trial.verdict == TrialVerdict::passed || trial.verdict == TrialVerdict::inconclusive) {
@@ -335,15 +351,15 @@ BuiltSpecs take_fallback(const TrialFallback& f, std::vector<std::string>& chose
 // this process; main.cpp reruns after a worker's time or memory stop), or its closed-loop
 // trial does not converge (TrialChoice), auto passes over it and chooses again, with a note on
 // stderr. Other errors (a bad option value) still end the job.
-BuiltSpecs build_chosen(const Analysis& a, const SynthesisOptions& opt,
+BuiltSpecs build_chosen(PlanSet& plans, const SynthesisOptions& opt,
                         std::vector<ExcludedDesign>& excluded, std::vector<std::string>& chosen,
                         std::string& explanation, std::vector<std::string>& warnings) {
-  TrialChoice trials(a, excluded);
+  TrialChoice trials(plans.analysis(), excluded);
   for (;;) {
     std::string auto_choice;
     Guarantee guarantee = Guarantee::none;
     try {
-      chosen = resolve_methods(a, opt.methods, explanation, excluded, &auto_choice, &guarantee);
+      chosen = resolve_methods(plans, opt.methods, explanation, excluded, &auto_choice, &guarantee);
     } catch (const UserError&) {
       const auto f = trials.fallback();
       if (!f) throw;
@@ -354,13 +370,13 @@ BuiltSpecs build_chosen(const Analysis& a, const SynthesisOptions& opt,
     BuiltSpecs specs;
     std::string failed, why;
     for (const auto& method : chosen) {
-      publish_stage(method + " design");
+      publish_stage(design_stage_name(method, DesignStage::design));
       try {
-        specs.emplace_back(method, build_design(a, method, opt.design));
+        specs.emplace_back(method, build_design(plans, method));
       } catch (const BudgetExceeded& e) {
         if (method != auto_choice) throw;
-        why =
-            fmt::format("it applies, but its build stopped: stage '{}' {}", e.stage(), e.reason());
+        why = fmt::format("{}stage '{}' {}", passed_over_clause(DesignStage::design), e.stage(),
+                          e.reason());
       }
       if (!why.empty()) {
         failed = method;
@@ -383,11 +399,11 @@ BuiltSpecs build_chosen(const Analysis& a, const SynthesisOptions& opt,
 }
 
 // An observer whose own certificate proves nothing on this model is never emitted silently.
-std::vector<std::string> guarantee_warnings(const Analysis& a,
+std::vector<std::string> guarantee_warnings(PlanSet& plans,
                                             const std::vector<std::string>& chosen) {
   std::vector<std::string> out;
   for (const auto& method : chosen) {
-    const Verdict v = design_verdict(*find_design(method), a);
+    const Verdict& v = plans.verdict(*find_design(method));
     if (v.guarantee != Guarantee::none) continue;
     out.push_back(fmt::format(
         "the '{}' observer carries no convergence guarantee for this model{}; check it in "
@@ -406,7 +422,8 @@ BuiltDesign choose_and_build(const Analysis& a, const std::string& method,
   opt.design = design;
   std::vector<ExcludedDesign> excluded;
   std::vector<std::string> chosen, warnings;
-  BuiltSpecs specs = build_chosen(a, opt, excluded, chosen, explanation, warnings);
+  PlanSet plans(a, with_model_options(a.model, design));
+  BuiltSpecs specs = build_chosen(plans, opt, excluded, chosen, explanation, warnings);
   OBSYNTH_ASSERT(specs.size() == 1, "choose_and_build: one method gives one observer");
   return {specs.front().first, std::move(specs.front().second)};
 }
@@ -433,15 +450,17 @@ EmittedHeader emit_for(const Analysis& a, const std::string& method, const Obser
 
 Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   Synthesis s;
-  with_model_options(a.model, opt.design);  // unknown option lines fail before any work
+  // Unknown option lines fail before any work; every design's plan reads the merged options.
+  PlanSet plans(a, with_model_options(a.model, opt.design));
   const bool auto_asked =
       std::find(opt.methods.begin(), opt.methods.end(), "auto") != opt.methods.end();
   // Each step under its own stage name, so that a budget stop names it (worker watchdog).
   publish_stage("verdicts");
   std::vector<ExcludedDesign> excluded = opt.auto_excluded;
   std::vector<std::string> trial_warnings;
-  const BuiltSpecs specs = build_chosen(a, opt, excluded, s.chosen, s.explanation, trial_warnings);
-  s.warnings = guarantee_warnings(a, s.chosen);
+  const BuiltSpecs specs =
+      build_chosen(plans, opt, excluded, s.chosen, s.explanation, trial_warnings);
+  s.warnings = guarantee_warnings(plans, s.chosen);
   s.warnings.insert(s.warnings.end(), trial_warnings.begin(), trial_warnings.end());
   for (const auto& spec : specs)
     s.warnings.insert(s.warnings.end(), spec.second.warnings.begin(), spec.second.warnings.end());
@@ -472,9 +491,9 @@ Synthesis synthesize(const Analysis& a, const SynthesisOptions& opt) {
   VerdictScope scope;
   if (!every) scope.only = s.chosen;
   for (const auto& e : excluded)
-    if (e.reason.rfind("its verdict stopped", 0) == 0) scope.passed_over[e.method] = e.reason;
+    if (verdict_stopped(e)) scope.passed_over[e.method] = e.reason;
   publish_stage("report");
-  const auto verdicts = design_verdicts_json(a, scope);
+  const auto verdicts = design_verdicts_json(plans, scope);
   std::string md;
   for (const auto& w : s.warnings) md += "> **Warning:** " + w + "\n\n";
   md += render_check(a, ReportFormat::markdown, ro, verdicts);

@@ -41,6 +41,12 @@ struct Synthesis {
 // with the strongest guarantee, then the cheapest: registry order; passing over `excluded`), names
 // checked. `explanation` says why auto chose what it chose; `auto_choice`, when given, receives
 // that choice.
+std::vector<std::string> resolve_methods(PlanSet& plans, const std::vector<std::string>& asked,
+                                         std::string& explanation,
+                                         const std::vector<ExcludedDesign>& excluded = {},
+                                         std::string* auto_choice = nullptr,
+                                         Guarantee* auto_guarantee = nullptr);
+// The same with a plan set of its own (the model's option lines as the options).
 std::vector<std::string> resolve_methods(const Analysis& a, const std::vector<std::string>& asked,
                                          std::string& explanation,
                                          const std::vector<ExcludedDesign>& excluded = {},
@@ -53,6 +59,8 @@ DesignOptions with_model_options(const Model& m, const DesignOptions& given);
 
 // Builds the spec of one registered method (the model's `option` lines merged in) (UserError when
 // it does not apply).
+ObserverSpec build_design(PlanSet& plans, const std::string& method);
+// The same with a plan set of its own.
 ObserverSpec build_design(const Analysis& a, const std::string& method, const DesignOptions& o);
 
 // One method (a name, or auto) chosen and built as the main job would: auto passes over a

@@ -8,7 +8,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "app/simulate.hpp"
-#include "emit/dag.hpp"
+#include "symbolic/dag.hpp"
 
 namespace obsynth {
 

@@ -19,7 +19,7 @@
 #include <mutex>
 #include <thread>
 
-#include "analysis/budget.hpp"
+#include "foundation/budget.hpp"
 
 namespace obsynth {
 

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 #include "front/model.hpp"
 
 namespace obsynth::certify {

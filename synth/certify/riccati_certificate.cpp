@@ -7,7 +7,7 @@
 #include <cmath>
 #include <limits>
 
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 
 namespace obsynth::certify {
 

@@ -31,7 +31,7 @@
 #include <vector>
 
 #include "certify/enclosure.hpp"
-#include "designs/spec.hpp"
+#include "foundation/report_row.hpp"
 #include "front/model.hpp"
 
 namespace obsynth::certify {

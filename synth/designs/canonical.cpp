@@ -97,7 +97,7 @@ std::vector<double> z_ranges(const Analysis& a) {
   const ExVec& T = a.canonical.T;
   std::vector<double> lo(T.size(), HUGE_VAL), hi(T.size(), -HUGE_VAL), range(m.n(), 0.0);
   if (a.canonical.T_kind != Availability::symbolic || T.size() != m.n()) return range;
-  for (const auto& pt : sample_points(m.all_symbols(), SampleBoxes::from_model(m), 64, 0x7a3e)) {
+  for (const auto& pt : sample_points(m.all_symbols(), m.sample_boxes(), 64, 0x7a3e)) {
     for (std::size_t i = 0; i < T.size(); ++i) {
       numeric v;
       if (!evaluate_real(T[i], pt, 17, v)) continue;
@@ -557,8 +557,7 @@ Design canonical_design() {
       {"realisation", "canonical observer realisation: z or x", "z when T^-1 is closed-form"},
       {"integrator", "canonical z realisation: exact (zero-order-hold Phi, Gamma) or rk4",
        "exact"}};
-  d.applies = applies;
-  d.build = build;
+  d.plan = stateless_plan<applies, build>;
   return d;
 }
 

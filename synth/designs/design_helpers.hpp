@@ -55,17 +55,6 @@ inline GiNaC::matrix linear_observability_matrix(const GiNaC::matrix& A, const G
   return O;
 }
 
-inline std::string design_cache_key(const Model& m) {
-  std::string k = m.file + "|" + m.name + "|";
-  for (const auto& e : m.field()) k += to_string(e) + ",";
-  for (const auto& e : m.h) k += to_string(e) + ",";
-  for (const auto& s : m.all_symbols()) {
-    const Interval b = m.box(s);
-    k += fmt::format("{}#{}[{},{}]", s.get_name(), s.gethash(), to_string(b.lo), to_string(b.hi));
-  }
-  return k;
-}
-
 // A design exact by the observer canonical form: rigorous when the brackets, T and l(u, y) are
 // proved symbolically; partial (numeric) when a zero among them is only numeric, with the list.
 struct ExactnessClaim {

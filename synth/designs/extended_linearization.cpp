@@ -152,7 +152,7 @@ std::optional<GiNaC::exmap> closed_family(const Model& m, const Problem& P,
       return std::nullopt;
     }
   // Verify: every equation vanishes identically in eps on the family.
-  SampleBoxes boxes = SampleBoxes::from_model(m);
+  SampleBoxes boxes = m.sample_boxes();
   boxes.by_name[eps.get_name()] = Interval{numeric(-1, 20), numeric(1, 20)};
   for (const auto& e : P.equations)
     if (!is_zero_verdict(zero_test(e.subs(sol, GiNaC::subs_options::no_pattern), boxes)))
@@ -204,21 +204,6 @@ std::optional<GiNaC::exmap> series_family(const Problem& P, const GiNaC::symbol&
     }
   }
   return sol;
-}
-
-std::string key_of(const Model& m, const DesignOptions& o) {
-  std::string k = m.file + "|" + m.name + "|";
-  for (const auto& e : m.field()) k += to_string(e) + ",";
-  for (const auto& e : m.h) k += to_string(e) + ",";
-  for (const auto& p : m.params)
-    k += p.name + "=" + (p.value ? to_string(*p.value) : std::string("?")) + ",";
-  for (const auto& s : m.all_symbols()) {
-    const Interval b = m.box(s);
-    k += s.get_name() + "[" + to_string(b.lo) + "," + to_string(b.hi) + "]";
-  }
-  for (const auto& kv : o.values)
-    if (kv.first.rfind("el-", 0) == 0) k += "#" + kv.first + "=" + kv.second;
-  return k;
 }
 
 int order_option(const DesignOptions& o, const std::string& name, int dflt) {
@@ -322,7 +307,7 @@ Problem base_problem(const Model& m, const DesignOptions& o, ExtendedLinearizati
 // Whether the base point is an equilibrium (F = 0 there, proved on the model's boxes);
 // false with the failure in r otherwise.
 bool at_equilibrium(const Model& m, const Problem& P, ExtendedLinearization& r) {
-  SampleBoxes boxes = SampleBoxes::from_model(m);
+  SampleBoxes boxes = m.sample_boxes();
   ExVec F0;
   bool equilibrium = true;
   for (const auto& e : P.F) {
@@ -514,7 +499,7 @@ bool check_charpoly(const Model& m, const FamilyJacobians& J, int order, Extende
   const ex sign = n % 2 == 0 ? 1 : -1;
   const ex diff = GiNaC::expand(sign * M.charpoly(lambda) - want);
   bool ok = true;
-  SampleBoxes eboxes = SampleBoxes::from_model(m);
+  SampleBoxes eboxes = m.sample_boxes();
   eboxes.by_name[r.eps.get_name()] = Interval{numeric(-1, 20), numeric(1, 20)};
   for (unsigned k = 0; k < n && ok; ++k) {
     const ex coef = diff.coeff(lambda, static_cast<int>(k));
@@ -651,11 +636,11 @@ std::string injection_kind(const ExtendedLinearization& r) {
                      r.injection_order, r.injection_order, r.injection_reason);
 }
 
-Verdict applies(const Analysis& a) {
+Verdict verdict_of(const Analysis&, const Lazy<ExtendedLinearization>& work) {
   Verdict v;
   const ExtendedLinearization* r = nullptr;
   try {
-    r = &extended_linearization(a.model, DesignOptions{});
+    r = &work.get();
   } catch (const std::exception& e) {
     v.reasons.push_back(std::string("the design failed: ") + e.what());
     return v;
@@ -747,9 +732,8 @@ std::vector<ReportRow> el_report(const Model& m, const ExtendedLinearization& r)
   return rows;
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+ObserverSpec build_from(const Analysis& a, const ExtendedLinearization& r) {
   const Model& m = a.model;
-  const ExtendedLinearization& r = extended_linearization(m, o);
   if (!r.failures.empty())
     throw UserError(SourceLoc{m.file, 0, 0},
                     fmt::format("method 'extended-linearization' does not apply: {}",
@@ -779,26 +763,19 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
 
 }  // namespace
 
-const ExtendedLinearization& extended_linearization(const Model& m, const DesignOptions& o) {
-  static std::map<std::string, ExtendedLinearization> cache;
-  const std::string key = key_of(m, o);
-  auto it = cache.find(key);
-  if (it == cache.end()) {
+ExtendedLinearization extended_linearization(const Model& m, const DesignOptions& o) {
+  try {
+    return run(m, o);
+  } catch (const UserError&) {
+    throw;
+  } catch (const std::exception& e) {
+    // A symbolic step failed (e.g. a series at a singular point): the design does not apply.
     ExtendedLinearization r;
-    try {
-      r = run(m, o);
-    } catch (const UserError&) {
-      throw;
-    } catch (const std::exception& e) {
-      // A symbolic step failed (e.g. a series at a singular point): the design does not apply.
-      r = ExtendedLinearization{};
-      r.failures.push_back(std::string("the symbolic construction failed (the seed needs f, g and "
-                                       "h analytic at the base point and along the family): ") +
-                           e.what());
-    }
-    it = cache.emplace(key, r).first;
+    r.failures.push_back(std::string("the symbolic construction failed (the seed needs f, g and "
+                                     "h analytic at the base point and along the family): ") +
+                         e.what());
+    return r;
   }
-  return it->second;
 }
 
 Design extended_linearization_design() {
@@ -825,8 +802,8 @@ Design extended_linearization_design() {
       {"el-base",
        "extended-linearization: base equilibrium, n + 1 numbers: the states, then the first input",
        "the origin, nominal input"}};
-  d.applies = applies;
-  d.build = build;
+  d.plan = work_plan<ExtendedLinearization, extended_linearization, verdict_of, build_from>;
+  d.max_outputs = 1;
   return d;
 }
 

@@ -59,7 +59,8 @@ struct ExtendedLinearization {
   std::size_t obs_rank = 0;        // constraint (ii)
 };
 
-// Runs the design (cached per model and options). Throws UserError for bad options.
-const ExtendedLinearization& extended_linearization(const Model& m, const DesignOptions& o);
+// Runs the design (each call anew: its plan keeps the result). Throws UserError for bad
+// options.
+ExtendedLinearization extended_linearization(const Model& m, const DesignOptions& o);
 
 }  // namespace obsynth

@@ -13,7 +13,7 @@
 
 #include "certify/sampling.hpp"
 #include "designs/options.hpp"
-#include "emit/dag.hpp"
+#include "symbolic/dag.hpp"
 #include "symbolic/expr_print.hpp"
 
 namespace obsynth {
@@ -979,30 +979,14 @@ void set_guarantee(Verdict& v, const Choices& c, const Tables& t) {
   }
 }
 
-// The guarantee of the tables built in this run, per model (recorded by build()): applies() stays
-// cheap (the main job's report asks every design's verdict; the search takes seconds) and
-// carries the guarantee once the tables exist.
-std::map<std::string, std::pair<Guarantee, std::string>>& guarantee_memo() {
-  static std::map<std::string, std::pair<Guarantee, std::string>> memo;
-  return memo;
-}
-
-std::string model_key(const Model& m) {
-  std::string key = m.name;
-  for (const auto& e : m.field()) key += "|" + to_string(e);
-  for (const auto& e : m.h) key += "|" + to_string(e);
-  for (const auto& [name, box] : m.domain)
-    key += fmt::format("|{}:{}:{}", name, to_string(box.lo), to_string(box.hi));
-  return key;
-}
-
-Verdict applies(const Analysis& a) {
+// The verdict carries the guarantee of the tables once its plan has built them (`built`); before,
+// it stays cheap (the main job's report asks every design's verdict; the search takes seconds).
+Verdict verdict_of(const Analysis& a, const Verdict* built) {
   Verdict v = requirements(a);
   if (!v.applies) return v;
-  const auto it = guarantee_memo().find(model_key(a.model));
-  if (it != guarantee_memo().end()) {
-    v.guarantee = it->second.first;
-    v.guarantee_text = it->second.second;
+  if (built) {
+    v.guarantee = built->guarantee;
+    v.guarantee_text = built->guarantee_text;
   } else {
     v.guarantee = Guarantee::none;
     v.guarantee_text =
@@ -1212,17 +1196,15 @@ void report_finite_time(ObserverSpec& s, const Model& m, const Choices& c, const
       g.guarantee == Guarantee::partial ? "met" : "NOT met");
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+// Builds the tables and the observer; g receives the tables' guarantee.
+ObserverSpec build(const Analysis& a, const DesignOptions& o, Verdict& g) {
   const Model& m = a.model;
   const Verdict v = requirements(a);
   if (!v.applies)
     throw UserError(SourceLoc{m.file, 0, 0}, "method 'finite-time' does not apply: " + v.text());
   Choices c = choose(a, o);
   const Tables t = design_tables(m, c);
-  Verdict g;
   set_guarantee(g, c, t);
-  // The verdict of this run carries the guarantee of the tables it built (defaults or not).
-  guarantee_memo()[model_key(m)] = {g.guarantee, g.guarantee_text};
   const std::size_t pz = c.lambda.size();
 
   ObserverSpec s;
@@ -1250,6 +1232,24 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
 }
 
 }  // namespace
+
+// Its verdict reports the guarantee of the tables its own build made (none before).
+class FiniteTimePlan final : public Plan {
+ public:
+  FiniteTimePlan(const Analysis& a, const DesignOptions& o) : a_(a), o_(o) {}
+  Verdict verdict() override { return verdict_of(a_, built_ ? &*built_ : nullptr); }
+  ObserverSpec build() override {
+    Verdict g;
+    ObserverSpec s = obsynth::build(a_, o_, g);
+    built_ = std::move(g);
+    return s;
+  }
+
+ private:
+  const Analysis& a_;
+  DesignOptions o_;
+  std::optional<Verdict> built_;
+};
 
 Design finite_time_design() {
   Design d;
@@ -1295,8 +1295,10 @@ Design finite_time_design() {
        "0.05"},
       {"table-memory",
        "finite-time: budget of the inverse tables in KiB, at 4 bytes an entry (float)", "256"}};
-  d.applies = applies;
-  d.build = build;
+  d.plan = [](const Analysis& a, const DesignOptions& o) -> std::unique_ptr<Plan> {
+    return std::make_unique<FiniteTimePlan>(a, o);
+  };
+  d.max_outputs = 1;
   d.in_all = false;  // tables of 10^4..10^6 entries: by name only, not by auto or all
   d.observes_output_offset = false;  // feeds y itself to its filter bank
   return d;

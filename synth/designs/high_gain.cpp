@@ -49,7 +49,7 @@ HighGainStructure high_gain_structure(const Model& m) {
     for (std::size_t c = 0; c < n; ++c)
       O(static_cast<unsigned>(r), static_cast<unsigned>(c)) = s.O[r][c];
   s.det = GiNaC::normal(O.determinant(GiNaC::determinant_algo::laplace));
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const SampleBoxes boxes = m.sample_boxes();
   if (is_zero_verdict(zero_test(s.det, boxes))) {
     s.failures.push_back(
         "det O = 0 identically: (h, L_f h, ..., L_f^{n-1} h) are not coordinates (the drift "
@@ -237,7 +237,7 @@ std::string singular_set(const Model& m, const HighGainStructure& st) {
   const ExVec factors = dependent_factors(st.det, m.states);
   if (factors.empty()) return fmt::format("never (det O = {})", to_string(st.det));
   std::vector<std::string> parts;
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const SampleBoxes boxes = m.sample_boxes();
   for (const auto& f : factors) {
     bool pos = false, neg = false, zero = false;
     for (const auto& pt : sample_points(m.all_symbols(), boxes, 256, 0x51c9)) {
@@ -376,7 +376,7 @@ std::optional<std::vector<std::optional<PhiAtPoint>>> sample_phi_ring(
 // dz_i; dphi_i] > i at a sampled point: the reason, or nothing when phi is triangular.
 std::optional<std::string> phi_not_triangular(const Model& m, const Observability& ob) {
   const std::size_t n = m.n();
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const SampleBoxes boxes = m.sample_boxes();
   const auto points = sample_points(m.all_symbols(), boxes, 3, 0x4a11);
   auto sampled = sample_phi_ring(m, ob, points);
   if (!sampled) sampled = sample_phi_ginac(m, ob, points);
@@ -537,7 +537,7 @@ void add_hg_functions(ObserverSpec& s, const Model& m, const HighGainStructure& 
 // x-dependent factor of det O is proved nonzero on the domain box (zeros_in_box), an estimate
 // in the box may meet the singular set, and no guarantee is given in x: the reason, or nothing.
 std::optional<std::string> singular_in_box(const Model& m, const HighGainStructure& st) {
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const SampleBoxes boxes = m.sample_boxes();
   std::vector<std::string> meets, unknown;
   for (const auto& f : dependent_factors(st.det, m.states)) {
     const BoxZeros z = zeros_in_box(f, boxes);
@@ -783,9 +783,12 @@ Design high_gain_design() {
        "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^n)); "
        "kalman-theta: forgetting rate theta of S",
        "1.25 theta* within [5, 200] (high-gain), 5 (kalman-theta)"}};
-  d.applies = applies;
-  d.assess = assess;
-  d.build = build;
+  d.plan = stateless_plan<applies, build, assess>;
+  d.has_assessment = true;
+  d.observes_along_inputs = true;
+  d.along_inputs_note = "if uniformly observable";
+  d.needs_uniform_observability = true;
+  d.max_outputs = 1;
   return d;
 }
 

@@ -107,7 +107,7 @@ std::optional<KtForm> find_form(const Analysis& a, bool compute, std::string& wh
 std::string denominators_text(const Model& m, const KtForm& form) {
   GiNaC::exmap at_x;
   for (std::size_t i = 0; i < form.z.size(); ++i) at_x[form.z[i]] = form.z_of_x[i];
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const SampleBoxes boxes = m.sample_boxes();
   std::vector<std::string> seen, out;
   for (const auto& e : form.x_of_z)
     for (const auto& f : dependent_factors(GiNaC::denom(GiNaC::normal(e)), form.z)) {
@@ -141,7 +141,7 @@ std::string form_text(const KtForm& form) {
 // and scaling z_i by theta^(i-1) / (a_1 ... a_{i-1}) makes alpha(theta) and Gamma_ii / Gamma_jj
 // (theta >= 1) constants: i) and ii) of the Definition hold whatever u.
 bool every_input_persistent(const Model& m, const KtForm& form) {
-  const SampleBoxes boxes = SampleBoxes::from_model(m);
+  const SampleBoxes boxes = m.sample_boxes();
   for (const auto& ai : form.a)
     if (depends_on(ai, m.inputs) || zeros_in_box(ai, boxes).kind != BoxZeros::never) return false;
   return true;
@@ -487,8 +487,10 @@ Design kalman_theta_design() {
        "5 (high-gain), 5 (kalman-theta)"},
       {"S0", "kalman-theta: initial S (s, or n diagonal values, or the packed upper triangle)",
        "identity"}};
-  d.applies = applies;
-  d.build = build;
+  d.plan = stateless_plan<applies, build>;
+  d.observes_along_inputs = true;
+  d.along_inputs_note = "Kalman-like, strongly persistent inputs";
+  d.max_outputs = 1;  // y = z1 (seed 002)
   return d;
 }
 

@@ -12,8 +12,8 @@
 #include "certify/enclosure.hpp"
 #include "designs/options.hpp"
 #include "designs/thau.hpp"
-#include "emit/dag.hpp"
 #include "front/fresh_names.hpp"
+#include "symbolic/dag.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
 
@@ -569,21 +569,6 @@ Result design(const Model& m, const DesignOptions& o) {
   return r;
 }
 
-std::string options_key(const DesignOptions& o) {
-  std::string k;
-  for (const char* name : {"kou-gain", "kou-p"})
-    if (const std::string* v = o.find(name)) k += std::string(name) + "=" + *v + ";";
-  return k;
-}
-
-const Result& cached_design(const Model& m, const DesignOptions& o) {
-  static std::map<std::string, Result> cache;
-  const std::string key = design_cache_key(m) + "#" + options_key(o);
-  auto it = cache.find(key);
-  if (it == cache.end()) it = cache.emplace(key, design(m, o)).first;
-  return it->second;
-}
-
 std::vector<std::string> verdict_reasons(const Result& r) {
   if (!r.not_applicable.empty()) return {r.not_applicable};
   const std::string what =
@@ -616,8 +601,8 @@ std::vector<std::string> verdict_reasons(const Result& r) {
   return out;
 }
 
-Verdict applies(const Analysis& a) {
-  const Result& r = cached_design(a.model, DesignOptions{});
+Verdict verdict_of(const Analysis&, const Lazy<Result>& work) {
+  const Result& r = work.get();
   Verdict v;
   v.reasons = verdict_reasons(r);
   v.applies = r.not_applicable.empty() && r.holds && r.rigorous;
@@ -695,9 +680,8 @@ std::vector<ReportRow> kou_report(const Result& r) {
                    r.sigma_max_P / r.sigma_min_P, r.rate())}};
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+ObserverSpec build_from(const Analysis& a, const Result& r) {
   const Model& m = a.model;
-  const Result& r = cached_design(m, o);
   if (!r.not_applicable.empty() || !r.holds)
     throw UserError(
         SourceLoc{m.file, 0, 0},
@@ -730,7 +714,7 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
 }  // namespace
 
 KouCertificate kou_certificate(const Model& m, const DesignOptions& o) {
-  const Result& r = cached_design(m, o);
+  const Result r = design(m, o);
   KouCertificate c;
   c.not_applicable = r.not_applicable;
   if (!c.not_applicable.empty()) return c;
@@ -753,8 +737,7 @@ Design kou_design() {
       "Kou-Elliott-Tarn observer: P (df/dx + L dh/dx) < 0 on the domain (seed 001 Theorem 1)";
   d.options = {{"kou-gain", "Kou observer: gain L, n*p entries row-major", "searched"},
                {"kou-p", "Kou observer: P, n diagonal entries or n*n row-major", "searched"}};
-  d.applies = applies;
-  d.build = build;
+  d.plan = work_plan<Result, design, verdict_of, build_from>;
   d.verdict_searches = true;     // a search over gains with Arb bounds: seconds
   d.accepts_feedthrough = true;  // L (h(xh, u) - y), condition (9) over the input box too
   return d;

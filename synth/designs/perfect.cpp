@@ -241,8 +241,7 @@ Design perfect_design() {
   d.name = "perfect";
   d.summary = "state from the jets of y and u (seed 003 Procedure 1)";
   d.options = {{"epsilon", "perfect observer: differentiator time constant", "0.01"}};
-  d.applies = applies;
-  d.build = build;
+  d.plan = stateless_plan<applies, build>;
   d.observes_output_offset = false;  // differentiates y itself
   return d;
 }

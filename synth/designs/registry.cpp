@@ -61,9 +61,14 @@ void downgrade_unproved_definedness(const Analysis& a, Verdict& v) {
 
 }  // namespace
 
-Verdict design_verdict(const Design& d, const Analysis& a, bool assess) {
+Verdict design_verdict(const Design& d, Plan& plan, const Analysis& a, bool assess) {
   const Model& m = a.model;
   Verdict v;
+  if (d.max_outputs != 0 && m.p() > d.max_outputs) {
+    v.reasons.push_back(fmt::format("the design handles {} output{}; the model has p = {}",
+                                    d.max_outputs, d.max_outputs == 1 ? "" : "s", m.p()));
+    return v;
+  }
   if (!m.output_offset.empty() && !d.observes_output_offset) {
     v.reasons.push_back(fmt::format(
         "the output has a direct feedthrough k(u) = [{}]; this design feeds y itself to its "
@@ -84,11 +89,11 @@ Verdict design_verdict(const Design& d, const Analysis& a, bool assess) {
   // A design that evaluates the model where it is undefined (the expansion point on a pole)
   // does not apply there: GiNaC's division by zero is a verdict, never an internal error.
   try {
-    v = d.applies(a);
-    if (v.applies && d.assess) {
+    v = plan.verdict();
+    if (v.applies) {
       if (assess)
-        d.assess(a, v);
-      else
+        plan.assess(v);
+      else if (d.has_assessment)
         v.guarantee_text = "not assessed (its certificate runs with `obsynth check --certify`)";
     }
     downgrade_unproved_definedness(a, v);
@@ -100,6 +105,33 @@ Verdict design_verdict(const Design& d, const Analysis& a, bool assess) {
         d.name, e.what()));
   }
   return v;
+}
+
+Verdict design_verdict(const Design& d, const Analysis& a, bool assess) {
+  const std::unique_ptr<Plan> plan = d.plan(a, DesignOptions{});
+  return design_verdict(d, *plan, a, assess);
+}
+
+Plan& PlanSet::plan(const Design& d) {
+  std::unique_ptr<Plan>& p = plans_[d.name];
+  if (!p) p = d.plan(a_, options_);
+  return *p;
+}
+
+const Verdict& PlanSet::verdict(const Design& d, bool assess) {
+  const auto key = std::make_pair(d.name, assess);
+  auto it = verdicts_.find(key);
+  if (it == verdicts_.end())
+    it = verdicts_.emplace(key, design_verdict(d, plan(d), a_, assess)).first;
+  return it->second;
+}
+
+ObserverSpec PlanSet::build(const Design& d) {
+  ObserverSpec s = plan(d).build();
+  // A build may sharpen the verdict (finite-time's guarantee comes with its tables).
+  verdicts_.erase({d.name, false});
+  verdicts_.erase({d.name, true});
+  return s;
 }
 
 const std::vector<Design>& design_registry() {
@@ -120,6 +152,17 @@ const Design* find_design(const std::string& name) {
   for (const auto& d : design_registry())
     if (d.name == name) return &d;
   return nullptr;
+}
+
+std::string persistent_input_designs(const ObservabilityUnderInputs& u) {
+  std::vector<std::string> out;
+  for (const auto& d : design_registry()) {
+    if (!d.observes_along_inputs) continue;
+    if (d.needs_uniform_observability && u.uniformly_observable == false) continue;
+    out.push_back(
+        d.along_inputs_note.empty() ? d.name : fmt::format("{} ({})", d.name, d.along_inputs_note));
+  }
+  return fmt::format("{}", fmt::join(out, ", "));
 }
 
 std::vector<DesignOptionInfo> all_design_options() {

@@ -346,16 +346,6 @@ RiccatiTuning tune(const Model& m, const DesignOptions& o) {
   return t;
 }
 
-const RiccatiTuning& cached_tuning(const Model& m, const DesignOptions& o) {
-  static std::map<std::string, RiccatiTuning> cache;
-  std::string key = design_cache_key(m) + "#";
-  for (const char* name : {"Q0", "N", "R", "Lambda"})
-    if (const std::string* v = o.find(name)) key += std::string(name) + "=" + *v + ";";
-  auto it = cache.find(key);
-  if (it == cache.end()) it = cache.emplace(key, tune(m, o)).first;
-  return it->second;
-}
-
 // The Euclidean diameter of the state box (Theorem 2.1's rho is a bound on |x0 - m0|).
 double state_box_diameter(const ModelScales& sc) {
   double d2 = 0;
@@ -409,7 +399,7 @@ void certified_verdict(const RiccatiTuning& t, Verdict& v) {
   }
 }
 
-Verdict applies(const Analysis& a) {
+Verdict verdict_of(const Analysis& a, const Lazy<RiccatiTuning>& tuning) {
   Verdict v;
   const std::size_t n = a.model.n(), r = a.observability.generic_rank;
   if (!a.completed("observability")) {
@@ -442,7 +432,7 @@ Verdict applies(const Analysis& a) {
   }
   v.applies = true;
   v.reasons.push_back("it needs only the Jacobians of f + g and h (no canonical form)");
-  certified_verdict(cached_tuning(a.model, DesignOptions{}), v);
+  certified_verdict(tuning.get(), v);
   return v;
 }
 
@@ -787,9 +777,8 @@ void report_riccati(ObserverSpec& s, const Analysis& a, const RiccatiTuning& t, 
   for (auto& row : certify::riccati_certificate_rows(t.cert)) s.report.push_back(std::move(row));
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+ObserverSpec build_from(const Analysis& a, const RiccatiTuning& t) {
   const Model& m = a.model;
-  const RiccatiTuning& t = cached_tuning(m, o);
   const RiccatiParameters& prm = t.prm;
   Names names(m);
 
@@ -864,8 +853,9 @@ Design riccati_design() {
        "searched: 0 or -kappa H'"}};
   d.needs_canonical_form = false;
   d.verdict_searches = true;  // the verdict runs the certificate for up to 5 Lambda
-  d.applies = applies;
-  d.build = build;
+  d.plan = work_plan<RiccatiTuning, tune, verdict_of, build_from>;
+  d.observes_along_inputs = true;
+  d.along_inputs_note = "James-Baras";
   d.accepts_feedthrough = true;  // innovation y - h(xh, u), H = dh/dx at (xh, u)
   return d;
 }

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "foundation/report_row.hpp"
 #include "front/model.hpp"
 
 namespace obsynth {
@@ -143,10 +144,6 @@ struct SampledDelay {
   double epsilon = 0.05;
   int weight_power = 1;
   std::size_t points() const;
-};
-
-struct ReportRow {
-  std::string key, value;
 };
 
 // A design option (one command-line flag; later also a model-file entry).

@@ -10,8 +10,8 @@
 #include "certify/enclosure.hpp"
 #include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
-#include "emit/dag.hpp"
 #include "front/fresh_names.hpp"
+#include "symbolic/dag.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
 
@@ -725,13 +725,6 @@ std::optional<GiNaC::matrix> chosen_Q(const DesignOptions& o, std::size_t n) {
   return Q;
 }
 
-std::string options_key(const DesignOptions& o) {
-  std::string k;
-  for (const char* name : {"thau-poles", "thau-q", "thau-region"})
-    if (const std::string* v = o.find(name)) k += std::string(name) + "=" + *v + ";";
-  return k;
-}
-
 // Exact poles and L: the poles as given or rounded to 3 significant digits, L by exact
 // Ackermann through the chosen output.
 void exact_gain(const Split& s, const DesignOptions& o, const SearchOutcome& best, Result& r) {
@@ -929,14 +922,6 @@ Result design(const Model& m, const DesignOptions& o) {
   return r;
 }
 
-const Result& cached_design(const Model& m, const DesignOptions& o) {
-  static std::map<std::string, Result> cache;
-  const std::string key = design_cache_key(m) + "#" + options_key(o);
-  auto it = cache.find(key);
-  if (it == cache.end()) it = cache.emplace(key, design(m, o)).first;
-  return it->second;
-}
-
 std::string box_text(const Model& m, const certify::Box& b) {
   std::vector<std::string> out;
   for (std::size_t k = 0; k < b.vars.size(); ++k)
@@ -1006,8 +991,8 @@ std::pair<double, std::size_t> region_share(const Model& m, const Result& r) {
   return {std::pow(r.region.scale, static_cast<double>(k)), k};
 }
 
-Verdict applies(const Analysis& a) {
-  const Result& r = cached_design(a.model, DesignOptions{});
+Verdict verdict_of(const Analysis& a, const Lazy<Result>& work) {
+  const Result& r = work.get();
   Verdict v;
   v.reasons = verdict_reasons(a.model, r);
   v.applies = r.holds && r.rigorous;
@@ -1163,9 +1148,8 @@ void report_thau(ObserverSpec& spec, const Result& r, const GiNaC::matrix& L,
       certify::bound_kind_name(r.region.M.kind));
 }
 
-ObserverSpec build(const Analysis& a, const DesignOptions& o) {
+ObserverSpec build_from(const Analysis& a, const Result& r) {
   const Model& m = a.model;
-  const Result& r = cached_design(m, o);
   if (!r.split.not_applicable.empty() || !r.holds)
     throw UserError(SourceLoc{m.file, 0, 0},
                     "method 'thau' does not apply: " +
@@ -1185,7 +1169,7 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
 }  // namespace
 
 ThauCertificate thau_certificate(const Model& m, const DesignOptions& o) {
-  const Result& r = cached_design(m, o);
+  const Result r = design(m, o);
   ThauCertificate c;
   c.not_applicable = r.split.not_applicable;
   if (!c.not_applicable.empty()) return c;
@@ -1220,8 +1204,7 @@ Design thau_design() {
        "searched (best certificate)"},
       {"thau-q", "Thau observer: Q of eq. (21), n diagonal entries or n*n row-major", "searched"},
       {"thau-region", "Thau observer: auto (largest certified sub-box) or domain", "auto"}};
-  d.applies = applies;
-  d.build = build;
+  d.plan = work_plan<Result, design, verdict_of, build_from>;
   d.verdict_searches = true;  // a search over gains with Arb bounds: seconds
   return d;
 }

@@ -7,7 +7,7 @@
 #include <functional>
 #include <limits>
 
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 
 namespace obsynth {
 

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "emit/dag.hpp"
+#include "symbolic/dag.hpp"
 
 namespace obsynth {
 

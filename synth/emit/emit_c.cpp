@@ -4,7 +4,7 @@
 
 #include <map>
 
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 
 #ifndef OBSYNTH_VERSION
 #define OBSYNTH_VERSION "0.0.0"

@@ -28,6 +28,12 @@ Interval Model::box(const GiNaC::symbol& s) const {
   return {GiNaC::numeric(-2), GiNaC::numeric(2)};
 }
 
+SampleBoxes Model::sample_boxes() const {
+  SampleBoxes b;
+  for (const auto& s : all_symbols()) b.by_name[s.get_name()] = box(s);
+  return b;
+}
+
 ExVec Model::field() const {
   ExVec out(f.size());
   for (std::size_t i = 0; i < f.size(); ++i) out[i] = f[i] + g[i];

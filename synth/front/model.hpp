@@ -9,15 +9,10 @@
 #include <string>
 #include <vector>
 
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
+#include "foundation/expr.hpp"
 
 namespace obsynth {
-
-using ExVec = std::vector<GiNaC::ex>;
-
-struct Interval {
-  GiNaC::numeric lo, hi;
-};
 
 struct Param {
   std::string name;
@@ -66,6 +61,8 @@ struct Model {
   // The sampling box for a symbol: its domain, else the default [-2, 2] (states, inputs)
   // or [1/2, 2] (free parameters).
   Interval box(const GiNaC::symbol& s) const;
+  // Those boxes by name, for sampling (states, inputs and free parameters).
+  SampleBoxes sample_boxes() const;
   // f + g
   ExVec field() const;
   // Some output depends on an input (y = h(x,u)); h0(x) + k(u) split off does not count.

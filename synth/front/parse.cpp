@@ -1199,7 +1199,7 @@ class Parser {
       take_f_g();
     model_.h = *h_;
     check_outputs_at_nominal();
-    const SampleBoxes boxes = SampleBoxes::from_model(model_);
+    const SampleBoxes boxes = model_.sample_boxes();
     check_exact_size(boxes);
     check_function_arguments(boxes);
     if (g_) check_g_zero_at_zero(boxes);

@@ -6,13 +6,10 @@
 
 #include <vector>
 
-#include "analysis/budget.hpp"
-#include "front/model.hpp"
+#include "foundation/budget.hpp"
+#include "foundation/expr.hpp"
 
 namespace obsynth {
-
-using Symbols = std::vector<GiNaC::symbol>;
-using ExMatrix = std::vector<ExVec>;  // row-major
 
 ExMatrix jacobian(const ExVec& field, const Symbols& x);
 GiNaC::ex lie_derivative(const GiNaC::ex& phi, const ExVec& field, const Symbols& x);

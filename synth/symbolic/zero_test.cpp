@@ -31,18 +31,6 @@ DigitsGuard::~DigitsGuard() {
   GiNaC::Digits = saved_;
 }
 
-SampleBoxes SampleBoxes::from_model(const Model& m) {
-  SampleBoxes b;
-  for (const auto& s : m.all_symbols()) b.by_name[s.get_name()] = m.box(s);
-  return b;
-}
-
-Interval SampleBoxes::box(const GiNaC::symbol& s) const {
-  auto it = by_name.find(s.get_name());
-  if (it != by_name.end()) return it->second;
-  return {numeric(-2), numeric(2)};
-}
-
 // ---------------------------------------------------------------------------------------
 // Sound rational rewrite.
 namespace {

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "front/model.hpp"
+#include "foundation/expr.hpp"
 
 namespace obsynth {
 
@@ -27,13 +27,6 @@ struct ZeroTestOptions {
   int points = 8;   // sample points: 2 near opposite box corners, the rest random
   int digits = 40;  // decimal digits for numeric evaluation
   std::uint64_t seed = 0x5eed0b5;
-};
-
-// Sampling boxes for symbols; symbols not listed sample from [-2, 2].
-struct SampleBoxes {
-  std::map<std::string, Interval> by_name;
-  static SampleBoxes from_model(const Model& m);
-  Interval box(const GiNaC::symbol& s) const;
 };
 
 // Rewrites sin/cos/tan (Weierstrass substitution on base angles), exp and tanh (powers of

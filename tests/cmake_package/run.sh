@@ -179,6 +179,11 @@ obsynth_add_observer(observers MODEL plant.sym METHOD canonical,perfect PRECISIO
                      POLES "-2,-3" REALISATION x OUTPUT_DIR generated/both)
 add_executable(both_app canonical.cpp perfect.cpp)
 target_link_libraries(both_app PRIVATE observers)
+
+# Any design option through OPTIONS (here the canonical poles, as --poles=-5,-6).
+add_library(optioned INTERFACE)
+obsynth_add_observer(optioned MODEL plant.sym METHOD canonical OPTIONS "poles=-5,-6"
+                     OUTPUT_DIR generated/optioned)
 EOF
 cat >"$opts/auto.cpp" <<'EOF'
 #include <cstring>
@@ -225,6 +230,28 @@ check "[options] METHOD auto: AutoObserver is the canonical observer" "$ob/auto_
 check "[options] several methods: both headers in OUTPUT_DIR, program runs" "$ob/both_app"
 check "[options] POLES reach obsynth" grep -q "Error poles: -3, -4" "$ob/obsynth_gen/auto_app/slawinski17_canonical.hpp"
 check "[options] REALISATION reaches obsynth" grep -q "Realisation: original coordinates" "$ob/generated/both/slawinski17_canonical.hpp"
+check "[options] OPTIONS reach obsynth" cmake --build "$ob" --target optioned_obsynth_slawinski17
+check "[options] OPTIONS poles=-5,-6 in the header" grep -q "Error poles: -5, -6" "$ob/generated/optioned/slawinski17_canonical.hpp"
+
+# METHOD and OPTIONS names are checked at configure time against the installed obsynth's
+# registry (--list-methods --format json).
+for bad in "METHOD canonical OPTIONS nonsense=1|not an option of any obsynth design" \
+           "METHOD bogus|is not an obsynth design"; do
+  args=${bad%%|*} want=${bad#*|}
+  badp="$work/bad-names"
+  rm -rf "$badp" "$work/build-bad-names"
+  mkdir -p "$badp"
+  cp "$src/examples/seed003_firmware/plant.sym" "$badp/plant.sym"
+  printf 'cmake_minimum_required(VERSION 3.22)\nproject(bad LANGUAGES CXX)\nfind_package(obsynth 0.1 REQUIRED COMPONENTS runtime generator)\nadd_library(o INTERFACE)\nobsynth_add_observer(o MODEL plant.sym %s)\n' "$args" >"$badp/CMakeLists.txt"
+  if cmake -S "$badp" -B "$work/build-bad-names" -DCMAKE_PREFIX_PATH="$prefix" >"$work/bad-names.log" 2>&1; then
+    ko "[options] $args fails at configure time"
+  elif grep -q "$want" "$work/bad-names.log"; then
+    ok "[options] $args fails at configure time: $want"
+  else
+    ko "[options] $args fails at configure time with '$want'"
+    cat "$work/bad-names.log"
+  fi
+done
 
 # A model obsynth rejects fails the build (and does not leave a header behind for METHOD auto).
 echo "f = [ x1" >>"$opts/plant.sym"

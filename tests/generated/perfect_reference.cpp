@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
       for (std::size_t j = 0; j < n; ++j) next += jets.back().diff(m.states[j]) * F[j];
       jets.push_back(next);
     }
-    SampleBoxes boxes = SampleBoxes::from_model(m);
+    SampleBoxes boxes = m.sample_boxes();
     for (const auto& s : m.states) {
       const Interval b = m.box(s);
       boxes.by_name[s.get_name()] = {b.lo / 2, b.hi / 2};

@@ -93,7 +93,7 @@ struct Points {
 };
 
 Points sample(const Model& m) {
-  SampleBoxes boxes = SampleBoxes::from_model(m);
+  SampleBoxes boxes = m.sample_boxes();
   for (const auto& s : m.states) {
     const Interval b = m.box(s);  // stay well inside the domain
     boxes.by_name[s.get_name()] = {b.lo + (b.hi - b.lo) / 4, b.hi - (b.hi - b.lo) / 4};

@@ -1,4 +1,4 @@
-#include "emit/dag.hpp"
+#include "symbolic/dag.hpp"
 
 #include <fmt/format.h>
 
@@ -6,7 +6,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 
 namespace obsynth {
 

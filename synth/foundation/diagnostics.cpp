@@ -1,4 +1,4 @@
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 
 #include <fmt/format.h>
 

@@ -15,7 +15,7 @@
 #include <string>
 #include <utility>
 
-#include "front/diagnostics.hpp"
+#include "foundation/diagnostics.hpp"
 
 namespace obsynth {
 
