@@ -43,7 +43,6 @@ nlohmann::ordered_json design_verdicts_json(const Analysis& a, const VerdictScop
 }
 
 nlohmann::ordered_json design_verdicts_json(PlanSet& plans, const VerdictScope& scope) {
-  const Analysis& a = plans.analysis();
   nlohmann::ordered_json j = nlohmann::ordered_json::array();
   for (const auto& d : design_registry()) {
     const auto& only = scope.only;

@@ -6,6 +6,7 @@
 #include <map>
 
 #include "analysis/conditions.hpp"
+#include "designs/registry.hpp"
 #include "symbolic/expr_print.hpp"
 
 namespace obsynth {

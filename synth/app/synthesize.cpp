@@ -176,7 +176,7 @@ std::vector<std::string> resolve_methods(PlanSet& plans, const std::vector<std::
   }
   // `all` with no design that applies: the main job writes no observer, so it fails as `auto`
   // does, with every design's reason.
-  if (methods.empty()) choose_auto(a, explanation, excluded, nullptr);
+  if (methods.empty()) choose_auto(plans, explanation, excluded, nullptr);
   return methods;
 }
 

@@ -155,13 +155,16 @@ const Design* find_design(const std::string& name) {
 }
 
 std::string persistent_input_designs(const ObservabilityUnderInputs& u) {
+  // The designs with a further condition (uniform observability) come last.
   std::vector<std::string> out;
-  for (const auto& d : design_registry()) {
-    if (!d.observes_along_inputs) continue;
-    if (d.needs_uniform_observability && u.uniformly_observable == false) continue;
-    out.push_back(
-        d.along_inputs_note.empty() ? d.name : fmt::format("{} ({})", d.name, d.along_inputs_note));
-  }
+  for (const bool conditional : {false, true})
+    for (const auto& d : design_registry()) {
+      if (!d.observes_along_inputs || d.needs_uniform_observability != conditional) continue;
+      if (conditional && u.uniformly_observable == false) continue;
+      out.push_back(d.along_inputs_note.empty()
+                        ? d.name
+                        : fmt::format("{} ({})", d.name, d.along_inputs_note));
+    }
   return fmt::format("{}", fmt::join(out, ", "));
 }
 

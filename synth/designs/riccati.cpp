@@ -766,7 +766,8 @@ void report_riccati(ObserverSpec& s, const Analysis& a, const RiccatiTuning& t, 
     s.report.push_back({"warning", fmt::format("rank N = {} < n = {}: seed 000 assumes rank N = n "
                                                "(N N^T >= r0 I, r0 > 0)",
                                                prm.N.rank(), n)});
-  Verdict v = applies(a);
+  // The verdict on this build's own tuning (the design's conditions, then its certificate).
+  Verdict v = verdict_of(a, Lazy<RiccatiTuning>([&t] { return t; }));
   if (!v.applies) s.report.push_back({"warning", v.text()});
   if (v.applies) {
     v.reasons.clear();
