@@ -18,52 +18,30 @@
 #pragma once
 
 #include <cmath>
+#include <type_traits>
 
+#include "obsynth/c_kernels.hpp"
 #include "obsynth/eigen.hpp"
 #include "obsynth/numeric.hpp"
 
 namespace obsynth {
 
+/// E = e^{A dt} - I and Gamma (see above) by the C kernel obsynth_discretise. Eigen's matrices
+/// are column-major: read as row-major they are the transposes, and the kernel's series and
+/// doublings commute with transposition, so A's storage goes in and E's and Gamma's come out
+/// as they are. False for a bad dt or a non-finite result.
 template <class Scalar, int N>
 bool discretise_linear(const Eigen::Matrix<Scalar, N, N>& A, Scalar dt,
                        Eigen::Matrix<Scalar, N, N>& E,
                        Eigen::Matrix<Scalar, N, N>& Gamma) noexcept {
-  using Mat = Eigen::Matrix<Scalar, N, N>;
-  if (!is_finite(dt) || !(dt > Scalar(0)) || !all_finite(A)) return false;
-  // ||A dt||_1 (max column sum), halved until <= 1/2.
-  Scalar norm = Scalar(0);
-  for (int c = 0; c < N; ++c) {
-    Scalar col = Scalar(0);
-    for (int r = 0; r < N; ++r) col += std::abs(A(r, c));
-    norm = col > norm ? col : norm;
-  }
-  norm *= dt;
-  int squarings = 0;
-  Scalar h = dt;
-  while (norm > Scalar(0.5) && squarings < 64) {
-    norm *= Scalar(0.5);
-    h *= Scalar(0.5);
-    ++squarings;
-  }
-  // E = sum_{k>=1} (A h)^k / k!,  Gamma = h sum_{k>=0} (A h)^k / (k + 1)!
-  const Mat Ah = A * h;
-  Mat term = Ah;
-  E = Ah;
-  Gamma = Mat::Identity() * h + Ah * (h / Scalar(2));
-  for (int k = 2; k <= 30; ++k) {
-    term = (term * Ah) / Scalar(k);
-    const Mat e_next = E + term;
-    const Mat gamma_next = Gamma + term * (h / Scalar(k + 1));
-    const bool converged = e_next == E && gamma_next == Gamma;
-    E = e_next;
-    Gamma = gamma_next;
-    if (converged) break;
-  }
-  for (int i = 0; i < squarings; ++i) {
-    Gamma = Gamma + Gamma + E * Gamma;
-    E = E * E + E + E;
-  }
-  return all_finite(E) && all_finite(Gamma);
+  static_assert(std::is_same<Scalar, float>::value || std::is_same<Scalar, double>::value,
+                "discretise_linear: float or double");
+  Scalar work[4 * N * N];
+  if constexpr (std::is_same<Scalar, float>::value)
+    return c_float::obsynth_discretise(A.data(), N, dt, E.data(), Gamma.data(), work) != 0;
+  else
+    return c_double::obsynth_discretise(A.data(), N, dt, E.data(), Gamma.data(), work) !=
+           0;
 }
 
 }  // namespace obsynth

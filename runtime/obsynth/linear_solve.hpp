@@ -8,7 +8,9 @@
 #pragma once
 
 #include <cmath>
+#include <type_traits>
 
+#include "obsynth/c_kernels.hpp"
 #include "obsynth/eigen.hpp"
 #include "obsynth/numeric.hpp"
 
@@ -36,25 +38,13 @@ inline void unpack_symmetric(const Eigen::Matrix<Scalar, NW, 1>& w,
 template <int Offset, int D, class Scalar, int NW>
 inline bool packed_positive_definite(const Eigen::Matrix<Scalar, NW, 1>& w) noexcept {
   static_assert(Offset + D * (D + 1) / 2 <= NW, "packed block outside the observer state");
-  // Row r of the packed triangle starts at Offset + r D - r (r - 1) / 2.
-  auto at = [&w](int r, int c) noexcept -> Scalar {
-    return w(Offset + r * D - r * (r - 1) / 2 + (c - r));  // r <= c
-  };
-  Scalar L[D][D];  // L(i, j) d_j for i > j (the scaled column), then divided
-  Scalar d[D];
-  for (int j = 0; j < D; ++j) {
-    Scalar s = at(j, j);
-    for (int k = 0; k < j; ++k) s -= L[j][k] * L[j][k] * d[k];
-    if (!(s > Scalar(0)) || !std::isfinite(s)) return false;
-    d[j] = s;
-    const Scalar inv = Scalar(1) / s;
-    for (int i = j + 1; i < D; ++i) {
-      Scalar t = at(j, i);
-      for (int k = 0; k < j; ++k) t -= L[i][k] * L[j][k] * d[k];
-      L[i][j] = t * inv;
-    }
-  }
-  return true;
+  static_assert(std::is_same<Scalar, float>::value || std::is_same<Scalar, double>::value,
+                "packed_positive_definite: float or double");
+  Scalar work[D * D + D];  // the C kernel's L and D (runtime/obsynth/c/kernels.h)
+  if constexpr (std::is_same<Scalar, float>::value)
+    return c_float::obsynth_packed_positive_definite(w.data(), Offset, D, work) != 0;
+  else
+    return c_double::obsynth_packed_positive_definite(w.data(), Offset, D, work) != 0;
 }
 
 /// x = M^-1 v for symmetric positive definite M (Cholesky). False when M is not positive

@@ -9,13 +9,13 @@
 
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
-#include <unsupported/Eigen/MatrixFunctions>
 
 #include "app/svg_plot.hpp"
 #include "app/synthesize.hpp"
 #include "certify/sampling.hpp"
 #include "designs/registry.hpp"
 #include "front/parse.hpp"
+#include "obsynth/c_kernels.hpp"
 #include "obsynth/differentiator.hpp"
 #include "symbolic/dag.hpp"
 #include "symbolic/expr_print.hpp"
@@ -175,21 +175,17 @@ class SpecFunctions {
   std::map<std::string, NumericFunction> cache_;
 };
 
-// Phi = e^{A dt}, Gamma = int_0^dt e^{A s} ds from the exponential of [[A, I], [0, 0]] dt
-// (Eigen's Pade-based matrix exponential: independent of the runtime's scaling-and-squaring).
-void exact_discretisation(const ObserverSpec& s, double dt, Eigen::MatrixXd& Phi,
-                          Eigen::MatrixXd& Gamma) {
-  const auto n = static_cast<Eigen::Index>(s.closed_loop.size());
-  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(2 * n, 2 * n);
-  for (Eigen::Index r = 0; r < n; ++r) {
-    for (Eigen::Index c = 0; c < n; ++c)
-      M(r, c) =
-          s.closed_loop[static_cast<std::size_t>(r)][static_cast<std::size_t>(c)].to_double() * dt;
-    M(r, n + r) = dt;
-  }
-  const Eigen::MatrixXd E = M.exp();
-  Phi = E.topLeftCorner(n, n);
-  Gamma = E.topRightCorner(n, n);
+// E = e^{A dt} - I and Gamma = int_0^dt e^{A s} ds, row-major, by the runtime's kernel (as the
+// generated discretise()); false for a bad dt or a non-finite result.
+bool exact_discretisation(const ObserverSpec& s, double dt, Vec& E, Vec& Gamma) {
+  const std::size_t n = s.closed_loop.size();
+  Vec A(n * n), work(4 * n * n);
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = 0; c < n; ++c) A[r * n + c] = s.closed_loop[r][c].to_double();
+  E.assign(n * n, 0.0);
+  Gamma.assign(n * n, 0.0);
+  return c_double::obsynth_discretise(A.data(), static_cast<int>(n), dt, E.data(), Gamma.data(),
+                                     work.data()) != 0;
 }
 
 // One observer run: its state w, estimate xh, and how both advance.
@@ -214,12 +210,23 @@ class SpecObserver {
   // The firmware step with u, y held over dt.
   void step(double dt, const Vec& u, const Vec& y) {
     if (s_.update == UpdateKind::linear_exact && !s_.rk4_for_linear) {
-      if (Phi_.size() == 0) exact_discretisation(s_, dt, Phi_, Gamma_);
+      if (!(dt == dt_)) {
+        if (!exact_discretisation(s_, dt, E_, Gamma_)) {
+          rejected_ = "the exact discretisation failed (a bad dt or a non-finite e^{A dt})";
+          return;
+        }
+        dt_ = dt;
+      }
+      // w + (E w + Gamma c), the increment added once (as the C step and the float runtime)
       const Vec c = fn_(s_.roles.step_constant)(concat(u, y));
-      const Eigen::Map<const Eigen::VectorXd> wv(w_.data(), static_cast<Eigen::Index>(w_.size()));
-      const Eigen::Map<const Eigen::VectorXd> cv(c.data(), static_cast<Eigen::Index>(c.size()));
-      const Eigen::VectorXd next = Phi_ * wv + Gamma_ * cv;
-      w_.assign(next.data(), next.data() + next.size());
+      const std::size_t n = w_.size();
+      Vec next(n);
+      for (std::size_t i = 0; i < n; ++i) {
+        double acc = 0;
+        for (std::size_t j = 0; j < n; ++j) acc += E_[i * n + j] * w_[j] + Gamma_[i * n + j] * c[j];
+        next[i] = w_[i] + acc;
+      }
+      w_ = next;
     } else {
       const Vec before = w_;
       // Equal RK4 sub-steps no longer than the design's max_substep, as the generated step.
@@ -266,58 +273,45 @@ class SpecObserver {
   }
   // Symmetric blocks that must stay positive definite (Cholesky, as the generated step).
   void check_blocks() {
-    for (const auto& b : s_.symmetric_blocks)
-      if (b.keep_positive_definite &&
-          Eigen::LLT<Eigen::MatrixXd>(symmetric_block(b, w_)).info() != Eigen::Success)
+    for (const auto& b : s_.symmetric_blocks) {
+      if (!b.keep_positive_definite) continue;
+      Vec work(b.dim * b.dim + b.dim);
+      if (!c_double::obsynth_packed_positive_definite(w_.data(), static_cast<int>(b.offset),
+                                                     static_cast<int>(b.dim), work.data()))
         rejected_ = b.name + " is no longer positive definite";
+    }
   }
-  // dw[target..] += M^-1 v by the factorisation the generated code uses.
+  // dw[target..] += M^-1 v by the generated code's factorisation (the runtime's kernels).
   bool add_correction(const SolveCorrection& k, const Vec& w, const Vec& u, const Vec& y, Vec& dw) {
-    const auto d = static_cast<Eigen::Index>(k.dim);
-    Eigen::MatrixXd M(d, d);
+    const std::size_t d = k.dim;
+    Vec M(d * d);  // row-major
     if (!k.matrix_function.empty()) {
       const Vec mv = fn_(k.matrix_function)(concat(w, u));  // column-major
-      M = Eigen::Map<const Eigen::MatrixXd>(mv.data(), d, d);
+      for (std::size_t r = 0; r < d; ++r)
+        for (std::size_t c = 0; c < d; ++c) M[r * d + c] = mv[c * d + r];
     } else {
       for (const auto& b : s_.symmetric_blocks)
-        if (b.name == k.matrix_block) M = symmetric_block(b, w);
+        if (b.name == k.matrix_block)
+          c_double::obsynth_unpack_symmetric(w.data(), static_cast<int>(b.offset),
+                                            static_cast<int>(b.dim), M.data());
     }
     const Vec v = fn_(k.vector_function)(concat(concat(w, u), y));
-    const Eigen::Map<const Eigen::VectorXd> vv(v.data(), d);
-    Eigen::VectorXd x;
-    if (k.factor == SolveCorrection::Factor::cholesky) {
-      const Eigen::LLT<Eigen::MatrixXd> llt(M);
-      if (llt.info() != Eigen::Success) return false;
-      x = llt.solve(vv);
-    } else {
-      // The generated solve_lu's rule (runtime/obsynth/linear_solve.hpp): rejected when the
-      // smallest pivot of LU with partial pivoting is at most sqrt(epsilon) times the largest.
-      const Eigen::PartialPivLU<Eigen::MatrixXd> lu(M);
-      const Eigen::VectorXd U = lu.matrixLU().diagonal().cwiseAbs();
-      const double largest = U.maxCoeff();
-      if (!std::isfinite(largest) ||
-          !(U.minCoeff() > std::sqrt(std::numeric_limits<double>::epsilon()) * largest))
-        return false;
-      x = lu.solve(vv);
-    }
-    for (Eigen::Index i = 0; i < d; ++i) dw[k.target_offset + static_cast<std::size_t>(i)] += x(i);
-    return x.allFinite();
-  }
-  static Eigen::MatrixXd symmetric_block(const SymmetricBlock& b, const Vec& w) {
-    const auto d = static_cast<Eigen::Index>(b.dim);
-    Eigen::MatrixXd M(d, d);
-    for (Eigen::Index r = 0; r < d; ++r)
-      for (Eigen::Index c = r; c < d; ++c)
-        M(r, c) = M(c, r) =
-            w[b.packed_index(static_cast<std::size_t>(r), static_cast<std::size_t>(c))];
-    return M;
+    Vec x(d);
+    const int dim = static_cast<int>(d);
+    const int ok = k.factor == SolveCorrection::Factor::cholesky
+                       ? c_double::obsynth_solve_cholesky(M.data(), dim, v.data(), x.data())
+                       : c_double::obsynth_solve_lu(M.data(), dim, v.data(), x.data());
+    if (!ok) return false;
+    for (std::size_t i = 0; i < d; ++i) dw[k.target_offset + i] += x[i];
+    return true;
   }
 
   const ObserverSpec& s_;
   SpecFunctions fn_;
   const SimulationOptions& o_;
   Vec w_, xh_;
-  Eigen::MatrixXd Phi_, Gamma_;
+  Vec E_, Gamma_;  // row-major, for dt_
+  double dt_ = 0;
   std::string rejected_;
 };
 

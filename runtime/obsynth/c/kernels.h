@@ -1,0 +1,253 @@
+/* SPDX-License-Identifier: MIT
+ * Copyright (c) obsynth authors
+ *
+ * The numeric kernels of an observer step, once, in C99: the C back end's generated sources
+ * include them, and obsynth's simulator compiles the same text as C++ (double), so that the
+ * simulated step and the firmware step are one implementation.
+ *
+ * Include after `typedef float Scalar;` or `typedef double Scalar;`, with OBSYNTH_C_FLOAT
+ * defined to 1 for float (fabsf, sqrtf, FLT_EPSILON). All functions are `static inline`:
+ * private to the including file, no link-time names, no warning when one is unused. Matrices
+ * are row-major arrays; no heap; failure is a 0 return.
+ *
+ * From C++ (the simulator): include <cmath> first, then this header inside a namespace that
+ * declares Scalar.
+ */
+/* One inclusion per precision (a C++ file may include it for double and for float, each in a
+ * namespace of its own). */
+#if defined(OBSYNTH_C_FLOAT) && OBSYNTH_C_FLOAT
+#ifndef OBSYNTH_C_KERNELS_FLOAT_H
+#define OBSYNTH_C_KERNELS_FLOAT_H
+#define OBSYNTH_C_KERNELS_BODY
+#endif
+#else
+#ifndef OBSYNTH_C_KERNELS_DOUBLE_H
+#define OBSYNTH_C_KERNELS_DOUBLE_H
+#define OBSYNTH_C_KERNELS_BODY
+#endif
+#endif
+
+#ifdef OBSYNTH_C_KERNELS_BODY
+#undef OBSYNTH_C_KERNELS_BODY
+
+#undef OBSYNTH_C_ISFINITE
+#undef OBSYNTH_C_FABS
+#undef OBSYNTH_C_SQRT
+#undef OBSYNTH_C_SQRT_EPSILON
+#ifdef __cplusplus
+#define OBSYNTH_C_ISFINITE(x) std::isfinite(x)
+#define OBSYNTH_C_FABS(x) std::fabs(x)
+#define OBSYNTH_C_SQRT(x) std::sqrt(x)
+#else
+#include <math.h>
+#define OBSYNTH_C_ISFINITE(x) isfinite(x)
+#if defined(OBSYNTH_C_FLOAT) && OBSYNTH_C_FLOAT
+#define OBSYNTH_C_FABS(x) fabsf(x)
+#define OBSYNTH_C_SQRT(x) sqrtf(x)
+#else
+#define OBSYNTH_C_FABS(x) fabs(x)
+#define OBSYNTH_C_SQRT(x) sqrt(x)
+#endif
+#endif
+
+/* sqrt(epsilon) of the precision (obsynth's lu_conditioning_limit). */
+#if defined(OBSYNTH_C_FLOAT) && OBSYNTH_C_FLOAT
+#define OBSYNTH_C_SQRT_EPSILON 3.4526698e-4f
+#else
+#define OBSYNTH_C_SQRT_EPSILON 1.4901161193847656e-8
+#endif
+
+/* 1 when every one of the k values is finite. */
+static inline int obsynth_all_finite(const Scalar* v, int k) {
+  int i;
+  for (i = 0; i < k; ++i)
+    if (!OBSYNTH_C_ISFINITE(v[i])) return 0;
+  return 1;
+}
+
+/* Exact zero-order-hold discretisation of w' = A w + c (A: n x n): E = e^{A dt} - I and
+ * Gamma = int_0^dt e^{A s} ds, by scaling and squaring of their Taylor series on h = dt / 2^s
+ * with ||A h||_1 <= 1/2 (terms summed until they no longer change the sums), then s doublings
+ * E(2h) = E(h) (E(h) + 2 I), Gamma(2h) = Gamma(h) + (E(h) + I) Gamma(h) (the C++ runtime's
+ * discretise_linear). E, not Phi: in float Phi's entries round to 1 + O(eps), E keeps the
+ * small terms' relative precision; the step adds the increment E w + Gamma c to w.
+ * work: 4 n^2 Scalars. 0 for a bad dt or a non-finite result. */
+static inline int obsynth_discretise(const Scalar* A, int n, Scalar dt, Scalar* E, Scalar* G,
+                                     Scalar* work) {
+  Scalar* Ah = work;
+  Scalar* term = work + n * n;
+  Scalar* tmp = work + 2 * n * n;
+  Scalar* E2 = work + 3 * n * n;
+  Scalar norm = (Scalar)0, h = dt;
+  int i, j, k, s, squarings = 0;
+  if (!OBSYNTH_C_ISFINITE(dt) || !(dt > (Scalar)0) || !obsynth_all_finite(A, n * n)) return 0;
+  for (j = 0; j < n; ++j) {
+    Scalar col = (Scalar)0;
+    for (i = 0; i < n; ++i) col += OBSYNTH_C_FABS(A[i * n + j]);
+    norm = col > norm ? col : norm;
+  }
+  norm *= dt;
+  while (norm > (Scalar)0.5 && squarings < 64) {
+    norm *= (Scalar)0.5;
+    h *= (Scalar)0.5;
+    ++squarings;
+  }
+  for (i = 0; i < n * n; ++i) {
+    Ah[i] = A[i] * h;
+    term[i] = Ah[i];
+    E[i] = Ah[i];
+    G[i] = Ah[i] * (h / (Scalar)2) + (i % (n + 1) == 0 ? h : (Scalar)0);
+  }
+  for (k = 2; k <= 30; ++k) {
+    int changed = 0;
+    for (i = 0; i < n; ++i)
+      for (j = 0; j < n; ++j) {
+        Scalar acc = (Scalar)0;
+        for (s = 0; s < n; ++s) acc += term[i * n + s] * Ah[s * n + j];
+        tmp[i * n + j] = acc / (Scalar)k;
+      }
+    for (i = 0; i < n * n; ++i) {
+      const Scalar e = E[i] + tmp[i];
+      const Scalar g = G[i] + tmp[i] * (h / (Scalar)(k + 1));
+      if (e != E[i] || g != G[i]) changed = 1;
+      term[i] = tmp[i];
+      E[i] = e;
+      G[i] = g;
+    }
+    if (!changed) break;
+  }
+  /* Doublings; tmp holds the new Gamma, E2 the new E. */
+  for (k = 0; k < squarings; ++k) {
+    for (i = 0; i < n; ++i)
+      for (j = 0; j < n; ++j) {
+        Scalar eg = (Scalar)0, ee = (Scalar)0;
+        for (s = 0; s < n; ++s) {
+          eg += E[i * n + s] * G[s * n + j];
+          ee += E[i * n + s] * E[s * n + j];
+        }
+        tmp[i * n + j] = G[i * n + j] + G[i * n + j] + eg;
+        E2[i * n + j] = ee + E[i * n + j] + E[i * n + j];
+      }
+    for (i = 0; i < n * n; ++i) {
+      E[i] = E2[i];
+      G[i] = tmp[i];
+    }
+  }
+  return obsynth_all_finite(E, n * n) && obsynth_all_finite(G, n * n);
+}
+
+/* The symmetric d x d matrix stored as its upper triangle, row by row, at w + off. */
+static inline void obsynth_unpack_symmetric(const Scalar* w, int off, int d, Scalar* M) {
+  int r, c, k = off;
+  for (r = 0; r < d; ++r)
+    for (c = r; c < d; ++c, ++k) M[r * d + c] = M[c * d + r] = w[k];
+}
+
+/* M = L L^T in place (lower triangle); 0 when M is not positive definite. */
+static inline int obsynth_cholesky(Scalar* M, int d) {
+  int i, j, k;
+  for (j = 0; j < d; ++j) {
+    Scalar s = M[j * d + j];
+    for (k = 0; k < j; ++k) s -= M[j * d + k] * M[j * d + k];
+    if (!(s > (Scalar)0) || !OBSYNTH_C_ISFINITE(s)) return 0;
+    M[j * d + j] = OBSYNTH_C_SQRT(s);
+    for (i = j + 1; i < d; ++i) {
+      Scalar t = M[i * d + j];
+      for (k = 0; k < j; ++k) t -= M[i * d + k] * M[j * d + k];
+      M[i * d + j] = t / M[j * d + j];
+    }
+  }
+  return 1;
+}
+
+/* x = M^-1 v for symmetric positive definite M (Cholesky, M overwritten); 0 when M is not
+ * positive definite or x is not finite. */
+static inline int obsynth_solve_cholesky(Scalar* M, int d, const Scalar* v, Scalar* x) {
+  int i, k;
+  if (!obsynth_cholesky(M, d)) return 0;
+  for (i = 0; i < d; ++i) {
+    Scalar t = v[i];
+    for (k = 0; k < i; ++k) t -= M[i * d + k] * x[k];
+    x[i] = t / M[i * d + i];
+  }
+  for (i = d - 1; i >= 0; --i) {
+    Scalar t = x[i];
+    for (k = i + 1; k < d; ++k) t -= M[k * d + i] * x[k];
+    x[i] = t / M[i * d + i];
+  }
+  return obsynth_all_finite(x, d);
+}
+
+/* x = M^-1 v by LU with partial pivoting (M overwritten); 0 when a pivot is at most
+ * sqrt(epsilon) times the largest one (condition number >= epsilon^-1/2: half the digits of
+ * M^-1 v lost; obsynth's lu_conditioning_limit), or when x is not finite. */
+static inline int obsynth_solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x) {
+  int i, j, k;
+  Scalar largest = (Scalar)0, smallest = (Scalar)0;
+  for (i = 0; i < d; ++i) x[i] = v[i];
+  for (k = 0; k < d; ++k) {
+    int p = k;
+    for (i = k + 1; i < d; ++i)
+      if (OBSYNTH_C_FABS(M[i * d + k]) > OBSYNTH_C_FABS(M[p * d + k])) p = i;
+    if (p != k) {
+      for (j = 0; j < d; ++j) {
+        const Scalar t = M[k * d + j];
+        M[k * d + j] = M[p * d + j];
+        M[p * d + j] = t;
+      }
+      {
+        const Scalar t = x[k];
+        x[k] = x[p];
+        x[p] = t;
+      }
+    }
+    {
+      const Scalar a = OBSYNTH_C_FABS(M[k * d + k]);
+      if (!(a > (Scalar)0)) return 0; /* zero or NaN pivot */
+      if (a > largest) largest = a;
+      if (k == 0 || a < smallest) smallest = a;
+    }
+    for (i = k + 1; i < d; ++i) {
+      const Scalar f = M[i * d + k] / M[k * d + k];
+      for (j = k; j < d; ++j) M[i * d + j] -= f * M[k * d + j];
+      x[i] -= f * x[k];
+    }
+  }
+  if (!OBSYNTH_C_ISFINITE(largest) ||
+      !(smallest > OBSYNTH_C_SQRT_EPSILON * largest))
+    return 0;
+  for (i = d - 1; i >= 0; --i) {
+    Scalar t = x[i];
+    for (k = i + 1; k < d; ++k) t -= M[i * d + k] * x[k];
+    x[i] = t / M[i * d + i];
+  }
+  return obsynth_all_finite(x, d);
+}
+
+/* 1 when the symmetric d x d block packed at w + off (upper triangle, row by row) is positive
+ * definite: every pivot of its square-root-free Cholesky factorisation L D L^T is finite and
+ * > 0 (exactly when L L^T exists). work: d * d + d Scalars. */
+static inline int obsynth_packed_positive_definite(const Scalar* w, int off, int d,
+                                                   Scalar* work) {
+  Scalar* L = work;
+  Scalar* D = work + d * d;
+  int i, j, k;
+  for (j = 0; j < d; ++j) {
+    const int row = off + j * d - j * (j - 1) / 2; /* (j, j) */
+    Scalar s = w[row];
+    for (k = 0; k < j; ++k) s -= L[j * d + k] * L[j * d + k] * D[k];
+    if (!(s > (Scalar)0) || !OBSYNTH_C_ISFINITE(s)) return 0;
+    D[j] = s;
+    {
+      const Scalar inv = (Scalar)1 / s; /* one division per column */
+      for (i = j + 1; i < d; ++i) {
+        Scalar t = w[row + (i - j)];
+        for (k = 0; k < j; ++k) t -= L[i * d + k] * L[j * d + k] * D[k];
+        L[i * d + j] = t * inv;
+      }
+    }
+  }
+  return 1;
+}
+
+#endif /* OBSYNTH_C_KERNELS_BODY */

@@ -1,0 +1,151 @@
+// The C99 kernels of runtime/obsynth/c/kernels.h (generated C sources include them; the
+// simulator compiles them for double), compiled here as C++ for double and float and checked
+// against Eigen's own factorisations and matrix exponential (independent implementations),
+// and against the C++ runtime's discretise_linear.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <Eigen/Dense>
+#include <unsupported/Eigen/MatrixFunctions>
+
+#include "obsynth/c_kernels.hpp"
+#include "obsynth/discretise.hpp"
+
+namespace kd = obsynth::c_double;
+namespace kf = obsynth::c_float;
+
+namespace {
+
+using Mat = Eigen::MatrixXd;
+
+// Row-major copy of an Eigen matrix, and back.
+std::vector<double> rows(const Mat& M) {
+  std::vector<double> v(static_cast<std::size_t>(M.size()));
+  for (Eigen::Index r = 0; r < M.rows(); ++r)
+    for (Eigen::Index c = 0; c < M.cols(); ++c)
+      v[static_cast<std::size_t>(r * M.cols() + c)] = M(r, c);
+  return v;
+}
+Mat matrix(const std::vector<double>& v, Eigen::Index n) {
+  Mat M(n, n);
+  for (Eigen::Index r = 0; r < n; ++r)
+    for (Eigen::Index c = 0; c < n; ++c) M(r, c) = v[static_cast<std::size_t>(r * n + c)];
+  return M;
+}
+
+// A companion-like closed loop with poles spread over two decades, as the designs build.
+Mat closed_loop(int n, double scale) {
+  Mat A = Mat::Zero(n, n);
+  for (int i = 1; i < n; ++i) A(i, i - 1) = 1;
+  for (int i = 0; i < n; ++i) A(i, n - 1) = -scale * (i + 1.5);
+  return A;
+}
+
+TEST(CKernels, DiscretiseMatchesTheMatrixExponential) {
+  for (int n : {1, 2, 4, 7})
+    for (double dt : {1e-4, 1e-2, 0.5, 3.0}) {
+      const Mat A = closed_loop(n, 2.0);
+      // Phi and Gamma from exp([[A, I], [0, 0]] dt) (Eigen's Pade approximant).
+      Mat M = Mat::Zero(2 * n, 2 * n);
+      M.topLeftCorner(n, n) = A * dt;
+      M.topRightCorner(n, n) = Mat::Identity(n, n) * dt;
+      const Mat X = M.exp();
+      std::vector<double> E(static_cast<std::size_t>(n * n)), G(E.size()), work(4 * E.size());
+      ASSERT_TRUE(kd::obsynth_discretise(rows(A).data(), n, dt, E.data(), G.data(), work.data()));
+      const Mat Phi = matrix(E, n) + Mat::Identity(n, n), Gamma = matrix(G, n);
+      EXPECT_LE((Phi - X.topLeftCorner(n, n)).norm(), 1e-12 * (1 + X.norm()))
+          << "n = " << n << ", dt = " << dt;
+      EXPECT_LE((Gamma - X.topRightCorner(n, n)).norm(), 1e-12 * (1 + X.norm()))
+          << "n = " << n << ", dt = " << dt;
+    }
+}
+
+// The C++ runtime hands the kernel Eigen's column-major storage (A^T read row-major) and reads
+// E^T, Gamma^T back as column-major: the transposed computation (its scaling may differ: the
+// 1-norm of A^T is A's infinity norm) agrees to rounding.
+TEST(CKernels, DiscretiseAgreesWithTheCxxRuntime) {
+  constexpr int n = 4;
+  const Mat A = closed_loop(n, 3.0);
+  const Eigen::Matrix<double, n, n> Af = A;
+  Eigen::Matrix<double, n, n> Ec, Gc;
+  ASSERT_TRUE((obsynth::discretise_linear<double, n>(Af, 0.01, Ec, Gc)));
+  std::vector<double> E(n * n), G(n * n), work(4 * n * n);
+  ASSERT_TRUE(kd::obsynth_discretise(rows(A).data(), n, 0.01, E.data(), G.data(), work.data()));
+  EXPECT_LE((matrix(E, n) - Mat(Ec)).norm(), 1e-13 * (1 + Ec.norm()));
+  EXPECT_LE((matrix(G, n) - Mat(Gc)).norm(), 1e-13 * (1 + Gc.norm()));
+  // float: the same series in single precision, within float's rounding of the double result
+  std::vector<float> Af32(n * n), E32(n * n), G32(n * n), w32(4 * n * n);
+  for (std::size_t i = 0; i < Af32.size(); ++i) Af32[i] = static_cast<float>(rows(A)[i]);
+  ASSERT_TRUE(kf::obsynth_discretise(Af32.data(), n, 0.01f, E32.data(), G32.data(), w32.data()));
+  for (std::size_t i = 0; i < E.size(); ++i) {
+    EXPECT_NEAR(E32[i], E[i], 1e-5 * (1 + std::abs(E[i])));
+    EXPECT_NEAR(G32[i], G[i], 1e-7 + 1e-5 * std::abs(G[i]));
+  }
+}
+
+TEST(CKernels, DiscretiseRefusesABadStep) {
+  const std::vector<double> A{-1.0};
+  std::vector<double> E(1), G(1), work(4);
+  EXPECT_FALSE(kd::obsynth_discretise(A.data(), 1, 0.0, E.data(), G.data(), work.data()));
+  EXPECT_FALSE(kd::obsynth_discretise(A.data(), 1, -1.0, E.data(), G.data(), work.data()));
+  EXPECT_FALSE(kd::obsynth_discretise(A.data(), 1, NAN, E.data(), G.data(), work.data()));
+  const std::vector<double> huge{1e300};
+  EXPECT_FALSE(kd::obsynth_discretise(huge.data(), 1, 1.0, E.data(), G.data(), work.data()));
+}
+
+TEST(CKernels, SolvesMatchEigenAndRefuseWhatTheyMust) {
+  std::mt19937 gen(20261205);
+  std::uniform_real_distribution<double> U(-1, 1);
+  for (int d : {1, 2, 3, 5}) {
+    Mat B(d, d);
+    for (Eigen::Index i = 0; i < B.size(); ++i) B(i) = U(gen);
+    const Mat S = B * B.transpose() + Mat::Identity(d, d);  // positive definite
+    Eigen::VectorXd v(d);
+    for (int i = 0; i < d; ++i) v(i) = U(gen);
+    std::vector<double> M = rows(S), x(static_cast<std::size_t>(d));
+    ASSERT_TRUE(kd::obsynth_solve_cholesky(M.data(), d, v.data(), x.data()));
+    const Eigen::VectorXd xe = S.llt().solve(v);
+    for (int i = 0; i < d; ++i) EXPECT_NEAR(x[static_cast<std::size_t>(i)], xe(i), 1e-12);
+    M = rows(B + 2 * Mat::Identity(d, d));
+    ASSERT_TRUE(kd::obsynth_solve_lu(M.data(), d, v.data(), x.data()));
+    const Eigen::VectorXd xl = (B + 2 * Mat::Identity(d, d)).partialPivLu().solve(v);
+    for (int i = 0; i < d; ++i) EXPECT_NEAR(x[static_cast<std::size_t>(i)], xl(i), 1e-12);
+  }
+  // indefinite: no Cholesky factor; nearly singular: LU refuses (pivot ratio 1e-10 < sqrt(eps))
+  std::vector<double> indefinite{1, 2, 2, 1}, x(2), v{1, 1};
+  EXPECT_FALSE(kd::obsynth_solve_cholesky(indefinite.data(), 2, v.data(), x.data()));
+  std::vector<double> near_singular{1, 0, 0, 1e-10};
+  EXPECT_FALSE(kd::obsynth_solve_lu(near_singular.data(), 2, v.data(), x.data()));
+  std::vector<double> conditioned{1, 0, 0, 1e-6};  // ratio 1e-6 > sqrt(eps) = 1.5e-8: solved
+  EXPECT_TRUE(kd::obsynth_solve_lu(conditioned.data(), 2, v.data(), x.data()));
+  EXPECT_NEAR(x[1], 1e6, 1e-6);
+}
+
+TEST(CKernels, PackedPositiveDefiniteAgreesWithEigen) {
+  std::mt19937 gen(7);
+  std::uniform_real_distribution<double> U(-1, 1);
+  int positive = 0, indefinite = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const int d = 1 + trial % 4;
+    Mat S(d, d);
+    for (int r = 0; r < d; ++r)
+      for (int c = r; c < d; ++c) S(r, c) = S(c, r) = U(gen) + (r == c ? 0.6 : 0.0);
+    std::vector<double> packed{42.0};  // an offset of 1 into the observer state
+    for (int r = 0; r < d; ++r)
+      for (int c = r; c < d; ++c) packed.push_back(S(r, c));
+    std::vector<double> work(static_cast<std::size_t>(d * d + d));
+    const bool pd = kd::obsynth_packed_positive_definite(packed.data(), 1, d, work.data()) != 0;
+    EXPECT_EQ(pd, S.llt().info() == Eigen::Success) << S;
+    (pd ? positive : indefinite)++;
+    std::vector<double> unpacked(static_cast<std::size_t>(d * d));
+    kd::obsynth_unpack_symmetric(packed.data(), 1, d, unpacked.data());
+    EXPECT_EQ(matrix(unpacked, d), S);
+  }
+  EXPECT_GT(positive, 20);  // both kinds were exercised
+  EXPECT_GT(indefinite, 20);
+}
+
+}  // namespace
