@@ -8,7 +8,7 @@
 #
 # installs
 #   bin/obsynth                                   the synthesizer            (component generator)
-#   include/obsynth/*.hpp                         the header-only runtime    (component runtime)
+#   include/obsynth/*.hpp, c/*.h                  the header-only runtime    (component runtime)
 #   lib/cmake/obsynth/obsynthConfig.cmake,
 #     obsynthConfigVersion.cmake,
 #     obsynthRuntimeTargets.cmake                 obsynth::runtime           (component runtime)
@@ -51,7 +51,7 @@ install(TARGETS obsynth_runtime EXPORT obsynthRuntimeTargets)
 install(DIRECTORY "${CMAKE_CURRENT_LIST_DIR}/../runtime/obsynth/"
         DESTINATION "${_obsynth_include_dir}/obsynth"
         COMPONENT runtime
-        FILES_MATCHING PATTERN "*.hpp")
+        FILES_MATCHING PATTERN "*.hpp" PATTERN "*.h")
 install(EXPORT obsynthRuntimeTargets
         NAMESPACE obsynth::
         FILE obsynthRuntimeTargets.cmake

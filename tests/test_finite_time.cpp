@@ -352,8 +352,9 @@ void generated_matches_simulator(const std::string& rule, bool all_cases) {
       std::ofstream(sub / h.source_filename) << h.source_text;
       std::ofstream(sub / "driver.c") << kCDriver;
       const std::string out = run(fmt::format(
-          "cc -std=c99 {} -I{} -DHEADER='\"{}\"' {} {} -lm -o {}", flags, sub.string(), h.filename,
-          (sub / h.source_filename).string(), (sub / "driver.c").string(), (sub / "drv").string()));
+          "cc -std=c99 {} -I{} -I{}/runtime -DHEADER='\"{}\"' {} {} -lm -o {}", flags, sub.string(),
+          OBSYNTH_SOURCE_DIR, h.filename, (sub / h.source_filename).string(),
+          (sub / "driver.c").string(), (sub / "drv").string()));
       ASSERT_EQ(out.find("FAILED"), std::string::npos) << out;
       build = (sub / "drv").string();
     }

@@ -519,7 +519,7 @@ jq -r '.generated[0].usage_example' "$tmp/bio_cpp/bioreactor_report.json" >"$tmp
 check "names D, I, y: C++ usage example compiles" test $? -eq 0
 if command -v cc >/dev/null 2>&1; then
   jq -r '.generated[0].usage_example' "$tmp/bio_c/bioreactor_report.json" >"$tmp/bio_main.c"
-  cc -std=c99 -O1 -Wall -Wextra -Werror -Wconversion -Wdouble-promotion -pedantic -I"$tmp/bio_c" \
+  cc -std=c99 -O1 -Wall -Wextra -Werror -Wconversion -Wdouble-promotion -pedantic -I"$tmp/bio_c" -I"$src/runtime" \
     "$tmp/bio_main.c" "$tmp"/bio_c/*.c -lm -o "$tmp/bio_main" 2>"$tmp/err"
   check "names D, I, y: C sources and usage example compile" test $? -eq 0
 fi
