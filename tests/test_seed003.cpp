@@ -176,3 +176,28 @@ TEST(CarriesNonfinite, NotWhereAFiniteValueCanHideOne) {
 }
 
 }  // namespace
+
+// ---- the independent oracle of tests/support/expect.hpp can fail --------------------------
+
+namespace {
+
+TEST(Oracle, TellsIdentitiesFromNearIdentities) {
+  GiNaC::symbol x("x"), y("y");
+  using obsynth::testing::same;
+  EXPECT_TRUE(same(GiNaC::pow(GiNaC::sin(x), 2) + GiNaC::pow(GiNaC::cos(x), 2), 1));
+  EXPECT_TRUE(same(GiNaC::exp(2 * x), GiNaC::pow(GiNaC::exp(x), 2)));
+  EXPECT_TRUE(same(GiNaC::tanh(x), (GiNaC::exp(2 * x) - 1) / (GiNaC::exp(2 * x) + 1)));
+  // a difference of 1e-30 relative is far above the 1e-40 tolerance at 50 digits
+  EXPECT_FALSE(same(x * x, x * x + GiNaC::numeric(1, 1000000000) * GiNaC::pow(10, -21) * x));
+  EXPECT_FALSE(same(GiNaC::sqrt(x * x), -x));  // the box [1/5, 9/5]: sqrt(x^2) = x there
+  EXPECT_FALSE(same(ExVec{x, y}, ExVec{x}));   // sizes
+  // in a box of the caller's: sqrt(x^2) = -x on [-2, -1]
+  obsynth::testing::OracleBox negative;
+  negative["x"] = {GiNaC::numeric(-2), GiNaC::numeric(-1)};
+  EXPECT_TRUE(same(GiNaC::sqrt(x * x), -x, negative));
+  // a pole at every point cannot be judged (|x| - x = 0 on the default box [1/5, 9/5]): at
+  // least 3 of 5 points must evaluate
+  EXPECT_FALSE(same(1 / (GiNaC::abs(x) - x), 2 / (GiNaC::abs(x) - x)));
+}
+
+}  // namespace
