@@ -434,3 +434,40 @@ TEST(InputMap, ChainStepConstantIsBTimesBasis) {
 }
 
 }  // namespace
+
+// ---------------------------------------------------------------------------------------
+// models/two_block.sym: the constructed two-output model of issue 18, checked against the
+// derivation in its header by substitution (GiNaC diff and the 50-digit oracle only).
+
+TEST(TwoBlock, HandDerivationHoldsBySubstitution) {
+  const Model m = load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/two_block.sym");
+  ASSERT_EQ(m.n(), 4u);
+  ASSERT_EQ(m.p(), 2u);
+  const auto& x = m.states;
+  const ex u = m.inputs[0];
+  const ex x1 = x[0], x2 = x[1], x3 = x[2], x4 = x[3];
+  // T, its inverse, the injection and the block form, as written in the file's header
+  const ExVec T{x2 - x1 * x1 / 2, x1, x4 - x1 * x3, x3};
+  GiNaC::symbol y1("y1"), y2("y2"), z1("z1"), z2("z2"), z3("z3"), z4("z4");
+  const ExVec l{-2 * y1 + y2 * y2, -3 * y1 + u, -y2 + y1 * y2, -2 * y2 + GiNaC::tanh(y1)};
+  const ExVec T_inverse{z2, z1 + z2 * z2 / 2, z4, z3 + z2 * z4};
+  const GiNaC::exmap y_is_h{{y1, m.h[0]}, {y2, m.h[1]}};
+  const ExVec field = m.field();
+  const OracleBox box = oracle_box(m);
+  // dT/dx (f + g) = A T + l(h, u), A the two shift blocks
+  const ExVec AT{0, T[0], 0, T[2]};
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_TRUE(same(derivative_along(T[i], field, x), AT[i] + l[i].subs(y_is_h), box)) << i;
+  // y = C z with C = [e2, e4]^T
+  EXPECT_TRUE(same(m.h, ExVec{T[1], T[3]}, box));
+  // T^-1(T(x)) = x
+  const GiNaC::exmap z_is_T{{z1, T[0]}, {z2, T[1]}, {z3, T[2]}, {z4, T[3]}};
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_TRUE(GiNaC::expand(T_inverse[i].subs(z_is_T) - x[i]).is_zero()) << i;
+}
+
+TEST(TwoBlock, ObservabilityIndicesAreTheBlockSizes) {
+  const Analysis a = analyse(load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/two_block.sym"));
+  EXPECT_EQ(a.observability.generic_rank, 4u);
+  EXPECT_EQ(a.observability.indices, (std::vector<std::size_t>{2, 2}));
+}
