@@ -20,3 +20,15 @@ using Scalar = float;
 #include "obsynth/c/kernels.h"
 #undef OBSYNTH_C_FLOAT
 }  // namespace obsynth::c_float
+
+namespace obsynth::c {
+// The jet differentiator's kernels by overload on the scalar type (float or double).
+inline int jet_update(double* eta, double* phi, double* cached_dt, double* y_prev, int K,
+                      double epsilon, double dt, double y, double* work) noexcept {
+  return c_double::obsynth_jet_update(eta, phi, cached_dt, y_prev, K, epsilon, dt, y, work);
+}
+inline int jet_update(float* eta, float* phi, float* cached_dt, float* y_prev, int K, float epsilon,
+                      float dt, float y, float* work) noexcept {
+  return c_float::obsynth_jet_update(eta, phi, cached_dt, y_prev, K, epsilon, dt, y, work);
+}
+}  // namespace obsynth::c

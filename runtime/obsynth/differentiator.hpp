@@ -101,7 +101,9 @@
 
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
+#include "obsynth/c_kernels.hpp"
 #include "obsynth/eigen.hpp"
 #include "obsynth/numeric.hpp"
 #include "obsynth/status.hpp"
@@ -163,27 +165,15 @@ class JetDifferentiator {
   }
 
   /// Advance by dt > 0 to the new sample y. Returns Status::non_finite, leaving the state
-  /// untouched, if dt <= 0 or dt, y are not finite.
+  /// untouched, if dt <= 0 or dt, y are not finite. The step is the C99 kernel
+  /// obsynth_jet_update (runtime/obsynth/c/kernels.h), as in the C back end's observers.
   Status update(Scalar dt, Scalar y) noexcept {
-    if (!is_finite(dt) || !is_finite(y) || !(dt > Scalar(0))) return Status::non_finite;
-    if constexpr (K == 0) {
-      eta_(0) = y;
-    } else {
-      // exact comparison on purpose (cache key); written without == for -Wfloat-equal
-      if (dt < cached_dt_ || dt > cached_dt_) compute_transition(dt);
-      const Scalar eps_slope = epsilon_ * ((y - y_prev_) / dt);
-      Jet d = eta_;
-      d(0) -= y_prev_;
-      d(1) -= eps_slope;
-      Jet next;
-      next.noalias() = phi_ * d;
-      next(0) += y;
-      next(1) += eps_slope;
-      if (!all_finite(next)) return Status::non_finite;
-      eta_ = next;
-    }
-    y_prev_ = y;
-    return Status::ok;
+    static_assert(std::is_same<Scalar, float>::value || std::is_same<Scalar, double>::value,
+                  "JetDifferentiator: float or double");
+    Scalar work[3 * (K + 1) * (K + 1) + 2 * (K + 1)];
+    return c::jet_update(eta_.data(), phi_, &cached_dt_, &y_prev_, K, epsilon_, dt, y, work)
+               ? Status::ok
+               : Status::non_finite;
   }
 
   /// Estimate of y^(k), 0 <= k <= K; quiet NaN for k out of range.
@@ -196,7 +186,12 @@ class JetDifferentiator {
   Jet jet() const noexcept { return eta_.cwiseQuotient(scale_); }
 
   /// Transition matrix Phi(dt/epsilon) of the last update (scaled coordinates); for tests.
-  const TransitionMatrix& transition() const noexcept { return phi_; }
+  TransitionMatrix transition() const noexcept {
+    TransitionMatrix P;
+    for (int r = 0; r <= K; ++r)
+      for (int c = 0; c <= K; ++c) P(r, c) = phi_[r * (K + 1) + c];
+    return P;
+  }
 
  private:
   Jet jet_unscaled_or_zero() const noexcept {
@@ -204,39 +199,9 @@ class JetDifferentiator {
     return eta_.cwiseQuotient(scale_);
   }
 
-  // Phi(h) = e^{-h} sum_{j=0..K} (h N)^j / j!, by Horner: P = I + (h/j) N P, j = K..1.
-  void compute_transition(Scalar dt) noexcept {
-    const Scalar h = dt / epsilon_;
-    cached_dt_ = dt;
-    // e^{-h} h^K / K! underflows long before this for K <= 8; avoid 0 * Inf = NaN.
-    if (h > Scalar(200)) {
-      phi_.setZero();
-      return;
-    }
-    TransitionMatrix N = TransitionMatrix::Zero();  // N = M + I, integer entries
-    for (int i = 0; i <= K; ++i) {
-      if (i < K) N(i, i + 1) = Scalar(1);
-      N(i, 0) -= binomial(K + 1, i + 1);
-      N(i, i) += Scalar(1);
-    }
-    TransitionMatrix P = TransitionMatrix::Identity();
-    TransitionMatrix T;
-    for (int j = K; j >= 1; --j) {
-      T.noalias() = N * P;
-      P = TransitionMatrix::Identity() + (h / Scalar(j)) * T;
-    }
-    phi_ = std::exp(-h) * P;
-  }
-
-  static Scalar binomial(int n, int k) noexcept {
-    Scalar r = Scalar(1);
-    for (int i = 1; i <= k; ++i) r = r * Scalar(n - k + i) / Scalar(i);
-    return r;
-  }
-
-  Jet eta_ = Jet::Zero();     // scaled jet: eta_i = epsilon^i * (estimate of y^(i))
-  Jet scale_ = Jet::Ones();   // epsilon^i
-  TransitionMatrix phi_ = TransitionMatrix::Identity();
+  Jet eta_ = Jet::Zero();               // scaled jet: eta_i = epsilon^i * (estimate of y^(i))
+  Jet scale_ = Jet::Ones();             // epsilon^i
+  Scalar phi_[(K + 1) * (K + 1)] = {};  // Phi of cached_dt_, row-major (the kernel's layout)
   Scalar epsilon_ = default_epsilon();
   Scalar cached_dt_ = Scalar(-1);
   Scalar y_prev_ = Scalar(0);

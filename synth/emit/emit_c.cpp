@@ -238,112 +238,20 @@ void {{P}}_init({{P}}_observer* o) {
 }
 )";
 
-// The perfect observer's differentiators (runtime/obsynth/differentiator.hpp in C): a linear
-// high-gain differentiator per signal, discretised exactly with a first-order hold.
-const char* kJets = R"(
-/* binomial(n, k) as a Scalar (small arguments: exact). */
-static Scalar binomial(int n, int k) {
-  Scalar r = {{one}};
-  int i;
-  for (i = 1; i <= k; ++i) r = r * (Scalar)(n - k + i) / (Scalar)i;
-  return r;
-}
-
-/* Phi(h) = e^{-h} sum_{j=0..K} (h N)^j / j! with N = M + I nilpotent (exact, no truncation),
- * row-major (K+1) x (K+1); Horner: P = I + (h/j) N P, j = K..1. */
-static void jet_transition(Scalar* phi, int K, Scalar h) {
-  Scalar Nm[{{d}} * {{d}}], Pm[{{d}} * {{d}}], Tm[{{d}} * {{d}}], e;
-  int i, j, k, d = K + 1;
-  if (h > (Scalar)200) { /* e^{-h} h^K / K! has underflowed: avoid 0 * Inf */
-    for (i = 0; i < d * d; ++i) phi[i] = {{zero}};
-    return;
-  }
-  for (i = 0; i < d * d; ++i) {
-    Nm[i] = {{zero}};
-    Pm[i] = i % (d + 1) == 0 ? {{one}} : {{zero}};
-  }
-  for (i = 0; i < d; ++i) {
-    if (i < K) Nm[i * d + i + 1] = {{one}};
-    Nm[i * d] -= binomial(K + 1, i + 1);
-    Nm[i * d + i] += {{one}};
-  }
-  for (j = K; j >= 1; --j) {
-    for (i = 0; i < d; ++i)
-      for (k = 0; k < d; ++k) {
-        Scalar acc = {{zero}};
-        int s;
-        for (s = 0; s < d; ++s) acc += Nm[i * d + s] * Pm[s * d + k];
-        Tm[i * d + k] = acc;
-      }
-    for (i = 0; i < d * d; ++i) Pm[i] = (i % (d + 1) == 0 ? {{one}} : {{zero}}) + (h / (Scalar)j) * Tm[i];
-  }
-  e = {{exp}}(-h);
-  for (i = 0; i < d * d; ++i) phi[i] = e * Pm[i];
-}
-
-/* Starts a differentiator at (y0, 0, ..., 0). */
-static void jet_reset(Scalar* eta, Scalar* y_prev, int K, Scalar y0) {
-  int i;
-  for (i = 0; i <= K; ++i) eta[i] = {{zero}};
-  eta[0] = y0;
-  *y_prev = y0;
-}
-
-/* Advances a differentiator by dt to the sample y; 0 (state kept) if dt or y is invalid. */
-static int jet_update(Scalar* eta, Scalar* phi, Scalar* cached_dt, Scalar* y_prev, int K,
-                      Scalar epsilon, Scalar dt, Scalar y) {
-  Scalar dv[{{d}}], next[{{d}}], slope;
-  int i, k, d = K + 1;
-  if (!isfinite(dt) || !isfinite(y) || !(dt > {{zero}})) return 0;
-  if (K == 0) {
-    eta[0] = y;
-    *y_prev = y;
-    return 1;
-  }
-  if (dt < *cached_dt || dt > *cached_dt) { /* exact cache key, recomputed when dt changes */
-    jet_transition(phi, K, dt / epsilon);
-    *cached_dt = dt;
-  }
-  slope = epsilon * ((y - *y_prev) / dt);
-  for (i = 0; i < d; ++i) dv[i] = eta[i];
-  dv[0] -= *y_prev;
-  dv[1] -= slope;
-  for (i = 0; i < d; ++i) {
-    Scalar acc = {{zero}};
-    for (k = 0; k < d; ++k) acc += phi[i * d + k] * dv[k];
-    next[i] = acc;
-  }
-  next[0] += y;
-  next[1] += slope;
-  if (!obsynth_all_finite(next, d)) return 0;
-  for (i = 0; i < d; ++i) eta[i] = next[i];
-  *y_prev = y;
-  return 1;
-}
-
-/* Unscales eta_i = epsilon^i y^(i) into the jet (y, y', ..., y^(K)), stored with a stride. */
-static void jet_read(const Scalar* eta, int K, Scalar epsilon, Scalar* out, int stride) {
-  Scalar scale = {{one}};
-  int i;
-  for (i = 0; i <= K; ++i) {
-    out[i * stride] = eta[i] / scale;
-    scale *= epsilon;
-  }
-}
-)";
-
 const char* kStepJets = R"(
 /* Advances the differentiators with the samples u, y and rebuilds the state from the jets. */
 {{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
   Scalar yj[{{ky1}}], uj[{{m1}} * {{ku1}}]; /* uj: m x (K_u + 1), column-major */
-  int j, ok = jet_update(o->y_eta, o->y_phi, &o->y_dt, &o->y_prev, {{ky}}, o->epsilon, dt, y[0]);
+  Scalar work[{{work}}]; /* the differentiators' scratch (obsynth_jet_update) */
+  int j, ok = obsynth_jet_update(o->y_eta, o->y_phi, &o->y_dt, &o->y_prev, {{ky}}, o->epsilon, dt,
+                                 y[0], work);
   for (j = 0; j < {{P}}_m; ++j)
-    ok = jet_update(o->u_eta[j], o->u_phi[j], &o->u_dt[j], &o->u_prev[j], {{ku}}, o->epsilon, dt,
-                    u[j]) && ok;
+    ok = obsynth_jet_update(o->u_eta[j], o->u_phi[j], &o->u_dt[j], &o->u_prev[j], {{ku}},
+                            o->epsilon, dt, u[j], work) && ok;
   if (!ok) return o->status = {{P}}_non_finite;
-  jet_read(o->y_eta, {{ky}}, o->epsilon, yj, 1);
+  obsynth_jet_read(o->y_eta, {{ky}}, o->epsilon, yj, 1);
   uj[0] = {{zero}};
-  for (j = 0; j < {{P}}_m; ++j) jet_read(o->u_eta[j], {{ku}}, o->epsilon, uj + j, {{m1}});
+  for (j = 0; j < {{P}}_m; ++j) obsynth_jet_read(o->u_eta[j], {{ku}}, o->epsilon, uj + j, {{m1}});
   {{reconstruct}}(yj, uj{{PRM}}, o->w);
   return o->status = update_estimate(o);
 }
@@ -766,8 +674,9 @@ std::string jet_members(const ObserverSpec& s, const std::string& P, std::size_t
 std::string jet_reset_body(const ObserverSpec& s, CBuilder& b, const std::string& prm) {
   return fmt::format(
       "  {{\n    Scalar y0[{0}_p];\n    {1}(xh0{2}, y0);\n"
-      "    jet_reset(o->y_eta, &o->y_prev, {3}, y0[0]);\n"
-      "    for (i = 0; i < {0}_m; ++i) jet_reset(o->u_eta[i], &o->u_prev[i], {4}, {5});\n  }}\n",
+      "    obsynth_jet_reset(o->y_eta, &o->y_prev, {3}, y0[0]);\n"
+      "    for (i = 0; i < {0}_m; ++i) obsynth_jet_reset(o->u_eta[i], &o->u_prev[i], {4}, {5});\n"
+      "  }}\n",
       b.prefix(), b.fn("h"), prm, s.y_jet_order, s.u_jet_order, b.lit(0));
 }
 
@@ -778,13 +687,10 @@ std::string jet_init_body(const ObserverSpec& s, CBuilder& b, Precision p) {
       c_scalar_literal(GiNaC::numeric(s.default_epsilon), p), b.lit(-1), b.prefix());
 }
 
-// The differentiator functions (before the lifecycle functions that call them).
-std::string jets_support_text(const ObserverSpec& s, CBuilder& b, Precision p) {
+// obsynth_jet_update's scratch for the larger of the two differentiators: 3 d^2 + 2 d.
+std::size_t jet_work_size(const ObserverSpec& s) {
   const std::size_t d = std::max(s.y_jet_order, s.u_jet_order) + 1;
-  return render_template(kJets, {{"zero", b.lit(0)},
-                                 {"one", b.lit(1)},
-                                 {"exp", p == Precision::single ? "expf" : "exp"},
-                                 {"d", std::to_string(d)}});
+  return 3 * d * d + 2 * d;
 }
 
 std::string jets_step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b,
@@ -794,6 +700,7 @@ std::string jets_step_text(const ObserverSpec& s, const std::string& prm, CBuild
                                      {"ku", std::to_string(s.u_jet_order)},
                                      {"ky1", std::to_string(s.y_jet_order + 1)},
                                      {"ku1", std::to_string(s.u_jet_order + 1)},
+                                     {"work", std::to_string(jet_work_size(s))},
                                      {"m1", std::to_string(std::max<std::size_t>(m, 1))},
                                      {"zero", b.lit(0)},
                                      {"reconstruct", b.fn(s.roles.reconstruct)},
@@ -1022,7 +929,6 @@ std::string c_lifecycle_and_step(const Model& m, const ObserverSpec& s, CBuilder
   if (jets) init_body += jet_init_body(s, b, opt.precision);
   if (exact) init_body += fmt::format("  o->dt = {};\n", b.lit(0));
   std::vector<std::string> zeros(m.n(), b.lit(0));
-  if (jets) src += jets_support_text(s, b, opt.precision);
   const std::string update_estimate =
       fused_exact_step(s)
           ? ""

@@ -33,20 +33,24 @@
 #undef OBSYNTH_C_ISFINITE
 #undef OBSYNTH_C_FABS
 #undef OBSYNTH_C_SQRT
+#undef OBSYNTH_C_EXP
 #undef OBSYNTH_C_SQRT_EPSILON
 #ifdef __cplusplus
 #define OBSYNTH_C_ISFINITE(x) std::isfinite(x)
 #define OBSYNTH_C_FABS(x) std::fabs(x)
 #define OBSYNTH_C_SQRT(x) std::sqrt(x)
+#define OBSYNTH_C_EXP(x) std::exp(x)
 #else
 #include <math.h>
 #define OBSYNTH_C_ISFINITE(x) isfinite(x)
 #if defined(OBSYNTH_C_FLOAT) && OBSYNTH_C_FLOAT
 #define OBSYNTH_C_FABS(x) fabsf(x)
 #define OBSYNTH_C_SQRT(x) sqrtf(x)
+#define OBSYNTH_C_EXP(x) expf(x)
 #else
 #define OBSYNTH_C_FABS(x) fabs(x)
 #define OBSYNTH_C_SQRT(x) sqrt(x)
+#define OBSYNTH_C_EXP(x) exp(x)
 #endif
 #endif
 
@@ -248,6 +252,110 @@ static inline int obsynth_packed_positive_definite(const Scalar* w, int off, int
     }
   }
   return 1;
+}
+
+/* ---- the jet differentiator (obsynth::JetDifferentiator; seed 003's perfect observer) ----
+ * A linear differentiator of order K with a (K+1)-fold pole at -1/epsilon, in scaled
+ * coordinates eta_i = epsilon^i y^(i), exact for a sample path linear between samples. */
+
+/* binomial(n, k) as a Scalar (small arguments: exact). */
+static inline Scalar obsynth_binomial(int n, int k) {
+  Scalar r = (Scalar)1;
+  int i;
+  for (i = 1; i <= k; ++i) r = r * (Scalar)(n - k + i) / (Scalar)i;
+  return r;
+}
+
+/* Phi(h) = e^{-h} sum_{j=0..K} (h N)^j / j! with N = M + I nilpotent (exact, no truncation),
+ * row-major (K+1) x (K+1); Horner: P = I + (h/j) N P, j = K..1. work: 3 (K+1)^2 Scalars. */
+static inline void obsynth_jet_transition(Scalar* phi, int K, Scalar h, Scalar* work) {
+  const int d = K + 1;
+  Scalar* Nm = work;
+  Scalar* Pm = work + d * d;
+  Scalar* Tm = work + 2 * d * d;
+  Scalar e;
+  int i, j, k, s;
+  if (h > (Scalar)200) { /* e^{-h} h^K / K! has underflowed: avoid 0 * Inf */
+    for (i = 0; i < d * d; ++i) phi[i] = (Scalar)0;
+    return;
+  }
+  for (i = 0; i < d * d; ++i) {
+    Nm[i] = (Scalar)0;
+    Pm[i] = i % (d + 1) == 0 ? (Scalar)1 : (Scalar)0;
+  }
+  for (i = 0; i < d; ++i) {
+    if (i < K) Nm[i * d + i + 1] = (Scalar)1;
+    Nm[i * d] -= obsynth_binomial(K + 1, i + 1);
+    Nm[i * d + i] += (Scalar)1;
+  }
+  for (j = K; j >= 1; --j) {
+    for (i = 0; i < d; ++i)
+      for (k = 0; k < d; ++k) {
+        Scalar acc = (Scalar)0;
+        for (s = 0; s < d; ++s) acc += Nm[i * d + s] * Pm[s * d + k];
+        Tm[i * d + k] = acc;
+      }
+    for (i = 0; i < d * d; ++i)
+      Pm[i] = (i % (d + 1) == 0 ? (Scalar)1 : (Scalar)0) + (h / (Scalar)j) * Tm[i];
+  }
+  e = OBSYNTH_C_EXP(-h);
+  for (i = 0; i < d * d; ++i) phi[i] = e * Pm[i];
+}
+
+/* Starts a differentiator at (y0, 0, ..., 0). */
+static inline void obsynth_jet_reset(Scalar* eta, Scalar* y_prev, int K, Scalar y0) {
+  int i;
+  for (i = 0; i <= K; ++i) eta[i] = (Scalar)0;
+  eta[0] = y0;
+  *y_prev = y0;
+}
+
+/* Advances a differentiator by dt to the sample y (phi and cached_dt: its transition matrix,
+ * row-major, and the dt it is for, recomputed when dt changes); 0 (state kept) if dt or y is
+ * invalid or the result is not finite. work: 3 (K+1)^2 + 2 (K+1) Scalars. */
+static inline int obsynth_jet_update(Scalar* eta, Scalar* phi, Scalar* cached_dt, Scalar* y_prev,
+                                     int K, Scalar epsilon, Scalar dt, Scalar y, Scalar* work) {
+  const int d = K + 1;
+  Scalar* dv = work + 3 * d * d;
+  Scalar* next = dv + d;
+  Scalar slope;
+  int i, k;
+  if (!OBSYNTH_C_ISFINITE(dt) || !OBSYNTH_C_ISFINITE(y) || !(dt > (Scalar)0)) return 0;
+  if (K == 0) {
+    eta[0] = y;
+    *y_prev = y;
+    return 1;
+  }
+  if (dt < *cached_dt || dt > *cached_dt) { /* exact cache key, recomputed when dt changes */
+    obsynth_jet_transition(phi, K, dt / epsilon, work);
+    *cached_dt = dt;
+  }
+  slope = epsilon * ((y - *y_prev) / dt);
+  for (i = 0; i < d; ++i) dv[i] = eta[i];
+  dv[0] -= *y_prev;
+  dv[1] -= slope;
+  for (i = 0; i < d; ++i) {
+    Scalar acc = (Scalar)0;
+    for (k = 0; k < d; ++k) acc += phi[i * d + k] * dv[k];
+    next[i] = acc;
+  }
+  next[0] += y;
+  next[1] += slope;
+  if (!obsynth_all_finite(next, d)) return 0;
+  for (i = 0; i < d; ++i) eta[i] = next[i];
+  *y_prev = y;
+  return 1;
+}
+
+/* Unscales eta_i = epsilon^i y^(i) into the jet (y, y', ..., y^(K)), stored with a stride. */
+static inline void obsynth_jet_read(const Scalar* eta, int K, Scalar epsilon, Scalar* out,
+                                    int stride) {
+  Scalar scale = (Scalar)1;
+  int i;
+  for (i = 0; i <= K; ++i) {
+    out[i * stride] = eta[i] / scale;
+    scale *= epsilon;
+  }
 }
 
 #endif /* OBSYNTH_C_KERNELS_BODY */
