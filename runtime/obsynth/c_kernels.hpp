@@ -22,7 +22,20 @@ using Scalar = float;
 }  // namespace obsynth::c_float
 
 namespace obsynth::c {
-// The jet differentiator's kernels by overload on the scalar type (float or double).
+// The kernels the C++ runtime calls, by overload on the scalar type (float or double).
+inline int discretise(const double* A, int n, double dt, double* E, double* G,
+                      double* work) noexcept {
+  return c_double::obsynth_discretise(A, n, dt, E, G, work);
+}
+inline int discretise(const float* A, int n, float dt, float* E, float* G, float* work) noexcept {
+  return c_float::obsynth_discretise(A, n, dt, E, G, work);
+}
+inline int packed_positive_definite(const double* w, int off, int d, double* work) noexcept {
+  return c_double::obsynth_packed_positive_definite(w, off, d, work);
+}
+inline int packed_positive_definite(const float* w, int off, int d, float* work) noexcept {
+  return c_float::obsynth_packed_positive_definite(w, off, d, work);
+}
 inline int jet_update(double* eta, double* phi, double* cached_dt, double* y_prev, int K,
                       double epsilon, double dt, double y, double* work) noexcept {
   return c_double::obsynth_jet_update(eta, phi, cached_dt, y_prev, K, epsilon, dt, y, work);

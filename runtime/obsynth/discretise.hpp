@@ -37,11 +37,7 @@ bool discretise_linear(const Eigen::Matrix<Scalar, N, N>& A, Scalar dt,
   static_assert(std::is_same<Scalar, float>::value || std::is_same<Scalar, double>::value,
                 "discretise_linear: float or double");
   Scalar work[4 * N * N];
-  if constexpr (std::is_same<Scalar, float>::value)
-    return c_float::obsynth_discretise(A.data(), N, dt, E.data(), Gamma.data(), work) != 0;
-  else
-    return c_double::obsynth_discretise(A.data(), N, dt, E.data(), Gamma.data(), work) !=
-           0;
+  return c::discretise(A.data(), N, dt, E.data(), Gamma.data(), work) != 0;
 }
 
 }  // namespace obsynth

@@ -41,10 +41,7 @@ inline bool packed_positive_definite(const Eigen::Matrix<Scalar, NW, 1>& w) noex
   static_assert(std::is_same<Scalar, float>::value || std::is_same<Scalar, double>::value,
                 "packed_positive_definite: float or double");
   Scalar work[D * D + D];  // the C kernel's L and D (runtime/obsynth/c/kernels.h)
-  if constexpr (std::is_same<Scalar, float>::value)
-    return c_float::obsynth_packed_positive_definite(w.data(), Offset, D, work) != 0;
-  else
-    return c_double::obsynth_packed_positive_definite(w.data(), Offset, D, work) != 0;
+  return c::packed_positive_definite(w.data(), Offset, D, work) != 0;
 }
 
 /// x = M^-1 v for symmetric positive definite M (Cholesky). False when M is not positive
