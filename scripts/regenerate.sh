@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=${1:-build/synth/obsynth}
 out=${2:-generated}
-models=(slawinski17 triangular4 flexible_joint pendulum pendulum_params vanderpol
+models=(slawinski17 triangular4 flexible_joint pendulum pendulum_params vanderpol two_block
         jamesbaras_sin lorenz rayleigh cart_pendulum dufour4 cstr)
 mkdir -p "$out"
 cp runtime/LICENSE "$out/LICENSE"

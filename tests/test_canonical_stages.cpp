@@ -150,7 +150,7 @@ TEST_P(NestedChain, StepsInvertTheConstructedT) {
     EXPECT_TRUE(GiNaC::expand(cf.T[i - 1] - c.T(m, i)).is_zero()) << to_string(cf.T[i - 1]);
   ASSERT_EQ(cf.l_kind, Availability::symbolic) << cf.l_note;
   for (int i = 1; i <= n; ++i)
-    EXPECT_TRUE(GiNaC::expand(cf.l[i - 1] - c.l(i, m.inputs[0], cf.y)).is_zero())
+    EXPECT_TRUE(GiNaC::expand(cf.l[i - 1] - c.l(i, m.inputs[0], cf.y[0])).is_zero())
         << to_string(cf.l[i - 1]);
   // T(T^-1(z)) = z at random rational points, exactly, with the constructed T.
   std::uint64_t state = 0x1234567 + static_cast<std::uint64_t>(n);

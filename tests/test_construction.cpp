@@ -3,11 +3,13 @@
 // deliberate perturbations must fail exactly the predicted bracket conditions.
 #include <gtest/gtest.h>
 
+#include <map>
 #include <regex>
 #include <set>
 
 #include "analysis/analysis.hpp"
 #include "app/report.hpp"
+#include "designs/canonical.hpp"
 #include "designs/registry.hpp"
 #include "front/parse.hpp"
 #include "support/construct.hpp"
@@ -62,7 +64,7 @@ TEST_P(Chain, RecoversTLAndInverse) {
       EXPECT_TRUE(
           same(derivative_along(c.T[i], cf.frame[j], x), ex(i == j ? 1 : 0), oracle_box(c.model)));
   ASSERT_EQ(cf.l_kind, Availability::symbolic) << cf.l_note;
-  GiNaC::exmap rename{{c.y, cf.y}};
+  GiNaC::exmap rename{{c.y, cf.y[0]}};
   ExVec expected_l;
   for (const auto& li : c.l) expected_l.push_back(li.subs(rename));
   EXPECT_TRUE(same(cf.l, expected_l));
@@ -159,11 +161,11 @@ TEST_P(FamilyChain, FindsTInClosedFormWithDualFrame) {
     }
   // l is a function of (u, y) only, and the constructed one.
   ASSERT_EQ(cf.l_kind, Availability::symbolic) << cf.l_note;
-  GiNaC::exmap rename{{c.y, cf.y}};
+  GiNaC::exmap rename{{c.y, cf.y[0]}};
   for (std::size_t i = 0; i < n; ++i) {
     EXPECT_FALSE(depends_on(cf.l[i], x)) << to_string(cf.l[i]);
     for (const auto& at : points)
-      EXPECT_TRUE(equal_at(cf.l[i].subs(cf.y == x[0]), c.l[i].subs(y_is_h), at))
+      EXPECT_TRUE(equal_at(cf.l[i].subs(cf.y[0] == x[0]), c.l[i].subs(y_is_h), at))
           << "l_" << i + 1 << " = " << to_string(cf.l[i]);
   }
 }
@@ -240,7 +242,7 @@ TEST(DcMotor, TanhFrictionGivesTheHandDerivedLinearT) {
   const CanonicalForm& cf = a.canonical;
   ASSERT_EQ(cf.T_kind, Availability::symbolic) << cf.T_note;
   ASSERT_EQ(cf.l_kind, Availability::symbolic) << cf.l_note;
-  const ex x1 = m.states[0], x2 = m.states[1], u = m.inputs[0], y = cf.y;
+  const ex x1 = m.states[0], x2 = m.states[1], u = m.inputs[0], y = cf.y[0];
   const ExVec T{2000 * x1 + 500 * x2, x1};
   const ExVec l{500000 * u - 25200 * y - 100000 * GiNaC::tanh(50 * y),
                 -GiNaC::numeric(20001, 10) * y - 50 * GiNaC::tanh(50 * y)};
@@ -347,8 +349,9 @@ TEST(DriftBracket, QuadraticTermInZ1ForThreeStates) {
   EXPECT_FALSE(cf.input[1].holds());
 }
 
-TEST(SeveralOutputs, IndicesAndRankButCanonicalFormDeclines) {
-  // Two decoupled double integrators with y = (x1, x3): indices (2, 2), rank 4.
+TEST(SeveralOutputs, DecoupledOscillatorsAreBlockLinearizable) {
+  // Two decoupled oscillators with y = (x1, x3): indices (2, 2), rank 4; by hand the block form
+  // is z = (x2, x1, x4, x3), z1' = -sin y1, z2' = z1, z3' = -y2^3, z4' = z3.
   Model m;
   m.name = "two_outputs";
   for (int i = 1; i <= 4; ++i) m.states.push_back(GiNaC::symbol("x" + std::to_string(i)));
@@ -359,8 +362,15 @@ TEST(SeveralOutputs, IndicesAndRankButCanonicalFormDeclines) {
   const Analysis a = analyse(m);
   EXPECT_EQ(a.observability.generic_rank, 4u);
   EXPECT_EQ(a.observability.indices, (std::vector<std::size_t>{2, 2}));
-  EXPECT_FALSE(a.canonical.applicable);
-  EXPECT_NE(a.canonical.not_applicable.find("single-output"), std::string::npos);
+  const CanonicalForm& cf = a.canonical;
+  ASSERT_TRUE(cf.applicable) << cf.not_applicable;
+  ASSERT_TRUE(cf.linearizable);
+  EXPECT_TRUE(same(cf.T, ExVec{x[1], x[0], x[3], x[2]}));
+  GiNaC::symbol y1("y1"), y2("y2");
+  const GiNaC::exmap to_hand_y{{cf.y[0], y1}, {cf.y[1], y2}};
+  ASSERT_EQ(cf.l.size(), 4u);
+  const ExVec l{-sin(y1), 0, -y2 * y2 * y2, 0};
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_TRUE(same(cf.l[i].subs(to_hand_y), l[i])) << i;
 }
 
 TEST(RankDrop, ProductOutputDropsOnTheAxes) {
@@ -470,4 +480,170 @@ TEST(TwoBlock, ObservabilityIndicesAreTheBlockSizes) {
   const Analysis a = analyse(load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/two_block.sym"));
   EXPECT_EQ(a.observability.generic_rank, 4u);
   EXPECT_EQ(a.observability.indices, (std::vector<std::size_t>{2, 2}));
+}
+
+// The analysis finds the hand T, l and frame of two_block (oracles: GiNaC diff, expand and the
+// 50-digit evaluation; never obsynth's zero test).
+TEST(TwoBlock, CanonicalFormIsTheHandDerivation) {
+  const Model m = load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/two_block.sym");
+  const Analysis a = analyse(m);
+  const CanonicalForm& cf = a.canonical;
+  ASSERT_TRUE(cf.applicable) << cf.not_applicable;
+  ASSERT_TRUE(cf.linearizable);
+  EXPECT_EQ(cf.blocks, (std::vector<std::size_t>{2, 2}));
+  EXPECT_EQ(cf.tau_name(2), "tau_{2,1}");
+  EXPECT_TRUE(cf.frame_note.empty());  // equal indices: the dual frame is the only candidate
+  const auto& x = m.states;
+  const ex u = m.inputs[0];
+  const ex x1 = x[0], x2 = x[1], x3 = x[2], x4 = x[3];
+  const ExVec T{x2 - x1 * x1 / 2, x1, x4 - x1 * x3, x3};
+  GiNaC::symbol y1("y1"), y2("y2");
+  const ExVec l{-2 * y1 + y2 * y2, -3 * y1 + u, -y2 + y1 * y2, -2 * y2 + GiNaC::tanh(y1)};
+  const OracleBox box = oracle_box(m);
+  ASSERT_EQ(cf.T.size(), 4u);
+  EXPECT_TRUE(same(cf.T, T, box));
+  ASSERT_EQ(cf.l.size(), 4u);
+  const GiNaC::exmap to_hand_y{{cf.y[0], y1}, {cf.y[1], y2}};
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_TRUE(same(cf.l[i].subs(to_hand_y), l[i], box)) << i;
+  // The frame is (dT/dx)^-1: dT_i/dx tau_j = delta_ij with the hand T.
+  for (std::size_t i = 0; i < 4; ++i)
+    for (std::size_t j = 0; j < 4; ++j)
+      EXPECT_TRUE(same(derivative_along(T[i], cf.frame[j], x), ex(i == j ? 1 : 0), box))
+          << i << "," << j;
+  // T^-1(T(x)) = x through the analysis' composed inverse.
+  GiNaC::exmap z_is_T;
+  for (std::size_t i = 0; i < 4; ++i) z_is_T[cf.z[i]] = T[i];
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_TRUE(same(cf.T_inverse[i].subs(z_is_T), x[i], box)) << i;
+}
+
+// Unequal indices (2, 1), constructed backwards from z1' = -y1 + y2^2 + u, z2' = z1 - y1,
+// z3' = -y2 + y1 y2, y = (z2, z3), x = (z2, z1 + z2^2, z3): T = (x2 - x1^2, x1, x3).
+TEST(MultiOutput, UnequalIndicesRecoverTheConstructedForm) {
+  const Model m = parse_model(
+      "model unequal_blocks\nstates x1 x2 x3\ninputs u\n"
+      "f = [ x2 - x1^2 - x1, -x1 + x3^2 + 2*x1*(x2 - x1^2 - x1), -x3 + x1*x3 ]\n"
+      "g = [ 0, u, 0 ]\nh = [ x1, x3 ]\n"
+      "domain x1 in [-1, 1], x2 in [-1, 1], x3 in [-1, 1], u in [-1, 1]\n",
+      "unequal_blocks.sym");
+  const auto& x = m.states;
+  const ex x1 = x[0], x2 = x[1], x3 = x[2], u = m.inputs[0];
+  const ExVec T{x2 - x1 * x1, x1, x3};
+  GiNaC::symbol y1("y1"), y2("y2");
+  const ExVec l{-y1 + y2 * y2 + u, -y1, -y2 + y1 * y2};
+  const OracleBox box = oracle_box(m);
+  // The construction itself: dT/dx (f + g) = A T + l(u, h), A = one shift in block 1.
+  const GiNaC::exmap y_is_h{{y1, x1}, {y2, x3}};
+  const ExVec AT{0, T[0], 0};
+  for (std::size_t i = 0; i < 3; ++i)
+    EXPECT_TRUE(same(derivative_along(T[i], m.field(), x), AT[i] + l[i].subs(y_is_h), box)) << i;
+
+  const Analysis a = analyse(m);
+  const CanonicalForm& cf = a.canonical;
+  ASSERT_TRUE(cf.applicable) << cf.not_applicable;
+  EXPECT_EQ(cf.blocks, (std::vector<std::size_t>{2, 1}));
+  EXPECT_FALSE(cf.frame_note.empty());
+  EXPECT_EQ(cf.output.size(), 6u);  // C5 checked: p x n entries
+  ASSERT_TRUE(cf.linearizable) << canonical_form_failures(a)[0];
+  EXPECT_TRUE(same(cf.T, T, box));
+  const GiNaC::exmap to_hand_y{{cf.y[0], y1}, {cf.y[1], y2}};
+  ASSERT_EQ(cf.l.size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_TRUE(same(cf.l[i].subs(to_hand_y), l[i], box)) << i;
+}
+
+// Observable (O is a permutation) but not linearizable: x4' = x2 x4 = y1' y2' is no output
+// injection. By hand, r_1 = e2, r_2 = e4, tau_{1,2} = df/dx2 = (1, 0, 0, x4), tau_{2,2} =
+// df/dx4 = (0, 0, 1, x2), and with [a, b] = (db/dx) a - (da/dx) b:
+//   [tau_{1,1}, tau_{2,2}] = e4,  [tau_{1,2}, tau_{2,1}] = -e4,  [tau_{1,2}, tau_{2,2}] = -x2 e4,
+// the other three brackets zero.
+TEST(MultiOutput, NotLinearizableGivesTheFailingBracketsWithResiduals) {
+  const Model m = parse_model(
+      "model coupled_blocks\nstates x1 x2 x3 x4\ninputs u\n"
+      "f = [ x2, -x1, x4, x2*x4 ]\ng = [ 0, u, 0, 0 ]\nh = [ x1, x3 ]\n"
+      "domain x1 in [-1, 1], x2 in [-1, 1], x3 in [-1, 1], x4 in [-1, 1], u in [-1, 1]\n",
+      "coupled_blocks.sym");
+  const auto& x = m.states;
+  const Analysis a = analyse(m);
+  const CanonicalForm& cf = a.canonical;
+  ASSERT_TRUE(cf.applicable) << cf.not_applicable;
+  EXPECT_EQ(cf.blocks, (std::vector<std::size_t>{2, 2}));
+  const OracleBox box = oracle_box(m);
+  const std::vector<ExVec> frame{{0, 1, 0, 0}, {1, 0, 0, x[3]}, {0, 0, 0, 1}, {0, 0, 1, x[1]}};
+  ASSERT_EQ(cf.frame.size(), 4u);
+  for (std::size_t k = 0; k < 4; ++k) EXPECT_TRUE(same(cf.frame[k], frame[k], box)) << k;
+  // (i, j) -> expected residual; empty: holds
+  const std::map<std::pair<std::size_t, std::size_t>, ExVec> failing{
+      {{1, 4}, {0, 0, 0, 1}}, {{2, 3}, {0, 0, 0, -1}}, {{2, 4}, {0, 0, 0, -x[1]}}};
+  ASSERT_EQ(cf.drift.size(), 6u);
+  for (const auto& b : cf.drift) {
+    const auto it = failing.find({b.i, b.j});
+    EXPECT_EQ(b.holds(), it == failing.end()) << b.i << "," << b.j;
+    if (it != failing.end()) EXPECT_TRUE(same(b.residual, it->second, box)) << b.i << "," << b.j;
+  }
+  EXPECT_FALSE(cf.linearizable);
+  const auto reasons = canonical_form_failures(a);
+  ASSERT_EQ(reasons.size(), 1u);
+  EXPECT_NE(reasons[0].find("[tau_{1,1}, tau_{2,2}] != 0, [tau_{1,2}, tau_{2,1}] != 0, "
+                            "[tau_{1,2}, tau_{2,2}] != 0"),
+            std::string::npos)
+      << reasons[0];
+}
+
+// The bundled multi-output models are observable but not linearizable by output injection; the
+// failing conditions and residuals are those derived by hand in their headers.
+namespace {
+const BracketCheck* condition(const std::vector<BracketCheck>& list, std::size_t i, std::size_t j) {
+  for (const auto& b : list)
+    if (b.i == i && b.j == j) return &b;
+  return nullptr;
+}
+}  // namespace
+
+TEST(MultiOutputModels, FailingConditionsAreTheHandDerivations) {
+  using GiNaC::numeric;
+  {  // quadruple tank: [g, tau_{1,1}] = (1 - gamma2) k2 v2/(A3 beta3 sqrt h3) e3 (beta3 = a3
+     // sqrt(2 g)/A1) and [g, tau_{2,1}] = (1 - gamma1) k1 v1/(A4 beta4 sqrt h4) e4
+    const Model m = load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/quadruple_tank.sym");
+    const Analysis a = analyse(m);
+    const auto& x = m.states;
+    const ex v1 = m.inputs[0], v2 = m.inputs[1], sg = GiNaC::sqrt(ex(2 * 981));
+    const ex beta3 = numeric(71, 1000) * sg / 28, beta4 = numeric(57, 1000) * sg / 32;
+    const ex r1 = numeric(2, 5) * numeric(335, 100) * v2 / (28 * beta3 * GiNaC::sqrt(x[2]));
+    const ex r2 = numeric(3, 10) * numeric(333, 100) * v1 / (32 * beta4 * GiNaC::sqrt(x[3]));
+    EXPECT_EQ(a.canonical.blocks, (std::vector<std::size_t>{2, 2}));
+    const BracketCheck* b1 = condition(a.canonical.input, 0, 1);
+    const BracketCheck* b2 = condition(a.canonical.input, 0, 3);
+    ASSERT_TRUE(b1 && b2);
+    EXPECT_FALSE(b1->holds());
+    EXPECT_FALSE(b2->holds());
+    EXPECT_TRUE(same(b1->residual, ExVec{0, 0, r1, 0}, oracle_box(m)));
+    EXPECT_TRUE(same(b2->residual, ExVec{0, 0, 0, r2}, oracle_box(m)));
+    for (const auto& b : a.canonical.drift) EXPECT_TRUE(b.holds()) << b.i << "," << b.j;
+  }
+  {  // two-link arm: [tau_{1,1}, tau_{2,2}] = [0, 0, 2 b d s2/D, -2 b s2 (d + b c2)/D] with
+     // D = a d - d^2 - b^2 c2^2, a = 77/375, b = 6/125, d = 3/125
+    const Model m = load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/two_link_arm.sym");
+    const Analysis a = analyse(m);
+    const ex q2 = m.states[1], s2 = GiNaC::sin(q2), c2 = GiNaC::cos(q2);
+    const numeric A(77, 375), B(6, 125), D(3, 125);
+    const ex det = A * D - D * D - B * B * c2 * c2;
+    const BracketCheck* b = condition(a.canonical.drift, 1, 4);
+    ASSERT_TRUE(b);
+    EXPECT_FALSE(b->holds());
+    EXPECT_TRUE(same(b->residual,
+                     ExVec{0, 0, 2 * B * D * s2 / det, -2 * B * s2 * (D + B * c2) / det},
+                     oracle_box(m)));
+  }
+  {  // CSTR, indices (2, 1): [tau_{1,1}, tau_{1,2}] = 2 E/(R T^2) exp(E/(R T))/(J k0) e1
+    const Model m = load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/cstr_two_output.sym");
+    const Analysis a = analyse(m);
+    EXPECT_EQ(a.canonical.blocks, (std::vector<std::size_t>{2, 1}));
+    const ex T = m.states[1], EoR = numeric(11843) / numeric(1987, 1000);
+    const ex J = numeric(5960, 500), k0 = numeric(9703 * 3600);
+    const BracketCheck* b = condition(a.canonical.drift, 1, 2);
+    ASSERT_TRUE(b);
+    EXPECT_FALSE(b->holds());
+    EXPECT_TRUE(same(b->residual, ExVec{2 * EoR / (T * T) * GiNaC::exp(EoR / T) / (J * k0), 0, 0},
+                     oracle_box(m)));
+  }
 }

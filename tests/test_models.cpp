@@ -42,7 +42,7 @@ TEST_P(BundledModel, MatchesHandDerivation) {
   const Analysis a = analyse(model);
   const CanonicalForm& cf = a.canonical;
   std::vector<GiNaC::symbol> syms = model.all_symbols();
-  syms.push_back(cf.y);
+  syms.push_back(cf.y[0]);
   for (const auto& z : cf.z) syms.push_back(z);
   // The oracle samples the model's own symbols in its domain box (the others in its default).
   const OracleBox box = oracle_box(model);

@@ -74,7 +74,7 @@ TEST_P(RoundTrip, EveryExpressionReadsBack) {
   expression_strings(j, "", strings);
   ASSERT_FALSE(strings.empty());
   std::vector<GiNaC::symbol> syms = m.all_symbols();
-  syms.push_back(a.canonical.y);
+  syms.push_back(a.canonical.y[0]);
   for (const auto& z : a.canonical.z) syms.push_back(z);
   for (const auto& s : strings) {
     GiNaC::ex e;

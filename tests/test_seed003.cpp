@@ -86,7 +86,7 @@ TEST_F(Seed003, Diffeomorphism) {
 TEST_F(Seed003, CanonicalFormInjection) {
   const auto& cf = a.canonical;
   ASSERT_EQ(cf.l_kind, Availability::symbolic);
-  const GiNaC::ex y = cf.y;
+  const GiNaC::ex y = cf.y[0];
   // eq. 28: z1' = (y^2 + y - 1) u, z2' = z1 - y^2/2 + (1 + y) u
   EXPECT_TRUE(same(cf.l, ExVec{(y * y + y - 1) * u, -y * y / 2 + (1 + y) * u}));
   for (const auto& li : cf.l) {
@@ -107,7 +107,7 @@ TEST_F(Seed003, ExactStepKeepsStepConstant) {
   const ObserverSpec s = d->build(a, poles);
   EXPECT_TRUE(s.input_map.empty());
   EXPECT_TRUE(s.roles.step_basis.empty());
-  const GiNaC::ex y = a.canonical.y;
+  const GiNaC::ex y = a.canonical.y[0];
   const ExVec c{-u + y * u + y * y * u + 5 * y, -y * y / 2 + y * u + GiNaC::numeric(9, 2) * y + u};
   const GeneratedFunction* sc = nullptr;
   for (const auto& f : s.functions)
@@ -121,7 +121,7 @@ TEST_F(Seed003, PerfectObserverFromJets) {
   // Procedure 1: z2 = y, z1 = y' - l_2(u, y), xh = T^-1(z) = [y, -y' + (1 + y) u].
   const auto& cf = a.canonical;
   GiNaC::symbol yd("yd");
-  const GiNaC::ex y = cf.y;
+  const GiNaC::ex y = cf.y[0];
   const GiNaC::ex z2 = y, z1 = yd - cf.l[1];
   GiNaC::exmap zs{{cf.z[0], z1}, {cf.z[1], z2}};
   ExVec xh{cf.T_inverse[0].subs(zs), cf.T_inverse[1].subs(zs)};

@@ -3,6 +3,17 @@
 // canonical form (output last), its inverse, and the output injection l(u, y). The stages
 // live in frame, conditions, diffeomorphism (T, l) and inverse (T^-1); analyse_canonical
 // runs them in order.
+//
+// p outputs (Krener and Respondek 1985, Xia and Gao 1989): with observability indices
+// k_1 + ... + k_p = n the canonical form is block Brunovsky, one block per output, output last
+// in each: z_{i,1}' = l_{i,1}(u, y), z_{i,m}' = z_{i,m-1} + l_{i,m}(u, y), y_i = z_{i,k_i} + y0_i.
+// In z, tau_{i,m} = d/dz_{i,m}, so the frame is built from r_i = tau_{i,1} by tau_{i,m+1} =
+// [-f, tau_{i,m}]; r_i is the dual field O r_i = e_(i, k_i - 1) over O's selected rows. With
+// equal indices that is the only candidate. With unequal ones the frame in z may differ from it
+// along the longer blocks (by functions of y); those corrections are not searched, so a failing
+// condition then refutes this frame only (CanonicalForm::frame_note). Besides the brackets, the
+// outputs must read the block ends: <dh_l, tau_{i,m}> = delta_li delta_{m,k_i} (C5; implied by
+// the construction when p = 1 or the indices are equal).
 #pragma once
 
 #include <ginac/ginac.h>
@@ -46,17 +57,24 @@ struct EliminationStep {
 };
 
 struct CanonicalForm {
-  bool applicable = false;     // single output and generic rank n
+  bool applicable = false;     // generic rank n
   std::string not_applicable;  // why not, when !applicable
-  ExVec r;
-  std::vector<ExVec> frame;                       // tau_1 .. tau_n
-  std::vector<BracketCheck> drift;                // [tau_i, tau_j], 1 <= i < j <= n   (C2)
-  std::vector<BracketCheck> input;                // [g, tau_j], j = 1..n-1            (C3)
+  // Block sizes k_1..k_p (the observability indices, sum n; {n} for one output). The frame, z,
+  // T and l are ordered block by block: (tau_{1,1}..tau_{1,k_1}, tau_{2,1}, ...).
+  std::vector<std::size_t> blocks;
+  std::string frame_note;    // what the frame's choice leaves open (unequal indices), else empty
+  ExVec r;                   // r = tau_1 (one output); r_i = frame[block_start(i)] in general
+  std::vector<ExVec> frame;  // tau_1 .. tau_n
+  std::vector<BracketCheck> drift;  // [tau_i, tau_j], 1 <= i < j <= n   (C2)
+  std::vector<BracketCheck> input;  // [g, tau_j], j not a block end     (C3)
+  // C5 <dh_l, tau_j> = delta (i = l the output, 1-based; j the frame index): checked when p > 1
+  // and the indices differ; residual = <dh_l, tau_j> - delta.
+  std::vector<BracketCheck> output;
   Completeness complete = Completeness::unknown;  // C4
   std::string complete_reason;
   bool linearizable = false;  // C1, C2, C3 not refuted (proved, or only numerically zero)
 
-  GiNaC::symbol y{"y"};          // output symbol of l(u, y)
+  std::vector<GiNaC::symbol> y;  // output symbols of l(u, y): y (p = 1) or y1..yp
   std::vector<GiNaC::symbol> z;  // canonical coordinates z1..zn
   ExVec base_point;              // x0 with T(x0) = 0
   Availability T_kind = Availability::none;
@@ -80,6 +98,15 @@ struct CanonicalForm {
   ExVec l;  // in inputs and y
   std::string l_note;
   ZeroVerdict l_verdict = ZeroVerdict::nonzero;  // l free of x
+
+  std::size_t outputs() const { return blocks.size(); }
+  std::size_t block_start(std::size_t i) const;  // frame index of tau_{i,1} (0-based i)
+  std::size_t block_end(std::size_t i) const;    // frame index of tau_{i,k_i}: z of output i
+  std::size_t block_of(std::size_t k) const;     // the output whose block holds frame index k
+  bool is_block_end(std::size_t k) const { return k == block_end(block_of(k)); }
+  // "tau_3" (one output) or "tau_{2,1}" for frame index k (0-based); likewise for z.
+  std::string tau_name(std::size_t k) const;
+  std::string z_name(std::size_t k) const { return z[k].get_name(); }
 };
 
 struct CanonicalOptions {

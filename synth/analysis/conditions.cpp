@@ -226,7 +226,7 @@ void check_completeness(const Model& m, const FrameRing& fr, CanonicalForm& cf) 
                                          },
                                          why)
                                    : classify_completeness(cf.frame[k], m.states, why);
-    reasons.push_back(fmt::format("tau_{} {}", k + 1, why));
+    reasons.push_back(fmt::format("{} {}", cf.tau_name(k), why));
     if (c == Completeness::local ||
         (c == Completeness::unknown && cf.complete == Completeness::global))
       cf.complete = c;
@@ -391,6 +391,34 @@ class BracketChecker {
   std::vector<std::size_t> field_size_;  // nodes of tau_1..tau_n and g
 };
 
+// C5 <dh_l, tau_j> = delta_{l, output of j} [j a block end]: the outputs read the block ends.
+// Implied by the dual frame for one output or equal indices (O r_i = e_(i, k_i - 1) gives
+// <dL_f^m h_l, r_i> = 0 for m < k_i = k_l); checked otherwise.
+bool check_outputs(const Model& m, const SampleBoxes& boxes, const CanonicalOptions& opt,
+                   CanonicalForm& cf) {
+  const auto& k = cf.blocks;
+  if (std::all_of(k.begin(), k.end(), [&](std::size_t b) { return b == k.front(); })) return true;
+  bool ok = true;
+  for (std::size_t l = 0; l < m.p(); ++l) {
+    const ExVec dh = gradient(m.h[l], m.states);
+    for (std::size_t j = 0; j < m.n(); ++j) {
+      ex acc = j == cf.block_end(l) ? ex(-1) : ex(0);
+      for (std::size_t c = 0; c < m.n(); ++c) acc += dh[c] * cf.frame[j][c];
+      BracketCheck b;
+      b.i = l + 1;
+      b.j = j + 1;
+      b.residual = {simplify(acc)};
+      ZeroTestResult r = vector_verdict(b.residual, boxes, opt.zero);
+      b.verdict = r.verdict;
+      b.zero_points = r.zero_points;
+      b.witness = std::move(r.witness);
+      ok &= b.holds();
+      cf.output.push_back(std::move(b));
+    }
+  }
+  return ok;
+}
+
 }  // namespace
 
 void check_conditions(const Model& m, FrameRing& fr, Budget& budget, const CanonicalOptions& opt,
@@ -412,7 +440,8 @@ void check_conditions(const Model& m, FrameRing& fr, Budget& budget, const Canon
       cf.drift.push_back(std::move(b));
       budget.check();
     }
-  for (std::size_t j = 0; j + 1 < n; ++j) {
+  for (std::size_t j = 0; j < n; ++j) {
+    if (cf.is_block_end(j)) continue;
     BracketCheck b = checker.check(n, j);
     b.i = 0;
     b.j = j + 1;
@@ -420,6 +449,7 @@ void check_conditions(const Model& m, FrameRing& fr, Budget& budget, const Canon
     cf.input.push_back(std::move(b));
     budget.check();
   }
+  ok &= check_outputs(m, boxes, opt, cf);
   cf.linearizable = ok;
   check_completeness(m, fr, cf);
 }
@@ -427,23 +457,34 @@ void check_conditions(const Model& m, FrameRing& fr, Budget& budget, const Canon
 bool conditions_proved(const CanonicalForm& cf) {
   auto proved = [](const BracketCheck& b) { return b.verdict == ZeroVerdict::proved; };
   return std::all_of(cf.drift.begin(), cf.drift.end(), proved) &&
-         std::all_of(cf.input.begin(), cf.input.end(), proved);
+         std::all_of(cf.input.begin(), cf.input.end(), proved) &&
+         std::all_of(cf.output.begin(), cf.output.end(), proved);
 }
 
-namespace {
-std::string bracket_name(const BracketCheck& b) {
-  return b.i == 0 ? fmt::format("[g, tau_{}] = 0", b.j)
-                  : fmt::format("[tau_{}, tau_{}] = 0", b.i, b.j);
+std::string drift_condition_name(const CanonicalForm& cf, const BracketCheck& b) {
+  return fmt::format("[{}, {}] = 0", cf.tau_name(b.i - 1), cf.tau_name(b.j - 1));
 }
-}  // namespace
+
+std::string input_condition_name(const CanonicalForm& cf, const BracketCheck& b) {
+  return fmt::format("[g, {}] = 0", cf.tau_name(b.j - 1));
+}
+
+std::string output_condition_name(const CanonicalForm& cf, const BracketCheck& b) {
+  return fmt::format("<dh_{}, {}> = {}", b.i, cf.tau_name(b.j - 1),
+                     b.j - 1 == cf.block_end(b.i - 1) ? 1 : 0);
+}
 
 std::vector<std::string> unproven_steps(const CanonicalForm& cf) {
   std::vector<std::string> out;
-  for (const auto* list : {&cf.drift, &cf.input})
-    for (const auto& b : *list)
+  auto unproven = [&](const std::vector<BracketCheck>& list, auto name) {
+    for (const auto& b : list)
       if (b.verdict == ZeroVerdict::numeric)
         out.push_back(
-            fmt::format("{} (numerically zero at {} points)", bracket_name(b), b.zero_points));
+            fmt::format("{} (numerically zero at {} points)", name(cf, b), b.zero_points));
+  };
+  unproven(cf.drift, drift_condition_name);
+  unproven(cf.input, input_condition_name);
+  unproven(cf.output, output_condition_name);
   auto map_step = [&](Availability kind, ZeroVerdict v, const char* what) {
     if (kind == Availability::symbolic && v == ZeroVerdict::numeric)
       out.push_back(fmt::format("{} (numerically only)", what));

@@ -12,13 +12,18 @@
 
 namespace obsynth {
 
-// Fills cf.drift, cf.input, cf.linearizable, cf.complete and cf.complete_reason; appends g to
-// the ring's fields when the frame lives in the ring.
+// Fills cf.drift, cf.input, cf.output, cf.linearizable, cf.complete and cf.complete_reason; appends
+// g to the ring's fields when the frame lives in the ring.
 void check_conditions(const Model& m, FrameRing& fr, Budget& budget, const CanonicalOptions& opt,
                       CanonicalForm& cf);
 
-// C2 and C3 all proved: only then is the model proved linearizable (cf.linearizable also admits
-// brackets that are only numerically zero).
+// "[tau_1, tau_2] = 0", "[g, tau_{2,1}] = 0", "<dh_1, tau_{2,1}> = 0": a condition's name.
+std::string drift_condition_name(const CanonicalForm& cf, const BracketCheck& b);
+std::string input_condition_name(const CanonicalForm& cf, const BracketCheck& b);
+std::string output_condition_name(const CanonicalForm& cf, const BracketCheck& b);
+
+// C2, C3 (and C5) all proved: only then is the model proved linearizable (cf.linearizable also
+// admits brackets that are only numerically zero).
 bool conditions_proved(const CanonicalForm& cf);
 
 // What the canonical form rests on without a proof: the brackets and the checks of T, T^-1 and

@@ -85,41 +85,77 @@ struct Context {
   SampleBoxes boxes;
   ZeroTestOptions zero;
   GiNaC::exmap at_x0;
-  ex y0;  // h(x0)
+  ExVec y0;  // h(x0)
 };
 
-// A(h(x)) - A(h(x0)) with A' = a(y), or nullopt (and a note) when no antiderivative is found.
+// A(h(x)) - A(h(x0)) with A' = a(y) (one output), or nullopt (and a note) when no
+// antiderivative is found.
 std::optional<ex> output_integral(const Context& c, const ex& a_y, std::string& note) {
-  const auto A = antiderivative(a_y, c.cf.y);
+  const auto A = antiderivative(a_y, c.cf.y[0]);
   if (!A) {
     note = fmt::format("no closed-form antiderivative in y of {}", to_string(a_y));
     return std::nullopt;
   }
-  return A->subs(c.cf.y == c.m.h[0]) - A->subs(c.cf.y == c.y0);
+  return A->subs(c.cf.y[0] == c.m.h[0]) - A->subs(c.cf.y[0] == c.y0[0]);
 }
 
-// z_n = h - h(x0); z_{i-1} = L_f z_i - l_i(y) with l_i'(y) = L_{tau_n} L_f z_i (a function
-// of y alone when C2 holds), the constant fixing T_{i-1}(x0) = 0.
+// A(h(x)) - A(y0) with dA/dy_q = a[q] (a closed 1-form in y), integrated along the axes: A =
+// int a_1 dy_1 + int (a_2 - dA_1/dy_2)|_{y_1 = y0_1} dy_2 + ...; nullopt (and a note) when
+// an antiderivative is missing.
+std::optional<ex> output_potential(const Context& c, const ExVec& a, std::string& note) {
+  if (a.size() == 1) return output_integral(c, a[0], note);
+  const auto& y = c.cf.y;
+  ex A = 0;
+  GiNaC::exmap earlier;  // y_1..y_{q-1} at y0: the remainder is free of them when a is closed
+  for (std::size_t q = 0; q < a.size(); ++q) {
+    const ex rest = simplify((a[q] - A.diff(y[q])).subs(earlier));
+    const auto Aq = antiderivative(rest, y[q]);
+    if (!Aq) {
+      note = fmt::format("no closed-form antiderivative in {} of {}", y[q].get_name(),
+                         to_string(rest));
+      return std::nullopt;
+    }
+    A += *Aq;
+    earlier[y[q]] = c.y0[q];
+  }
+  GiNaC::exmap at_h, at_y0;
+  for (std::size_t q = 0; q < a.size(); ++q) {
+    at_h[y[q]] = c.m.h[q];
+    at_y0[y[q]] = c.y0[q];
+  }
+  return A.subs(at_h) - A.subs(at_y0);
+}
+
+// z_{i,k_i} = h_i - h_i(x0); down each block, z_{i,m-1} = L_f z_{i,m} - l_{i,m}(y) with
+// dl_{i,m}/dy_q = L_{tau_{q,k_q}} L_f z_{i,m} (functions of y when the conditions hold), the
+// constant fixing T(x0) = 0.
 enum class Outcome { closed, no_closed_form, outside_ring };
 
 Outcome ginac_T(const Context& c, Budget& budget, ExVec& T, std::string& note) {
-  const std::size_t n = c.m.n();
+  const CanonicalForm& cf = c.cf;
   const Symbols& x = c.m.states;
-  T.assign(n, 0);
-  T[n - 1] = simplify(c.m.h[0] - c.y0);
-  for (std::size_t i = n - 1; i >= 1; --i) {
-    const ex LfTi = lie_derivative(T[i], c.m.f, x);
-    const ex a_x = lie_derivative(LfTi, c.cf.frame[n - 1], x);
-    const auto a_y = express_in_output(a_x, c.m.h[0], x, c.cf.y, c.cf.base_point, c.boxes);
-    if (!a_y) {
-      note = fmt::format("L_tau_n L_f T_{} = {} could not be written as a function of y", i + 1,
-                         to_string(a_x));
-      return Outcome::no_closed_form;
+  T.assign(c.m.n(), 0);
+  for (std::size_t b = 0; b < cf.outputs(); ++b) {
+    const std::size_t end = cf.block_end(b);
+    T[end] = simplify(c.m.h[b] - c.y0[b]);
+    for (std::size_t i = end; i > cf.block_start(b); --i) {
+      const ex LfTi = lie_derivative(T[i], c.m.f, x);
+      ExVec a_y;
+      for (std::size_t q = 0; q < cf.outputs(); ++q) {
+        const ex a_x = lie_derivative(LfTi, cf.frame[cf.block_end(q)], x);
+        const auto a = express_in_outputs(a_x, c.m.h, x, cf.y, cf.base_point, c.boxes);
+        if (!a) {
+          note = fmt::format("L_{} L_f T_{} = {} could not be written as a function of y",
+                             cf.tau_name(cf.block_end(q)), i + 1, to_string(a_x));
+          return Outcome::no_closed_form;
+        }
+        a_y.push_back(*a);
+      }
+      const auto potential = output_potential(c, a_y, note);
+      if (!potential) return Outcome::no_closed_form;
+      T[i - 1] = simplify(LfTi - *potential - simplify(LfTi.subs(c.at_x0)));
+      budget.check(expression_size(T[i - 1]));
     }
-    const auto integral = output_integral(c, *a_y, note);
-    if (!integral) return Outcome::no_closed_form;
-    T[i - 1] = simplify(LfTi - *integral - simplify(LfTi.subs(c.at_x0)));
-    budget.check(expression_size(T[i - 1]));
   }
   return Outcome::closed;
 }
@@ -153,7 +189,7 @@ Outcome ring_T(const Context& c, const RingFields& r, Budget& budget, std::vecto
                std::string& note) {
   const std::size_t n = c.m.n();
   T.assign(n, Poly{});
-  const auto hn = r.ring.from_ex(c.m.h[0] - c.y0);
+  const auto hn = r.ring.from_ex(c.m.h[0] - c.y0[0]);
   if (!hn) return Outcome::outside_ring;
   T[n - 1] = *hn;
   for (std::size_t i = n - 1; i >= 1; --i) {
@@ -231,19 +267,21 @@ void ring_l(const RingFields& r, const std::vector<Poly>& T, CanonicalForm& cf) 
 void ginac_l(const Context& c, CanonicalForm& cf) {
   const Symbols& x = c.m.states;
   const ExVec F = c.m.field();
-  const ex& h = c.m.h[0];
+  GiNaC::exmap y_to_h;
+  for (std::size_t q = 0; q < cf.y.size(); ++q) y_to_h[cf.y[q]] = c.m.h[q];
   ZeroVerdict lv = ZeroVerdict::proved;
   ExVec l;
   for (std::size_t i = 0; i < cf.T.size(); ++i) {
-    const ex li_x = simplify(lie_derivative(cf.T[i], F, x) - (i > 0 ? cf.T[i - 1] : ex(0)));
-    const auto li = express_in_output(li_x, h, x, cf.y, cf.base_point, c.boxes);
+    const bool chained = i != cf.block_start(cf.block_of(i));
+    const ex li_x = simplify(lie_derivative(cf.T[i], F, x) - (chained ? cf.T[i - 1] : ex(0)));
+    const auto li = express_in_outputs(li_x, c.m.h, x, cf.y, cf.base_point, c.boxes);
     if (!li) {
       cf.l_note = fmt::format("l_{} = {} is not a function of (u, y)", i + 1, to_string(li_x));
       cf.l_verdict = ZeroVerdict::nonzero;
       return;
     }
     // Independent check: l_i(u, h(x)) equals the x-expression.
-    lv = worst(lv, zero_test(simplify(li->subs(cf.y == h) - li_x), c.boxes, c.zero));
+    lv = worst(lv, zero_test(simplify(li->subs(y_to_h) - li_x), c.boxes, c.zero));
     if (lv == ZeroVerdict::nonzero) {
       cf.l_note = fmt::format("l_{}(u, h(x)) differs from L_{{f+g}} T_{} - T_{}", i + 1, i + 1, i);
       cf.l_verdict = lv;
@@ -259,7 +297,8 @@ void ginac_l(const Context& c, CanonicalForm& cf) {
 
 // The ring's view of the stage, when f, g, h and the frame all live in it.
 std::optional<RingFields> ring_fields(const Context& c, const FrameRing& fr) {
-  if (!fr.ring || fr.fields.size() <= c.m.n()) return std::nullopt;
+  // One output: the ring's output function solves y = h(x) along a line.
+  if (!fr.ring || fr.fields.size() <= c.m.n() || c.m.p() != 1) return std::nullopt;
   const PolyRing& ring = *fr.ring;
   std::vector<Poly> f, F;
   for (std::size_t i = 0; i < c.m.n(); ++i) {
@@ -274,7 +313,7 @@ std::optional<RingFields> ring_fields(const Context& c, const FrameRing& fr) {
       std::move(f),
       std::move(F),
       fr.fields,
-      OutputFunction(ring, c.m.h[0], c.m.states, c.cf.y, c.cf.base_point, c.boxes, c.zero),
+      OutputFunction(ring, c.m.h[0], c.m.states, c.cf.y[0], c.cf.base_point, c.boxes, c.zero),
       std::make_shared<FlintProducts>(ring.variables())};
 }
 
@@ -320,12 +359,10 @@ void ginac_diffeomorphism(const Context& c, Budget& budget, CanonicalForm& cf) {
 void build_diffeomorphism(const Model& m, const FrameRing& fr, Budget& budget,
                           const CanonicalOptions& opt, CanonicalForm& cf) {
   cf.base_point = choose_base_point(m, cf.frame);
-  const Context c{m,
-                  cf,
-                  m.sample_boxes(),
-                  opt.zero,
-                  point_map(m.states, cf.base_point),
-                  simplify(m.h[0].subs(point_map(m.states, cf.base_point)))};
+  const GiNaC::exmap at_x0 = point_map(m.states, cf.base_point);
+  ExVec y0;
+  for (const auto& h : m.h) y0.push_back(simplify(h.subs(at_x0)));
+  const Context c{m, cf, m.sample_boxes(), opt.zero, at_x0, std::move(y0)};
   if (!ring_diffeomorphism(c, fr, budget, cf)) ginac_diffeomorphism(c, budget, cf);
   if (cf.T_kind != Availability::symbolic) {
     cf.T_kind = Availability::numeric;

@@ -7,38 +7,55 @@ namespace obsynth {
 
 using GiNaC::ex;
 
-std::optional<ex> express_in_output(const ex& e, const ex& h, const Symbols& x,
-                                    const GiNaC::symbol& y, const ExVec& base_point,
-                                    const SampleBoxes& boxes) {
-  // Choose a state in which h is linear with a coefficient free of that state.
-  std::optional<std::size_t> k;
+namespace {
+
+// x_k = value(y, other states) with h(x) = y, for a state not in `used`: a state h equals,
+// else the first one h solves for (linear in it or in one invertible atom of it).
+std::optional<std::pair<std::size_t, ex>> solve_output(const ex& h, const Symbols& x,
+                                                       const GiNaC::symbol& y,
+                                                       const std::vector<bool>& used) {
   for (std::size_t i = 0; i < x.size(); ++i)
-    if (h.is_equal(x[i])) k = i;
-  ex solution;
-  if (k) {
-    solution = y;
-  } else {
-    for (std::size_t i = 0; i < x.size() && !k; ++i) {
-      const auto s = solve_for(h - y, x[i]);
-      if (s) {
-        k = i;
-        solution = *s;
-      }
-    }
+    if (!used[i] && h.is_equal(x[i])) return std::make_pair(i, ex(y));
+  for (std::size_t i = 0; i < x.size(); ++i)
+    if (!used[i])
+      if (const auto s = solve_for(h - y, x[i])) return std::make_pair(i, *s);
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<ex> express_in_outputs(const ex& e, const ExVec& h, const Symbols& x,
+                                     const std::vector<GiNaC::symbol>& y, const ExVec& base_point,
+                                     const SampleBoxes& boxes) {
+  // Solve h_1 = y_1, h_2 = y_2, ... in turn, each for a new state, the earlier solutions
+  // substituted into the later outputs.
+  std::vector<bool> used(x.size(), false);
+  GiNaC::exmap solution;
+  for (std::size_t q = 0; q < h.size(); ++q) {
+    const auto s = solve_output(simplify(h[q].subs(solution)), x, y[q], used);
+    if (!s) return std::nullopt;
+    used[s->first] = true;
+    for (auto& [state, value] : solution) value = simplify(value.subs(x[s->first] == s->second));
+    solution[x[s->first]] = s->second;
   }
-  if (!k) return std::nullopt;
-  ex r = simplify(e.subs(x[*k] == solution));
+  ex r = simplify(e.subs(solution));
   Symbols others;
   for (std::size_t i = 0; i < x.size(); ++i)
-    if (i != *k && r.has(x[i])) others.push_back(x[i]);
+    if (!used[i] && r.has(x[i])) others.push_back(x[i]);
   if (others.empty()) return r;
   // Remaining dependence must vanish identically (e.g. sin^2 + cos^2 left by normal()).
   for (const auto& s : others)
     if (zero_test(r.diff(s), boxes) == ZeroVerdict::nonzero) return std::nullopt;
   GiNaC::exmap at;
   for (std::size_t i = 0; i < x.size(); ++i)
-    if (i != *k) at[x[i]] = base_point[i];
+    if (!used[i]) at[x[i]] = base_point[i];
   return simplify(r.subs(at));
+}
+
+std::optional<ex> express_in_output(const ex& e, const ex& h, const Symbols& x,
+                                    const GiNaC::symbol& y, const ExVec& base_point,
+                                    const SampleBoxes& boxes) {
+  return express_in_outputs(e, {h}, x, {y}, base_point, boxes);
 }
 
 OutputFunction::OutputFunction(const PolyRing& ring, const ex& h, const Symbols& x, GiNaC::symbol y,

@@ -17,6 +17,12 @@ std::optional<GiNaC::ex> express_in_output(const GiNaC::ex& e, const GiNaC::ex& 
                                            const GiNaC::symbol& y, const ExVec& base_point,
                                            const SampleBoxes& boxes);
 
+// e(x) written as a function of y = h(x) for p outputs: h_1 = y_1, h_2 = y_2, ... solved in
+// turn, each for a new state (as above); nullopt when e is not such a function.
+std::optional<GiNaC::ex> express_in_outputs(const GiNaC::ex& e, const ExVec& h, const Symbols& x,
+                                            const std::vector<GiNaC::symbol>& y,
+                                            const ExVec& base_point, const SampleBoxes& boxes);
+
 // The same for ring elements, with a verdict on p(x) = A(h(x)). When h = c x_k + b(x) with a
 // constant c != 0 and b free of x_k, A is p restricted to the line through x0 along e_k, and
 // the identity is checked in the ring (proved when it holds there).

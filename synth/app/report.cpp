@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <map>
 
 #include "analysis/conditions.hpp"
@@ -450,6 +451,7 @@ ordered_json conditions_json(const Analysis& a) {
   for (const auto& b : cf.drift) {
     drift.push_back({{"i", b.i},
                      {"j", b.j},
+                     {"name", drift_condition_name(cf, b)},
                      {"holds", b.holds()},
                      {"verdict", verdict_name(b.verdict)},
                      {"residual", residual_json(b)}});
@@ -457,14 +459,26 @@ ordered_json conditions_json(const Analysis& a) {
   }
   for (const auto& b : cf.input) {
     input.push_back({{"j", b.j},
+                     {"name", input_condition_name(cf, b)},
                      {"holds", b.holds()},
                      {"verdict", verdict_name(b.verdict)},
                      {"residual", residual_json(b)}});
     add_evidence_json(a.model, b, input.back());
   }
+  ordered_json output = ordered_json::array();
+  for (const auto& b : cf.output) {
+    output.push_back({{"output", b.i},
+                      {"j", b.j},
+                      {"name", output_condition_name(cf, b)},
+                      {"holds", b.holds()},
+                      {"verdict", verdict_name(b.verdict)},
+                      {"residual", residual_json(b)}});
+    add_evidence_json(a.model, b, output.back());
+  }
   c["observable"] = a.observability.generic_rank == a.observability.n;
   c["drift"] = drift;
   c["input"] = input;
+  c["output"] = output;
   c["complete"] =
       cf.applicable ? ordered_json(completeness_name(cf.complete)) : ordered_json(nullptr);
   c["complete_reason"] = cf.complete_reason;
@@ -478,6 +492,8 @@ void add_canonical_json(const Analysis& a, ordered_json& j) {
   j["canonical_applicable"] = app;
   j["canonical_note"] = cf.not_applicable;
   j["r"] = app ? expr_list(cf.r) : ordered_json(nullptr);
+  j["blocks"] = cf.blocks;
+  j["frame_note"] = cf.frame_note;
   if (app) {
     ordered_json fr = ordered_json::array();
     for (const auto& t : cf.frame) fr.push_back(expr_list(t));
@@ -622,9 +638,13 @@ void text_diffeomorphism(const Analysis& a, SectionMarks& marks, const LineWrite
     line("Canonical form (output last)");
     for (std::size_t i = 0; i < cf.l.size(); ++i)
       line(fmt::format("  {}' = {}{}", cf.z[i].get_name(),
-                       i == 0 ? "" : cf.z[i - 1].get_name() + " + ", to_string(cf.l[i])));
-    line(fmt::format("  {} = {}{}", cf.y.get_name(), cf.z.back().get_name(),
-                     cf.base_point.empty() ? "" : " + h(x0)"));
+                       i == cf.block_start(cf.block_of(i)) ? "" : cf.z[i - 1].get_name() + " + ",
+                       to_string(cf.l[i])));
+    for (std::size_t q = 0; q < cf.outputs(); ++q)
+      line(fmt::format("  {} = {}{}", cf.y[q].get_name(), cf.z_name(cf.block_end(q)),
+                       cf.base_point.empty() ? ""
+                       : cf.outputs() == 1   ? " + h(x0)"
+                                             : fmt::format(" + h{}(x0)", q + 1)));
     line(fmt::format("  l(u, y) free of x: {}", map_verdict_text(cf.l_verdict)));
   } else {
     line(fmt::format("  l: {}", cf.l_note));
@@ -640,18 +660,23 @@ void text_canonical(const Analysis& a, SectionMarks& marks, const LineWriter& li
   if (!cf.applicable) {
     line("  " + cf.not_applicable);
   } else {
-    line(fmt::format("  r = {}", vec_text(cf.r)));
+    if (!cf.r.empty()) line(fmt::format("  r = {}", vec_text(cf.r)));
+    if (cf.outputs() > 1)
+      line(fmt::format(
+          "  blocks k = ({}), the observability indices; r_i = tau_{{i,1}} solves "
+          "O r_i = e_(i, k_i - 1){}",
+          fmt::join(cf.blocks, ", "), cf.frame_note.empty() ? "" : "\n  note: " + cf.frame_note));
     for (std::size_t k = 0; k < cf.frame.size(); ++k)
-      line(fmt::format("  tau_{} = {}", k + 1, vec_text(cf.frame[k])));
+      line(fmt::format("  {} = {}", cf.tau_name(k), vec_text(cf.frame[k])));
     marks.mark("conditions");
+    auto condition = [&](const std::string& name, const BracketCheck& b) {
+      line(fmt::format("  {:<30}{}{}", name.size() < 30 ? name : name + " ",
+                       bracket_verdict_text(b), failure_text(a.model, b)));
+    };
     line(fmt::format("  C1 rank O = n                 holds"));
-    for (const auto& b : cf.drift)
-      line(fmt::format("  C2 [tau_{}, tau_{}] = 0{:>{}}{}{}", b.i, b.j, "",
-                       11 - std::to_string(b.i).size() - std::to_string(b.j).size(),
-                       bracket_verdict_text(b), failure_text(a.model, b)));
-    for (const auto& b : cf.input)
-      line(fmt::format("  C3 [g, tau_{}] = 0{:>{}}{}{}", b.j, "", 14 - std::to_string(b.j).size(),
-                       bracket_verdict_text(b), failure_text(a.model, b)));
+    for (const auto& b : cf.drift) condition("C2 " + drift_condition_name(cf, b), b);
+    for (const auto& b : cf.input) condition("C3 " + input_condition_name(cf, b), b);
+    for (const auto& b : cf.output) condition("C5 " + output_condition_name(cf, b), b);
     line(fmt::format("  C4 completeness               {}: {}", completeness_name(cf.complete),
                      cf.complete_reason));
     line("  => " + linearizable_text(cf));
@@ -728,16 +753,37 @@ void markdown_conditions(const Analysis& a, SectionMarks& marks, const LineWrite
   line("| condition | verdict | residual |");
   line("|---|---|---|");
   line("| C1: rank $O = n$ | holds | |");
-  for (const auto& b : cf.drift)
+  auto row = [&](const std::string& name, const BracketCheck& b) {
     line(fmt::format(
-        "| C2: $[\\tau_{{{}}}, \\tau_{{{}}}] = 0$ | {} | {} |", b.i, b.j, bracket_verdict_text(b),
+        "| {}: ${}$ | {} | {} |", name.substr(0, 2), name.substr(3), bracket_verdict_text(b),
         b.holds() ? ""
                   : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
-  for (const auto& b : cf.input)
-    line(fmt::format(
-        "| C3: $[g, \\tau_{{{}}}] = 0$ | {} | {} |", b.j, bracket_verdict_text(b),
-        b.holds() ? ""
-                  : (b.residual.empty() ? b.residual_note : "$" + vec_latex(b.residual) + "$")));
+  };
+  auto tex = [](std::string s) {  // tau_3 -> \tau_{3}, tau_{2,1} -> \tau_{2,1}, <> -> langle
+    std::string out;
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      if (s.compare(i, 4, "tau_") == 0) {
+        out += "\\tau_";
+        i += 3;
+        if (i + 1 < s.size() && s[i + 1] != '{') {
+          std::size_t e = i + 1;
+          while (e < s.size() && std::isdigit(static_cast<unsigned char>(s[e]))) ++e;
+          out += "{" + s.substr(i + 1, e - i - 1) + "}";
+          i = e - 1;
+        }
+      } else if (s[i] == '<') {
+        out += "\\langle ";
+      } else if (s[i] == '>') {
+        out += " \\rangle";
+      } else {
+        out += s[i];
+      }
+    }
+    return out;
+  };
+  for (const auto& b : cf.drift) row("C2 " + tex(drift_condition_name(cf, b)), b);
+  for (const auto& b : cf.input) row("C3 " + tex(input_condition_name(cf, b)), b);
+  for (const auto& b : cf.output) row("C5 " + tex(output_condition_name(cf, b)), b);
   line(fmt::format("| C4: completeness | {} | {} |", completeness_name(cf.complete),
                    cf.complete_reason));
 }

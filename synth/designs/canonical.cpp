@@ -38,24 +38,48 @@ std::vector<numeric> gains_from_poles(const std::vector<numeric>& poles) {
   return K;
 }
 
-ex output_at_base_point(const Analysis& a) {
+ExVec outputs_at_base_point(const Analysis& a) {
   const Model& m = a.model;
   GiNaC::exmap at_x0;
   for (std::size_t i = 0; i < m.n() && i < a.canonical.base_point.size(); ++i)
     at_x0[m.states[i]] = a.canonical.base_point[i];
-  return simplify(m.h[0].subs(at_x0));
+  ExVec y0;
+  for (const auto& h : m.h) y0.push_back(simplify(h.subs(at_x0)));
+  return y0;
+}
+
+std::vector<std::vector<numeric>> closed_loop_matrix(const CanonicalForm& cf,
+                                                     const std::vector<numeric>& K) {
+  const std::size_t n = K.size();
+  std::vector<std::vector<numeric>> A(n, std::vector<numeric>(n, 0));
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i != cf.block_start(cf.block_of(i))) A[i][i - 1] = 1;
+    A[i][cf.block_end(cf.block_of(i))] -= K[i];
+  }
+  return A;
+}
+
+std::string closed_loop_text(const CanonicalForm& cf) {
+  return cf.outputs() <= 1 ? "A - K e_n^T" : "A - K C";
 }
 
 std::vector<std::string> canonical_form_failures(const Analysis& a) {
   const CanonicalForm& cf = a.canonical;
   if (!cf.applicable) return {cf.not_applicable};
   std::vector<std::string> failing;
-  for (const auto& b : cf.drift)
-    if (!b.holds()) failing.push_back(fmt::format("[tau_{}, tau_{}] != 0", b.i, b.j));
-  for (const auto& b : cf.input)
-    if (!b.holds()) failing.push_back(fmt::format("[g, tau_{}] != 0", b.j));
+  auto fails = [&](const std::vector<BracketCheck>& list, auto name) {
+    for (const auto& b : list)
+      if (!b.holds()) {
+        std::string text = name(cf, b);
+        failing.push_back(text.replace(text.rfind(" = "), 3, " != "));
+      }
+  };
+  fails(cf.drift, drift_condition_name);
+  fails(cf.input, input_condition_name);
+  fails(cf.output, output_condition_name);
   if (!failing.empty())
-    return {fmt::format("not linearizable by output injection ({})", fmt::join(failing, ", "))};
+    return {fmt::format("not linearizable by output injection ({}){}", fmt::join(failing, ", "),
+                        cf.frame_note.empty() ? "" : "; " + cf.frame_note)};
   if (cf.l_kind != Availability::symbolic) return {"l(u, y) has no closed form: " + cf.l_note};
   return {};
 }
@@ -134,16 +158,16 @@ std::vector<numeric> scaled_poles(double omega, std::size_t n) {
 }
 
 // Largest amplification of an initial error measured in box units: max over t of the row-sum
-// norm of S^-1 exp(A_cl t) S, S = diag(range z_i), A_cl = A - K e_n^T (z_1' = -K_1 z_n, z_i' =
-// z_{i-1} - K_i z_n), by RK4 over ten slowest time constants.
-double predicted_peaking(const std::vector<numeric>& poles, const std::vector<numeric>& K,
+// norm of S^-1 exp(A_cl t) S, S = diag(range z_i), A_cl = A - K C (one output: z_1' = -K_1 z_n,
+// z_i' = z_{i-1} - K_i z_n), by RK4 over ten slowest time constants.
+double predicted_peaking(const std::vector<numeric>& poles,
+                         const std::vector<std::vector<numeric>>& closed_loop,
                          const std::vector<double>& range) {
   const auto n = static_cast<Eigen::Index>(poles.size());
-  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    if (i > 0) A(i, i - 1) = 1;
-    A(i, n - 1) -= K[static_cast<std::size_t>(i)].to_double();
-  }
+  Eigen::MatrixXd A(n, n);
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index j = 0; j < n; ++j)
+      A(i, j) = closed_loop[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)].to_double();
   Eigen::VectorXd s(n);
   for (Eigen::Index i = 0; i < n; ++i)
     s(i) = range[static_cast<std::size_t>(i)] > 0 ? range[static_cast<std::size_t>(i)] : 1;
@@ -202,23 +226,61 @@ std::vector<numeric> chosen_poles(const DesignOptions& o, std::size_t n) {
   return poles;
 }
 
+// The poles of each block (consecutive slices of `poles`, block by block) -> K, block by block.
+std::vector<numeric> block_gains(const CanonicalForm& cf, const std::vector<numeric>& poles) {
+  std::vector<numeric> K;
+  for (std::size_t b = 0; b < cf.outputs(); ++b) {
+    const auto first = poles.begin() + static_cast<long>(cf.block_start(b));
+    const auto Kb = gains_from_poles({first, first + static_cast<long>(cf.blocks[b])});
+    K.insert(K.end(), Kb.begin(), Kb.end());
+  }
+  return K;
+}
+
+// Default poles: per block, -omega_i (2, 2.5, 3, ...) with the block's time scale (a block of
+// one coordinate has none of its own: it takes the fastest of the others, else 1).
+void default_block_poles(const CanonicalForm& cf, const std::vector<double>& range, Choices& c) {
+  std::vector<double> omega;
+  double fastest = 0;
+  for (std::size_t b = 0; b < cf.outputs(); ++b) {
+    const auto first = range.begin() + static_cast<long>(cf.block_start(b));
+    omega.push_back(cf.blocks[b] > 1 ? time_scale({first, first + static_cast<long>(cf.blocks[b])})
+                                     : 0);
+    fastest = std::max(fastest, omega.back());
+  }
+  std::vector<std::string> scales;
+  for (std::size_t b = 0; b < cf.outputs(); ++b) {
+    if (omega[b] == 0) omega[b] = fastest > 0 ? fastest : 1;
+    const auto p = scaled_poles(omega[b], cf.blocks[b]);
+    c.poles.insert(c.poles.end(), p.begin(), p.end());
+    scales.push_back(fmt::format("{:.3g}", omega[b]));
+  }
+  if (cf.outputs() == 1)
+    c.poles_reason = fmt::format(
+        "default: -omega (2, 2.5, 3, ...) with the model's time scale omega = {:.3g} rad/s = "
+        "(range z_1 / range z_n)^(1/(n-1)) over the domain box (sampled)",
+        omega[0]);
+  else
+    c.poles_reason = fmt::format(
+        "default: per output block i, -omega_i (2, 2.5, 3, ...) with the block's time scale "
+        "omega_i = (range z_(i,1) / range z_(i,k_i))^(1/(k_i-1)) over the domain box (sampled; a "
+        "block of one coordinate takes the fastest other): omega = {} rad/s",
+        fmt::join(scales, ", "));
+}
+
 Choices choose(const Analysis& a, const DesignOptions& o) {
   const CanonicalForm& cf = a.canonical;
   Choices c;
   const std::vector<double> range = z_ranges(a);
   if (o.find("poles")) {
     c.poles = chosen_poles(o, a.model.n());
-    c.poles_reason = "--poles";
+    c.poles_reason =
+        cf.outputs() == 1 ? "--poles" : "--poles, block by block in the order of the outputs";
   } else {
-    const double omega = time_scale(range);
-    c.poles = scaled_poles(omega, a.model.n());
-    c.poles_reason = fmt::format(
-        "default: -omega (2, 2.5, 3, ...) with the model's time scale omega = {:.3g} rad/s = "
-        "(range z_1 / range z_n)^(1/(n-1)) over the domain box (sampled)",
-        omega);
+    default_block_poles(cf, range, c);
   }
-  c.K = gains_from_poles(c.poles);
-  c.peaking = predicted_peaking(c.poles, c.K, range);
+  c.K = block_gains(cf, c.poles);
+  c.peaking = predicted_peaking(c.poles, closed_loop_matrix(cf, c.K), range);
   const bool T_closed = cf.T_kind == Availability::symbolic;
   const bool Tinv_closed = cf.T_inverse_kind == Availability::symbolic;
   if (const auto r = choice_option(o, "realisation", {"z", "x"})) {
@@ -258,7 +320,7 @@ void add_canonical_maps(const Analysis& a, const Choices& c, ObserverSpec& s) {
   const CanonicalForm& cf = a.canonical;
   const bool zreal = c.realisation == Realisation::z;
   const bool Tinv_closed = cf.T_inverse_kind == Availability::symbolic;
-  const FunctionArg x = state_arg(m), u = input_arg(m), y = output_arg({cf.y});
+  const FunctionArg x = state_arg(m), u = input_arg(m), y = output_arg(cf.y);
   if (cf.T_kind == Availability::symbolic)
     s.functions.push_back(
         fn("T", "Diffeomorphism z = T(x) to observer canonical form, T(x0) = 0.", {x}, cf.T));
@@ -374,16 +436,23 @@ void build_z_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
   const Model& m = a.model;
   const CanonicalForm& cf = a.canonical;
   const std::size_t n = m.n();
-  const ex y0 = output_at_base_point(a);
+  const ExVec y0 = outputs_at_base_point(a);
   const auto zh = fresh_symbols(m, "zh", n), cs = fresh_symbols(m, "c", n);
+  const auto A_cl = closed_loop_matrix(cf, c.K);
   ExVec step_constant, z_rhs;
   for (std::size_t i = 0; i < n; ++i) {
-    step_constant.push_back(cf.l[i] + c.K[i] * (cf.y - y0));
-    z_rhs.push_back((i ? ex(zh[i - 1]) : ex(0)) - c.K[i] * zh[n - 1] + cs[i]);
+    const std::size_t b = cf.block_of(i);
+    step_constant.push_back(cf.l[i] + c.K[i] * (cf.y[b] - y0[b]));
+    ex rhs = cs[i];
+    for (std::size_t j = 0; j < n; ++j) rhs += A_cl[i][j] * zh[j];
+    z_rhs.push_back(rhs);
   }
+  const bool one = cf.outputs() == 1;
   s.functions.push_back(fn("step_constant", "c = l(u, y) + K (y - y0), constant over a step.",
-                           {input_arg(m), output_arg({cf.y})}, step_constant));
-  s.functions.push_back(fn("z_rhs", "zh' = A zh - K zh_n + c (the z-realisation right-hand side).",
+                           {input_arg(m), output_arg(cf.y)}, step_constant));
+  s.functions.push_back(fn("z_rhs",
+                           one ? "zh' = A zh - K zh_n + c (the z-realisation right-hand side)."
+                               : "zh' = A zh - K C zh + c (the z-realisation right-hand side).",
                            {vector_arg("z", "State", zh, FunctionArg::Kind::observer_state),
                             vector_arg("c", "State", cs)},
                            z_rhs));
@@ -397,20 +466,16 @@ void build_z_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
   s.roles.rhs = "z_rhs";
   if (c.exact) {
     std::vector<GiNaC::symbol> vars(m.inputs.begin(), m.inputs.end());
-    vars.push_back(cf.y);
+    vars.insert(vars.end(), cf.y.begin(), cf.y.end());
     if (auto split = split_step_constant(step_constant, vars)) {
       s.functions.push_back(fn("step_basis",
                                "b with c = l(u, y) + K (y - y0) = B b (B: the class's input map).",
-                               {input_arg(m), output_arg({cf.y})}, split->basis, 1, "Basis"));
+                               {input_arg(m), output_arg(cf.y)}, split->basis, 1, "Basis"));
       s.roles.step_basis = "step_basis";
       s.input_map = std::move(split->B);
     }
   }
-  s.closed_loop.assign(n, std::vector<numeric>(n, 0));
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i > 0) s.closed_loop[i][i - 1] = 1;
-    s.closed_loop[i][n - 1] -= c.K[i];
-  }
+  s.closed_loop = A_cl;
   if (cf.T_inverse_kind == Availability::symbolic) {
     s.estimate = EstimateKind::function;
     s.roles.estimate = "T_inverse";
@@ -425,12 +490,14 @@ void build_x_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
   const Model& m = a.model;
   const CanonicalForm& cf = a.canonical;
   const std::size_t n = m.n();
-  const ex yhat = m.h[0];
   const ExVec F = m.field();
-  const GiNaC::exmap y_to_yhat{{cf.y, yhat}};
+  GiNaC::exmap y_to_yhat;
+  for (std::size_t q = 0; q < cf.y.size(); ++q) y_to_yhat[cf.y[q]] = m.h[q];
   std::vector<ex> v(n);
-  for (std::size_t i = 0; i < n; ++i)
-    v[i] = cf.l[i] - cf.l[i].subs(y_to_yhat) + c.K[i] * (cf.y - yhat);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t b = cf.block_of(i);
+    v[i] = cf.l[i] - cf.l[i].subs(y_to_yhat) + c.K[i] * (cf.y[b] - m.h[b]);
+  }
   ExVec rhs;
   for (std::size_t r = 0; r < n; ++r) {
     ex acc = F[r];
@@ -439,13 +506,20 @@ void build_x_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
   }
   s.functions.push_back(fn("x_rhs",
                            "xh' = f + g + [tau](xh) (l(u,y) - l(u,h(xh)) + K (y - h(xh))).",
-                           {state_arg(m), input_arg(m), output_arg({cf.y})}, rhs));
+                           {state_arg(m), input_arg(m), output_arg(cf.y)}, rhs));
   s.state_name = "xh";
   s.state_doc = "the estimate itself";
   s.init = InitKind::identity;
   s.update = UpdateKind::ode;
   s.roles.rhs = "x_rhs";
   s.estimate = EstimateKind::identity;
+}
+
+// "z2, z4": the coordinates the outputs read.
+std::string block_ends_text(const CanonicalForm& cf) {
+  std::vector<std::string> ends;
+  for (std::size_t b = 0; b < cf.outputs(); ++b) ends.push_back(cf.z_name(cf.block_end(b)));
+  return fmt::format("{}", fmt::join(ends, ", "));
 }
 
 std::string numbers_text(const std::vector<numeric>& v) {
@@ -473,9 +547,12 @@ void describe(const Analysis& a, const Choices& c, ObserverSpec& s) {
                 : "RK4 with u, y held over a step";
   s.description.push_back(fmt::format("Error poles: {}; K = [{}]; integrator {}",
                                       numbers_text(c.poles), numbers_text(c.K), integrator));
+  const CanonicalForm& cf = a.canonical;
+  const std::string A_cl = closed_loop_text(cf);
   if (zreal)
-    s.class_doc = {"  zh' = A zh + l(u, y) + K (y - y0 - zh_n),  xh = T^-1(zh)",
-                   fmt::format("The error z - zh obeys e' = (A - K e_n^T) e exactly: poles {}.",
+    s.class_doc = {cf.outputs() == 1 ? "  zh' = A zh + l(u, y) + K (y - y0 - zh_n),  xh = T^-1(zh)"
+                                     : "  zh' = A zh + l(u, y) + K (y - y0 - C zh),  xh = T^-1(zh)",
+                   fmt::format("The error z - zh obeys e' = ({}) e exactly: poles {}.", A_cl,
                                numbers_text(c.poles))};
   else
     s.class_doc = {
@@ -483,7 +560,7 @@ void describe(const Analysis& a, const Choices& c, ObserverSpec& s) {
         "needing neither T nor T^-1 at run time; in z = T(x) the error is exactly linear "
         "with",
         fmt::format("poles {}.", numbers_text(c.poles))};
-  s.constants.push_back({"poles", c.poles, "error poles of (A - K e_n^T)"});
+  s.constants.push_back({"poles", c.poles, fmt::format("error poles of ({})", A_cl)});
   s.constants.push_back({"K", c.K, "output-injection gain, K_i = c_{i-1} of prod (s - pole)"});
   s.report = {{"realisation", fmt::format("{} ({})", zreal ? "z" : "x", c.realisation_reason)},
               {"poles", numbers_text(c.poles) + " (" + c.poles_reason + ")"},
@@ -500,10 +577,13 @@ void describe(const Analysis& a, const Choices& c, ObserverSpec& s) {
   if (zreal)
     s.report.push_back(
         {"T^-1", newton ? "runtime Newton with [tau] as inverse Jacobian" : "closed form"});
+  if (cf.outputs() > 1)
+    s.report.push_back(
+        {"blocks", fmt::format("{} (observability indices; C z = the block ends: {})",
+                               fmt::join(cf.blocks, ", "), block_ends_text(cf))});
   s.summary = fmt::format("canonical-form observer, {} realisation ({}), poles {}, K = [{}]",
                           zreal ? "z" : "x", c.realisation_reason, numbers_text(c.poles),
                           numbers_text(c.K));
-  (void)a;
 }
 
 Verdict applies(const Analysis& a) {
@@ -511,14 +591,17 @@ Verdict applies(const Analysis& a) {
   v.reasons = canonical_form_failures(a);
   v.applies = v.reasons.empty();
   if (!v.applies) return v;
+  const std::string A_cl = closed_loop_text(a.canonical);
   set_exactness(v, a.canonical,
                 {"the bracket conditions hold and l(u, y) is closed-form",
                  "no bracket condition is refuted and l(u, y) is closed-form",
                  "the error dynamics in z are exactly linear",
-                 "rigorous: the error z - zh obeys e' = (A - K e_n^T) e exactly (brackets, T and "
-                 "l(u, y) proved symbolically)",
-                 "partial (numeric): e' = (A - K e_n^T) e exactly only if what is numerically "
-                 "zero is zero"});
+                 "rigorous: the error z - zh obeys e' = (" + A_cl +
+                     ") e exactly (brackets, T and "
+                     "l(u, y) proved symbolically)",
+                 "partial (numeric): e' = (" + A_cl +
+                     ") e exactly only if what is numerically "
+                     "zero is zero"});
   return v;
 }
 

@@ -18,8 +18,14 @@ Design canonical_design();
 std::vector<GiNaC::numeric> gains_from_poles(const std::vector<GiNaC::numeric>& poles);
 std::vector<GiNaC::numeric> default_poles(std::size_t n);
 
-// h(x0) at the canonical form's base point: z_n = y - y0.
-GiNaC::ex output_at_base_point(const Analysis& a);
+// h(x0) at the canonical form's base point: each block end z_{i,k_i} = y_i - y0_i.
+ExVec outputs_at_base_point(const Analysis& a);
+
+// A - K C of the block Brunovsky form (ones below the diagonal inside each block, -K in the
+// column of each block's end), and its name in reports ("A - K e_n^T" for one output).
+std::vector<std::vector<GiNaC::numeric>> closed_loop_matrix(const CanonicalForm& cf,
+                                                            const std::vector<GiNaC::numeric>& K);
+std::string closed_loop_text(const CanonicalForm& cf);
 
 // x = T^-1(z) as a generated function: the elimination steps as let-bindings (straight-line
 // code, never composed by substitution).

@@ -804,6 +804,9 @@ Design extended_linearization_design() {
        "the origin, nominal input"}};
   d.plan = work_plan<ExtendedLinearization, extended_linearization, verdict_of, build_from>;
   d.max_outputs = 1;
+  d.outputs_note =
+      "seed 001 §5 builds the injection k(y) from one output's series along the equilibrium "
+      "family; its extension to p outputs (square, or one output per block) is not built";
   return d;
 }
 

@@ -1299,6 +1299,9 @@ Design finite_time_design() {
     return std::make_unique<FiniteTimePlan>(a, o);
   };
   d.max_outputs = 1;
+  d.outputs_note =
+      "seed 004's delay line and tabulated inverse are built for a scalar y; a vector y "
+      "multiplies the table dimensions and is not built";
   d.in_all = false;  // tables of 10^4..10^6 entries: by name only, not by auto or all
   d.observes_output_offset = false;  // feeds y itself to its filter bank
   return d;

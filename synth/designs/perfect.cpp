@@ -45,10 +45,10 @@ ExVec z_of_jets(const Analysis& a, const Jets& j) {
   const Model& m = a.model;
   const CanonicalForm& cf = a.canonical;
   const std::size_t n = m.n();
-  GiNaC::exmap to_jets{{cf.y, j.y[0]}};
+  GiNaC::exmap to_jets{{cf.y[0], j.y[0]}};
   for (std::size_t k = 0; k < m.m(); ++k) to_jets[m.inputs[k]] = j.u[k][0];
   ExVec z(n, 0);
-  z[n - 1] = j.y[0] - output_at_base_point(a);
+  z[n - 1] = j.y[0] - outputs_at_base_point(a)[0];
   for (std::size_t i = n - 1; i >= 1; --i)
     z[i - 1] = simplify(total_derivative(z[i], j) - cf.l[i].subs(to_jets));
   return z;
@@ -136,7 +136,7 @@ void add_canonical_functions(ObserverSpec& s, const Model& m, const CanonicalFor
                            "State"});
   s.functions.push_back({"l",
                          "Output injection l(u, y) of the canonical form z' = A z + l(u, y).",
-                         {input_arg(m), output_arg({cf.y})},
+                         {input_arg(m), output_arg(cf.y)},
                          {},
                          cf.l,
                          n,
@@ -243,6 +243,10 @@ Design perfect_design() {
   d.options = {{"epsilon", "perfect observer: differentiator time constant", "0.01"}};
   d.plan = stateless_plan<applies, build>;
   d.observes_output_offset = false;  // differentiates y itself
+  d.max_outputs = 1;
+  d.outputs_note =
+      "its differentiators take one output's jets (y, y', ..., y^(n-1)); a jet per output is not "
+      "built (the canonical observer uses the same block canonical form)";
   return d;
 }
 

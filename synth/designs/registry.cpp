@@ -65,8 +65,9 @@ Verdict design_verdict(const Design& d, Plan& plan, const Analysis& a, bool asse
   const Model& m = a.model;
   Verdict v;
   if (d.max_outputs != 0 && m.p() > d.max_outputs) {
-    v.reasons.push_back(fmt::format("the design handles {} output{}; the model has p = {}",
-                                    d.max_outputs, d.max_outputs == 1 ? "" : "s", m.p()));
+    v.reasons.push_back(fmt::format("the design handles {} output{}; the model has p = {}{}",
+                                    d.max_outputs, d.max_outputs == 1 ? "" : "s", m.p(),
+                                    d.outputs_note.empty() ? "" : ": " + d.outputs_note));
     return v;
   }
   if (!m.output_offset.empty() && !d.observes_output_offset) {

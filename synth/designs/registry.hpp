@@ -136,6 +136,7 @@ struct Design {
   bool has_assessment = false;
   // How many outputs it handles (0: any number); the registry refuses more with that reason.
   std::size_t max_outputs = 0;
+  std::string outputs_note;  // why no more outputs (appended to the refusal)
   // Whether it can observe a state that the drift alone does not, along persistent inputs
   // (persistent_input_designs names it, with this note); and whether it needs the model
   // uniformly observable for that.

@@ -17,6 +17,7 @@
 using Scalar = C_(scalar);
 constexpr int n = C_(n);
 constexpr int m = C_(m);
+constexpr int p = C_(p);
 
 // Generated functions take the run-time parameters before their output when the model has any.
 #if OBSYNTH_HAS_PARAMS
@@ -71,7 +72,7 @@ void compare(const Scalar* got, const double* want, int size, double tol, const 
 void numeric_equivalence(double tol) {
   for (int k = 0; k < ref::kPoints; ++k) {
     [[maybe_unused]] const Params prm = params(k % ref::kParamSets);
-    Scalar x[n], out[n], z[n], c[n], u[m > 0 ? m : 1] = {}, y[1];
+    Scalar x[n], out[n], z[n], c[n], u[m > 0 ? m : 1] = {}, y[p];
     load(x, ref::x[k], n);
     if (m > 0) load(u, ref::u[k], m);
     C_(f)(x, PRM(prm) out);
@@ -79,7 +80,7 @@ void numeric_equivalence(double tol) {
     C_(g)(x, u, PRM(prm) out);
     compare(out, ref::g[k], n, tol, "g");
     C_(h)(x, PRM(prm) y);
-    compare(y, ref::h[k], 1, tol, "h");
+    compare(y, ref::h[k], p, tol, "h");
     C_(l)(u, y, PRM(prm) out);
     compare(out, ref::l[k], n, tol, "l");
 #if OBSYNTH_HAS_T
@@ -114,7 +115,8 @@ void numeric_equivalence(double tol) {
 #else
     // The x realisation: xh' = f + g + [tau] (l(u, y) - l(u, h(xh)) + K (y - h(xh))), at an
     // output that differs from h(x) so that the injection acts.
-    Scalar yy[1] = {static_cast<Scalar>(y[0] + static_cast<Scalar>(0.1))};
+    Scalar yy[p];
+    for (int q = 0; q < p; ++q) yy[q] = static_cast<Scalar>(y[q] + static_cast<Scalar>(0.1));
     C_(x_rhs)(x, u, yy, PRM(prm) out);
     compare(out, ref::x_rhs[k], n, tol, "x_rhs");
     (void)c;
@@ -168,7 +170,7 @@ double closed_loop_zoh(double dt, int set) {
   double floor = 0;
   for (int k = 0; k < steps; ++k) {
     const double t = k * dt;
-    Scalar u[m > 0 ? m : 1] = {}, xs[n], y[1];
+    Scalar u[m > 0 ? m : 1] = {}, xs[n], y[p];
     if (m > 0) u[0] = static_cast<Scalar>(input(t));
     load(xs, x, n);
     C_(h)(xs, PRM(prm) y);
@@ -196,7 +198,7 @@ bool keeps_state_on_non_finite_estimate() {
   Scalar w0[N], x0[n];
   for (int i = 0; i < N; ++i) w0[i] = obs.w[i];
   for (int i = 0; i < n; ++i) x0[i] = obs.xh[i];
-  Scalar u[m > 0 ? m : 1] = {}, y[1] = {};
+  Scalar u[m > 0 ? m : 1] = {}, y[p] = {};
   const auto st = C_(step)(&obs, static_cast<Scalar>(1e-3), u, y);
   bool finite = true;
   for (int i = 0; i < n; ++i) finite = finite && std::isfinite(obs.xh[i]);
@@ -224,7 +226,8 @@ void keeps_state_on_non_finite_measurement() {
     Scalar w0[N], x0[n];
     for (int i = 0; i < N; ++i) w0[i] = obs.w[i];
     for (int i = 0; i < n; ++i) x0[i] = obs.xh[i];
-    Scalar u[m > 0 ? m : 1] = {}, y[1] = {bad};
+    Scalar u[m > 0 ? m : 1] = {}, y[p];
+    for (int q = 0; q < p; ++q) y[q] = bad;
     const auto st = C_(step)(&obs, static_cast<Scalar>(1e-3), u, y);
     expect(st == C_(non_finite), "non-finite measurement: status non_finite");
     bool same = true;

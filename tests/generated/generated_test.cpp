@@ -102,7 +102,7 @@ void numeric_equivalence(double tol) {
     S::g(x, u, PRM(prm) out);
     compare(out, ref::g[k], gen::n, tol, "g");
     S::h(x, PRM(prm) y);
-    compare(y, ref::h[k], 1, tol, "h");
+    compare(y, ref::h[k], gen::p, tol, "h");
     S::l(u, y, PRM(prm) out);
     compare(out, ref::l[k], gen::n, tol, "l");
 #if OBSYNTH_HAS_T
@@ -146,7 +146,7 @@ void numeric_equivalence(double tol) {
              ref::exact_step[k][i]);
 #else
     typename S::Output yy;
-    yy(0) = y(0) + static_cast<Scalar>(0.1);
+    yy = y + S::Output::Constant(static_cast<Scalar>(0.1));
     S::x_rhs(x, u, yy, PRM(prm) out);
     compare(out, ref::x_rhs[k], gen::n, tol, "x_rhs");
 #endif
@@ -269,7 +269,7 @@ template <class Scalar>
     D::Output y;
     plant.output(x, y);
     typename S::Output ys;
-    ys(0) = static_cast<Scalar>(y(0));
+    ys = y.template cast<Scalar>();
     counter.restart();
     obs.step(static_cast<Scalar>(dt), u, ys);
     allocs += counter.allocations();

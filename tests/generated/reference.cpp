@@ -42,12 +42,11 @@ std::string array(const std::string& name, const Table& rows) {
   return s + "};\n";
 }
 
-// Coefficients c_0..c_{n-1} of prod (s - pole) = s^n + c_{n-1} s^{n-1} + ... + c_0, by
+// Coefficients c_0..c_{k-1} of prod (s - pole) = s^k + c_{k-1} s^{k-1} + ... + c_0, by
 // repeated multiplication of the coefficient vector (design.md §1: K_i = c_{i-1}).
-std::vector<GiNaC::numeric> characteristic_coefficients(std::size_t n) {
+std::vector<GiNaC::numeric> characteristic_coefficients(const std::vector<GiNaC::numeric>& poles) {
   std::vector<GiNaC::numeric> c = {1};  // low degree first
-  for (std::size_t k = 0; k < n; ++k) {
-    const GiNaC::numeric pole = -2 - GiNaC::numeric(static_cast<long>(k), 2);  // the defaults
+  for (const auto& pole : poles) {
     std::vector<GiNaC::numeric> next(c.size() + 1, 0);
     for (std::size_t i = 0; i < c.size(); ++i) {
       next[i + 1] += c[i];
@@ -55,20 +54,22 @@ std::vector<GiNaC::numeric> characteristic_coefficients(std::size_t n) {
     }
     c = next;
   }
-  c.pop_back();  // the monic s^n
+  c.pop_back();  // the monic s^k
   return c;
 }
 
-// Phi = V diag(e^{p dt}) V^-1 and Gamma = V diag((e^{p dt} - 1) / p) V^-1 from the
-// eigenvectors of the companion matrix A_cl (distinct default poles p; v_n = 1 and
-// v_{i-1} = p v_i + c_i from (A_cl v)_i = v_{i-1} - c_i v_n), in exact arithmetic up to the
-// exponentials: independent of the runtime's scaling and squaring and of simulate's Pade.
-void exact_discretisation(const std::vector<GiNaC::numeric>& c, const GiNaC::numeric& dt,
-                          GiNaC::matrix& Phi, GiNaC::matrix& Gamma) {
+// Phi = V diag(e^{p dt}) V^-1 and Gamma = V diag((e^{p dt} - 1) / p) V^-1 of one block from
+// the eigenvectors of its companion matrix (distinct poles p; v_k = 1 and v_{i-1} = p v_i +
+// c_i from (A_cl v)_i = v_{i-1} - c_i v_k), in exact arithmetic up to the exponentials:
+// independent of the runtime's scaling and squaring and of simulate's Pade. Written into the
+// diagonal block at `at` of Phi and Gamma.
+void exact_discretisation(const std::vector<GiNaC::numeric>& poles, const GiNaC::numeric& dt,
+                          unsigned at, GiNaC::matrix& Phi, GiNaC::matrix& Gamma) {
+  const auto c = characteristic_coefficients(poles);
   const unsigned n = static_cast<unsigned>(c.size());
   GiNaC::matrix V(n, n), E(n, n), D(n, n);
   for (unsigned k = 0; k < n; ++k) {
-    const GiNaC::numeric p = -2 - GiNaC::numeric(static_cast<long>(k), 2);
+    const GiNaC::numeric p = poles[k];
     ex v = 1;
     V(n - 1, k) = 1;
     for (unsigned i = n - 1; i >= 1; --i) {
@@ -79,8 +80,12 @@ void exact_discretisation(const std::vector<GiNaC::numeric>& c, const GiNaC::num
     D(k, k) = (GiNaC::exp(p * dt) - 1) / p;
   }
   const GiNaC::matrix Vi = V.inverse();
-  Phi = V.mul(E).mul(Vi);
-  Gamma = V.mul(D).mul(Vi);
+  const GiNaC::matrix P = V.mul(E).mul(Vi), G = V.mul(D).mul(Vi);
+  for (unsigned i = 0; i < n; ++i)
+    for (unsigned j = 0; j < n; ++j) {
+      Phi(at + i, at + j) = P(i, j);
+      Gamma(at + i, at + j) = G(i, j);
+    }
 }
 
 std::string class_name(const std::string& model) {
@@ -148,18 +153,32 @@ int main(int argc, char** argv) {
     const bool has_T = cf.T_kind == Availability::symbolic;
     const bool has_Tinv = cf.T_inverse_kind == Availability::symbolic;
     const bool z_real = has_T && has_Tinv;
-    const auto c = characteristic_coefficients(n);
+    // The poles the design is given, -(2 + k/2) in state order, taken block by block; each
+    // block is a companion matrix of its own poles (ones on the subdiagonal, -c in the last
+    // column), its output the block's last coordinate.
+    const unsigned un = static_cast<unsigned>(n);
+    std::vector<GiNaC::numeric> c(n);  // K, block by block
+    std::vector<std::size_t> output_of(n);
+    GiNaC::matrix Acl(un, un), Phi(un, un), Gamma(un, un);
+    for (std::size_t b = 0, start = 0; b < cf.blocks.size(); start += cf.blocks[b++]) {
+      std::vector<GiNaC::numeric> poles;
+      for (std::size_t k = 0; k < cf.blocks[b]; ++k)
+        poles.push_back(-2 - GiNaC::numeric(static_cast<long>(start + k), 2));
+      const auto cb = characteristic_coefficients(poles);
+      const std::size_t end = start + cf.blocks[b] - 1;
+      for (std::size_t k = 0; k < cf.blocks[b]; ++k) {
+        const unsigned i = static_cast<unsigned>(start + k);
+        c[start + k] = cb[k];
+        output_of[start + k] = b;
+        if (k > 0) Acl(i, i - 1) = 1;
+        Acl(i, static_cast<unsigned>(end)) = Acl(i, static_cast<unsigned>(end)) - cb[k];
+      }
+      exact_discretisation(poles, GiNaC::numeric(1, 20), static_cast<unsigned>(start), Phi, Gamma);
+    }
     GiNaC::exmap at_x0;
     for (std::size_t i = 0; i < n; ++i) at_x0[m.states[i]] = cf.base_point[i];
-    const ex y0 = m.h[0].subs(at_x0);
-    // A_cl = A - K e_n^T with ones on the subdiagonal.
-    GiNaC::matrix Acl(static_cast<unsigned>(n), static_cast<unsigned>(n));
-    for (unsigned i = 0; i < n; ++i) {
-      if (i > 0) Acl(i, i - 1) = 1;
-      Acl(i, static_cast<unsigned>(n - 1)) = Acl(i, static_cast<unsigned>(n - 1)) - c[i];
-    }
-    GiNaC::matrix Phi, Gamma;
-    exact_discretisation(c, GiNaC::numeric(1, 20), Phi, Gamma);
+    ExVec y0;
+    for (const auto& h : m.h) y0.push_back(h.subs(at_x0));
 
     const Points pts = sample(m);
     Table X, U, F, G, H, T, Z, Tinv, L, FR, C, ZR, XR, STEP, STEP_SCALE;
@@ -170,13 +189,17 @@ int main(int argc, char** argv) {
       for (const auto& s : m.inputs) u.push_back(value(s, pt));
       for (const auto& e : m.f) f.push_back(value(e, pt));
       for (const auto& e : m.g) g.push_back(value(e, pt));
-      H.push_back({value(m.h[0], pt)});
+      std::vector<std::string> hv;
       GiNaC::exmap ypt(pt);
-      ypt[cf.y] = m.h[0].subs(pt);
+      for (std::size_t q = 0; q < m.p(); ++q) {
+        hv.push_back(value(m.h[q], pt));
+        ypt[cf.y[q]] = m.h[q].subs(pt);
+      }
+      H.push_back(hv);
       ExVec cval;
       for (std::size_t i = 0; i < n; ++i) {
         l.push_back(value(cf.l[i], ypt));
-        const ex ci = cf.l[i] + c[i] * (cf.y - y0);
+        const ex ci = cf.l[i] + c[i] * (cf.y[output_of[i]] - y0[output_of[i]]);
         cc.push_back(value(ci, ypt));
         DigitsGuard dg(30);
         cval.push_back(GiNaC::evalf(ci.subs(ypt)));
@@ -210,8 +233,10 @@ int main(int argc, char** argv) {
         for (std::size_t r = 0; r < n; ++r) fr.push_back(value(cf.frame[k][r], pt));
       // x realisation at (x, u, y = h(x) + 1/10): f + g + [tau] (l(u,y) - l(u,h) + K (y - h)).
       GiNaC::exmap ypx(pt), yh(pt);
-      ypx[cf.y] = m.h[0].subs(pt) + GiNaC::numeric(1, 10);
-      yh[cf.y] = m.h[0].subs(pt);
+      for (std::size_t q = 0; q < m.p(); ++q) {
+        ypx[cf.y[q]] = m.h[q].subs(pt) + GiNaC::numeric(1, 10);
+        yh[cf.y[q]] = m.h[q].subs(pt);
+      }
       for (std::size_t r = 0; r < n; ++r) {
         ex acc = m.field()[r].subs(pt);
         for (std::size_t k = 0; k < n; ++k)
