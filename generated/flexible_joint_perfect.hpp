@@ -53,7 +53,7 @@ struct PerfectFunctions {
   using Input = Eigen::Matrix<Scalar, m, 1>;
   using Output = Eigen::Matrix<Scalar, p, 1>;
   using Frame = Eigen::Matrix<Scalar, n, n>;
-  using YJet = Eigen::Matrix<Scalar, 4, 1>;  ///< y, y', ...
+  using YJet = Eigen::Matrix<Scalar, p * 4, 1>;  ///< y_1, y_1', ..., then y_2, ...
   using UJet = Eigen::Matrix<Scalar, m, 3>;  ///< row j: u_j, u_j', ...
 
   /// Drift f(x).
@@ -134,7 +134,7 @@ struct PerfectFunctions {
 };
 
 /// Perfect observer (seed 003, Theorem 1 and Procedure 1): the state as an explicit function
-/// of the jets of y (up to y^(3)) and of u ( (up to u^(0))), estimated by
+/// of the jets of y (up to y^(3), per output) and of u ( (up to u^(0))), estimated by
 /// obsynth::JetDifferentiator (a linear high-gain differentiator; its error is documented
 /// in obsynth/differentiator.hpp: O(epsilon^(K+1-k)) truncation, noise amplified by
 /// epsilon^-k for the k-th derivative).
@@ -154,29 +154,36 @@ class FlexibleJointPerfect {
 
   FlexibleJointPerfect() noexcept { reset(State::Zero()); }
   /// epsilon: the differentiators' time constant (smaller: faster and more noise-sensitive).
-  explicit FlexibleJointPerfect(Scalar epsilon) noexcept : y_diff_(epsilon) {
+  explicit FlexibleJointPerfect(Scalar epsilon) noexcept {
+    for (auto& d : y_diff_) d.set_epsilon(epsilon);
     for (auto& d : u_diff_) d.set_epsilon(epsilon);
     reset(State::Zero());
   }
 
-  /// Starts the output differentiator at h(xh0) and the input differentiators at 0.
+  /// Starts the output differentiators at h(xh0) and the input differentiators at 0.
   void reset(const State& xh0) noexcept {
     xh_ = xh0;
     Output y0;
     F::h(xh0, y0);
-    y_diff_.reset(y0(0));
+    for (int q = 0; q < p; ++q) y_diff_[static_cast<unsigned>(q)].reset(y0(q));
     for (auto& d : u_diff_) d.reset(Scalar(0));
     status_ = obsynth::Status::ok;
   }
 
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
-    obsynth::Status s = y_diff_.update(dt, y(0));
+    obsynth::Status s = obsynth::Status::ok;
+    for (int q = 0; q < p; ++q) {
+      const obsynth::Status sy = y_diff_[static_cast<unsigned>(q)].update(dt, y(q));
+      if (sy != obsynth::Status::ok) s = sy;
+    }
     for (int j = 0; j < m; ++j) {
       const obsynth::Status su = u_diff_[static_cast<unsigned>(j)].update(dt, u(j));
       if (su != obsynth::Status::ok) s = su;
     }
     if (s != obsynth::Status::ok) return status_ = s;
-    const typename F::YJet yj = y_diff_.jet();
+    typename F::YJet yj;
+    for (int q = 0; q < p; ++q)
+      yj.template segment<4>(q * 4) = y_diff_[static_cast<unsigned>(q)].jet();
     typename F::UJet uj;
     for (int j = 0; j < m; ++j) uj.row(j) = u_diff_[static_cast<unsigned>(j)].jet().transpose();
     State x;
@@ -191,7 +198,7 @@ class FlexibleJointPerfect {
   obsynth::Status status() const noexcept { return status_; }
 
  private:
-  YDifferentiator y_diff_;
+  YDifferentiator y_diff_[p];
   UDifferentiator u_diff_[m > 0 ? m : 1];
   State xh_;
   obsynth::Status status_ = obsynth::Status::ok;

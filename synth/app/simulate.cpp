@@ -185,7 +185,7 @@ bool exact_discretisation(const ObserverSpec& s, double dt, Vec& E, Vec& Gamma) 
   E.assign(n * n, 0.0);
   Gamma.assign(n * n, 0.0);
   return c_double::obsynth_discretise(A.data(), static_cast<int>(n), dt, E.data(), Gamma.data(),
-                                     work.data()) != 0;
+                                      work.data()) != 0;
 }
 
 // One observer run: its state w, estimate xh, and how both advance.
@@ -277,7 +277,7 @@ class SpecObserver {
       if (!b.keep_positive_definite) continue;
       Vec work(b.dim * b.dim + b.dim);
       if (!c_double::obsynth_packed_positive_definite(w_.data(), static_cast<int>(b.offset),
-                                                     static_cast<int>(b.dim), work.data()))
+                                                      static_cast<int>(b.dim), work.data()))
         rejected_ = b.name + " is no longer positive definite";
     }
   }
@@ -293,7 +293,7 @@ class SpecObserver {
       for (const auto& b : s_.symmetric_blocks)
         if (b.name == k.matrix_block)
           c_double::obsynth_unpack_symmetric(w.data(), static_cast<int>(b.offset),
-                                            static_cast<int>(b.dim), M.data());
+                                             static_cast<int>(b.dim), M.data());
     }
     const Vec v = fn_(k.vector_function)(concat(concat(w, u), y));
     Vec x(d);
@@ -319,22 +319,27 @@ class SpecObserver {
 class JetsObserver {
  public:
   JetsObserver(const ObserverSpec& s, const GiNaC::exmap& params, const SimulationOptions& o,
-               std::size_t inputs)
+               std::size_t inputs, std::size_t outputs)
       : s_(s), fn_(s, params), o_(o) {
-    y_ = make_jet(s.y_jet_order, s.default_epsilon);
+    for (std::size_t q = 0; q < outputs; ++q)
+      y_.push_back(make_jet(s.y_jet_order, s.default_epsilon));
     for (std::size_t j = 0; j < inputs; ++j)
       u_.push_back(make_jet(s.u_jet_order, s.default_epsilon));
   }
-  void reset(const Vec& xh0, double y0) {
+  void reset(const Vec& xh0, const Vec& y0) {
     xh_ = xh0;
-    y_->reset(y0);
+    for (std::size_t q = 0; q < y_.size(); ++q) y_[q]->reset(y0[q]);
     for (auto& d : u_) d->reset(0);
   }
-  void update(double dt, const Vec& u, double y) {
-    y_->update(dt, y);
+  void update(double dt, const Vec& u, const Vec& y) {
+    for (std::size_t q = 0; q < y_.size(); ++q) y_[q]->update(dt, y[q]);
     for (std::size_t j = 0; j < u_.size(); ++j) u_[j]->update(dt, u[j]);
-    // Arguments (yj, uj) with uj column-major: order k outer, input j inner.
-    Vec in = y_->jet();
+    // Arguments (yj, uj): yj output by output; uj column-major (order k outer, input j inner).
+    Vec in;
+    for (const auto& d : y_) {
+      const Vec jet = d->jet();
+      in.insert(in.end(), jet.begin(), jet.end());
+    }
     const std::size_t orders = s_.u_jet_order + 1;
     for (std::size_t k = 0; k < orders; ++k)
       for (const auto& d : u_) in.push_back(d->jet()[k]);
@@ -350,8 +355,7 @@ class JetsObserver {
   const ObserverSpec& s_;
   SpecFunctions fn_;
   const SimulationOptions& o_;
-  std::unique_ptr<Jet> y_;
-  std::vector<std::unique_ptr<Jet>> u_;
+  std::vector<std::unique_ptr<Jet>> y_, u_;
   Vec xh_;
 };
 
@@ -670,7 +674,7 @@ void run_sampled_delay_observer(const Plant& plant, SampledDelayObserver& obs,
 void run_jets_observer(const Plant& plant, JetsObserver& obs, const SimulationOptions& opt,
                        std::size_t steps, Recorder& rec) {
   Vec x = opt.x0;
-  obs.reset(opt.xhat0, plant.y(0, opt.xhat0)[0]);
+  obs.reset(opt.xhat0, plant.y(0, opt.xhat0));
   if (!rec.record(0, x, obs.estimate(), "observer")) return;
   for (std::size_t k = 0; k < steps; ++k) {
     const double t = static_cast<double>(k) * opt.dt, t1 = static_cast<double>(k + 1) * opt.dt;
@@ -679,7 +683,7 @@ void run_jets_observer(const Plant& plant, JetsObserver& obs, const SimulationOp
       rec.record(t1, x, obs.estimate(), "observer");
       return;
     }
-    obs.update(opt.dt, plant.inputs({t1}), plant.y(t1, x)[0]);
+    obs.update(opt.dt, plant.inputs({t1}), plant.y(t1, x));
     if (!rec.record(t1, x, obs.estimate(), "observer")) return;
   }
 }
@@ -812,7 +816,7 @@ SimulationResult run_closed_loop(const Analysis& a, const ObserverSpec& spec,
   res.names = names_of(m.states);
   Recorder rec{res};
   if (spec.update == UpdateKind::jets) {
-    JetsObserver obs(spec, params, opt, m.m());
+    JetsObserver obs(spec, params, opt, m.m(), m.p());
     run_jets_observer(plant, obs, opt, steps, rec);
   } else if (spec.update == UpdateKind::sampled_delay) {
     SampledDelayObserver obs(spec);

@@ -18,14 +18,21 @@ using GiNaC::ex;
 namespace {
 
 struct Jets {
-  std::vector<GiNaC::symbol> y;               // y, y', ..., y^(n-1)
+  std::vector<std::vector<GiNaC::symbol>> y;  // per output: y_q, y_q', ..., y_q^(n-1)
   std::vector<std::vector<GiNaC::symbol>> u;  // per input: u, u', ..., u^(n-2)
+  // The YJet vector, output by output (y_1, y_1', ..., y_2, ...).
+  std::vector<GiNaC::symbol> y_flat() const {
+    std::vector<GiNaC::symbol> out;
+    for (const auto& jet : y) out.insert(out.end(), jet.begin(), jet.end());
+    return out;
+  }
 };
 
 Jets jet_symbols(const Model& m) {
   Jets j;
   const std::size_t n = m.n();
-  j.y = fresh_symbols(m, "y_d", n, 0);
+  const auto outputs = measurement_symbols(m);
+  for (const auto& y : outputs) j.y.push_back(fresh_symbols(m, y.get_name() + "_d", n, 0));
   for (const auto& u : m.inputs)
     j.u.push_back(fresh_symbols(m, u.get_name() + "_d", std::max<std::size_t>(n, 2) - 1, 0));
   return j;
@@ -34,32 +41,38 @@ Jets jet_symbols(const Model& m) {
 // Total time derivative of a function of the jets.
 ex total_derivative(const ex& phi, const Jets& j) {
   ex acc = 0;
-  for (std::size_t k = 0; k + 1 < j.y.size(); ++k) acc += phi.diff(j.y[k]) * j.y[k + 1];
+  for (const auto& jet : j.y)
+    for (std::size_t k = 0; k + 1 < jet.size(); ++k) acc += phi.diff(jet[k]) * jet[k + 1];
   for (const auto& jet : j.u)
     for (std::size_t k = 0; k + 1 < jet.size(); ++k) acc += phi.diff(jet[k]) * jet[k + 1];
   return simplify(acc);
 }
 
-// Procedure 1: z_n = y - y0, z_{i-1} = d/dt z_i - l_i(u, y).
+// Procedure 1, block by block: z_{q,k_q} = y_q - y0_q, z_{i-1} = d/dt z_i - l_i(u, y).
 ExVec z_of_jets(const Analysis& a, const Jets& j) {
   const Model& m = a.model;
   const CanonicalForm& cf = a.canonical;
-  const std::size_t n = m.n();
-  GiNaC::exmap to_jets{{cf.y[0], j.y[0]}};
+  GiNaC::exmap to_jets;
+  for (std::size_t q = 0; q < m.p(); ++q) to_jets[cf.y[q]] = j.y[q][0];
   for (std::size_t k = 0; k < m.m(); ++k) to_jets[m.inputs[k]] = j.u[k][0];
-  ExVec z(n, 0);
-  z[n - 1] = j.y[0] - outputs_at_base_point(a)[0];
-  for (std::size_t i = n - 1; i >= 1; --i)
-    z[i - 1] = simplify(total_derivative(z[i], j) - cf.l[i].subs(to_jets));
+  const ExVec y0 = outputs_at_base_point(a);
+  ExVec z(m.n(), 0);
+  for (std::size_t q = 0; q < cf.outputs(); ++q) {
+    const std::size_t end = cf.block_end(q);
+    z[end] = j.y[q][0] - y0[q];
+    for (std::size_t i = end; i > cf.block_start(q); --i)
+      z[i - 1] = simplify(total_derivative(z[i], j) - cf.l[i].subs(to_jets));
+  }
   return z;
 }
 
 // Highest derivative order of each jet that the expressions use.
 void used_orders(const ExVec& used, const Jets& j, ObserverSpec& s) {
   s.y_order_used = 0;
-  for (std::size_t k = 0; k < j.y.size(); ++k)
-    for (const auto& e : used)
-      if (e.has(j.y[k])) s.y_order_used = std::max(s.y_order_used, k);
+  for (const auto& jet : j.y)
+    for (std::size_t k = 0; k < jet.size(); ++k)
+      for (const auto& e : used)
+        if (e.has(jet[k])) s.y_order_used = std::max(s.y_order_used, k);
   s.u_orders_used.assign(j.u.size(), 0);
   for (std::size_t q = 0; q < j.u.size(); ++q)
     for (std::size_t k = 0; k < j.u[q].size(); ++k)
@@ -97,7 +110,7 @@ GeneratedFunction jet_function(const std::string& name, const std::string& doc, 
   GeneratedFunction f;
   f.name = name;
   f.doc = doc;
-  FunctionArg yj = vector_arg("yj", "YJet", j.y);
+  FunctionArg yj = vector_arg("yj", "YJet", j.y_flat());
   FunctionArg uj;
   uj.kind = FunctionArg::Kind::matrix;
   uj.name = "uj";
@@ -243,10 +256,6 @@ Design perfect_design() {
   d.options = {{"epsilon", "perfect observer: differentiator time constant", "0.01"}};
   d.plan = stateless_plan<applies, build>;
   d.observes_output_offset = false;  // differentiates y itself
-  d.max_outputs = 1;
-  d.outputs_note =
-      "its differentiators take one output's jets (y, y', ..., y^(n-1)); a jet per output is not "
-      "built (the canonical observer uses the same block canonical form)";
   return d;
 }
 

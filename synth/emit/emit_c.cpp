@@ -241,15 +241,18 @@ void {{P}}_init({{P}}_observer* o) {
 const char* kStepJets = R"(
 /* Advances the differentiators with the samples u, y and rebuilds the state from the jets. */
 {{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
-  Scalar yj[{{ky1}}], uj[{{m1}} * {{ku1}}]; /* uj: m x (K_u + 1), column-major */
+  /* yj: y_1, y_1', ..., then y_2, ...; uj: m x (K_u + 1), column-major */
+  Scalar yj[{{P}}_p * {{ky1}}], uj[{{m1}} * {{ku1}}];
   Scalar work[{{work}}]; /* the differentiators' scratch (obsynth_jet_update) */
-  int j, ok = obsynth_jet_update(o->y_eta, o->y_phi, &o->y_dt, &o->y_prev, {{ky}}, o->epsilon, dt,
-                                 y[0], work);
+  int j, ok = 1;
+  for (j = 0; j < {{P}}_p; ++j)
+    ok = obsynth_jet_update(o->y_eta[j], o->y_phi[j], &o->y_dt[j], &o->y_prev[j], {{ky}},
+                            o->epsilon, dt, y[j], work) && ok;
   for (j = 0; j < {{P}}_m; ++j)
     ok = obsynth_jet_update(o->u_eta[j], o->u_phi[j], &o->u_dt[j], &o->u_prev[j], {{ku}},
                             o->epsilon, dt, u[j], work) && ok;
   if (!ok) return o->status = {{P}}_non_finite;
-  obsynth_jet_read(o->y_eta, {{ky}}, o->epsilon, yj, 1);
+  for (j = 0; j < {{P}}_p; ++j) obsynth_jet_read(o->y_eta[j], {{ky}}, o->epsilon, yj + j * {{ky1}}, 1);
   uj[0] = {{zero}};
   for (j = 0; j < {{P}}_m; ++j) obsynth_jet_read(o->u_eta[j], {{ku}}, o->epsilon, uj + j, {{m1}});
   {{reconstruct}}(yj, uj{{PRM}}, o->w);
@@ -665,7 +668,8 @@ std::string jet_members(const ObserverSpec& s, const std::string& P, std::size_t
                     m1 = std::max<std::size_t>(m, 1);
   return fmt::format(
       "  {0}_scalar epsilon; /* the differentiators' time constant */\n"
-      "  {0}_scalar y_eta[{1}], y_phi[{1} * {1}], y_dt, y_prev; /* output differentiator */\n"
+      "  {0}_scalar y_eta[{0}_p][{1}], y_phi[{0}_p][{1} * {1}], y_dt[{0}_p], y_prev[{0}_p]; /* "
+      "outputs */\n"
       "  {0}_scalar u_eta[{2}][{3}], u_phi[{2}][{3} * {3}], u_dt[{2}], u_prev[{2}]; /* inputs */\n",
       P, ky, m1, ku);
 }
@@ -674,7 +678,7 @@ std::string jet_members(const ObserverSpec& s, const std::string& P, std::size_t
 std::string jet_reset_body(const ObserverSpec& s, CBuilder& b, const std::string& prm) {
   return fmt::format(
       "  {{\n    Scalar y0[{0}_p];\n    {1}(xh0{2}, y0);\n"
-      "    obsynth_jet_reset(o->y_eta, &o->y_prev, {3}, y0[0]);\n"
+      "    for (i = 0; i < {0}_p; ++i) obsynth_jet_reset(o->y_eta[i], &o->y_prev[i], {3}, y0[i]);\n"
       "    for (i = 0; i < {0}_m; ++i) obsynth_jet_reset(o->u_eta[i], &o->u_prev[i], {4}, {5});\n"
       "  }}\n",
       b.prefix(), b.fn("h"), prm, s.y_jet_order, s.u_jet_order, b.lit(0));
@@ -682,8 +686,9 @@ std::string jet_reset_body(const ObserverSpec& s, CBuilder& b, const std::string
 
 std::string jet_init_body(const ObserverSpec& s, CBuilder& b, Precision p) {
   return fmt::format(
-      "  o->epsilon = {0};\n  o->y_dt = {1};\n"
-      "  {{\n    int j;\n    for (j = 0; j < {2}_m; ++j) o->u_dt[j] = {1};\n  }}\n",
+      "  o->epsilon = {0};\n"
+      "  {{\n    int j;\n    for (j = 0; j < {2}_p; ++j) o->y_dt[j] = {1};\n"
+      "    for (j = 0; j < {2}_m; ++j) o->u_dt[j] = {1};\n  }}\n",
       c_scalar_literal(GiNaC::numeric(s.default_epsilon), p), b.lit(-1), b.prefix());
 }
 

@@ -329,7 +329,7 @@ const char* kEstimateNewton =
 
 const char* kPerfectClass =
     R"(/// Perfect observer (seed 003, Theorem 1 and Procedure 1): the state as an explicit function
-/// of the jets of y (up to y^({{y_order}})) and of u{{u_orders}}, estimated by
+/// of the jets of y (up to y^({{y_order}}), per output) and of u{{u_orders}}, estimated by
 /// obsynth::JetDifferentiator (a linear high-gain differentiator; its error is documented
 /// in obsynth/differentiator.hpp: O(epsilon^(K+1-k)) truncation, noise amplified by
 /// epsilon^-k for the k-th derivative).
@@ -338,29 +338,36 @@ const char* kPerfectClass =
 
   {{class_name}}() noexcept { reset(State::Zero()); }
   /// epsilon: the differentiators' time constant (smaller: faster and more noise-sensitive).
-  explicit {{class_name}}(Scalar epsilon) noexcept : y_diff_(epsilon) {
+  explicit {{class_name}}(Scalar epsilon) noexcept {
+    for (auto& d : y_diff_) d.set_epsilon(epsilon);
     for (auto& d : u_diff_) d.set_epsilon(epsilon);
     reset(State::Zero());
   }
 {{params_api}}
-  /// Starts the output differentiator at h(xh0) and the input differentiators at 0.
+  /// Starts the output differentiators at h(xh0) and the input differentiators at 0.
   void reset(const State& xh0) noexcept {
     xh_ = xh0;
     Output y0;
     F::h(xh0{{P}}, y0);
-    y_diff_.reset(y0(0));
+    for (int q = 0; q < p; ++q) y_diff_[static_cast<unsigned>(q)].reset(y0(q));
     for (auto& d : u_diff_) d.reset(Scalar(0));
     status_ = obsynth::Status::ok;
   }
 
   obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
-    obsynth::Status s = y_diff_.update(dt, y(0));
+    obsynth::Status s = obsynth::Status::ok;
+    for (int q = 0; q < p; ++q) {
+      const obsynth::Status sy = y_diff_[static_cast<unsigned>(q)].update(dt, y(q));
+      if (sy != obsynth::Status::ok) s = sy;
+    }
     for (int j = 0; j < m; ++j) {
       const obsynth::Status su = u_diff_[static_cast<unsigned>(j)].update(dt, u(j));
       if (su != obsynth::Status::ok) s = su;
     }
     if (s != obsynth::Status::ok) return status_ = s;
-    const typename F::YJet yj = y_diff_.jet();
+    typename F::YJet yj;
+    for (int q = 0; q < p; ++q)
+      yj.template segment<{{y_jet_size}}>(q * {{y_jet_size}}) = y_diff_[static_cast<unsigned>(q)].jet();
     typename F::UJet uj;
 {{fill_input_jets}}{{reconstruct}}    return status_;
   }
@@ -369,7 +376,7 @@ const char* kPerfectClass =
   obsynth::Status status() const noexcept { return status_; }
 
  private:
-  YDifferentiator y_diff_;
+  YDifferentiator y_diff_[p];
   UDifferentiator u_diff_[m > 0 ? m : 1];
   State xh_;
 {{members}}  obsynth::Status status_ = obsynth::Status::ok;
@@ -1006,6 +1013,7 @@ std::string jets_class(const Analysis& a, const ObserverSpec& s, const EmitOptio
        {"y_order", std::to_string(s.y_order_used)},
        {"u_orders", u_orders.empty() ? std::string() : fmt::format(" ({})", u_orders)},
        {"y_jet_order", std::to_string(s.y_jet_order)},
+       {"y_jet_size", std::to_string(s.y_jet_order + 1)},
        {"u_jet_order", std::to_string(s.u_jet_order)},
        {"params_api", c.params_api},
        {"P", c.P},
@@ -1043,7 +1051,7 @@ std::string basis_type(const ObserverSpec& s) {
 std::string jet_types(const ObserverSpec& s) {
   if (s.update != UpdateKind::jets) return "";
   return fmt::format(
-      "  using YJet = Eigen::Matrix<Scalar, {}, 1>;  ///< y, y', ...\n"
+      "  using YJet = Eigen::Matrix<Scalar, p * {}, 1>;  ///< y_1, y_1', ..., then y_2, ...\n"
       "  using UJet = Eigen::Matrix<Scalar, m, {}>;  ///< row j: u_j, u_j', ...\n",
       s.y_jet_order + 1, s.u_jet_order + 1);
 }
@@ -1063,12 +1071,6 @@ std::string usage_example(const EmittedHeader& h, const ObserverSpec& s, const E
                                   {"namespace", h.namespace_name},
                                   {"scalar", precision_name(opt.precision)},
                                   {"set_params", set_params}});
-}
-
-void check_emittable(const Analysis& a, const ObserverSpec& s) {
-  if (a.model.p() != 1 && s.update == UpdateKind::jets)
-    throw UserError(SourceLoc{a.model.file, 0, 0},
-                    "the " + s.method + " observer is single-output for now");
 }
 
 // A table entry in the output precision (round-trip digits).
@@ -1230,7 +1232,6 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const 
 }  // namespace
 
 EmittedHeader emit_cxx_header(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt) {
-  check_emittable(a, s);
   const Model& m = a.model;
   HeaderBuilder b(a, s, opt);
   EmittedHeader h;
