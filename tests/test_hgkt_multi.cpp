@@ -321,3 +321,42 @@ TEST(MultiKalmanTheta, NotBlockTriangularNamesTheDependence) {
       << v.text();
   EXPECT_NE(v.text().find("depends on z_1,2"), std::string::npos) << v.text();
 }
+
+// Not in the form in x (x1' = x2 + x4 reads level-2 states of both blocks), but in z_{i,j} =
+// L_f^{j-1} h_i: z = (x1, x2 + x4, x3, x4), inverse x2 = z2 - z4, x4 = z4 (indices (2, 2): rows
+// dh1 = e1, dh2 = e3, d(x2 + x4) = e2 + e4, d(x4) = e4). phi_{1,1} = phi_{2,1} = 0 (g = (0, u, 0,
+// 0)), phi_{1,2} = L_{f+g}(x2 + x4) = -x1 - x2 + u - x3 - x4 + sin(x1) = -z1 - z2 + u - z3 + sin
+// z1, phi_{2,2} = x4' = -x3 - x4 + sin(x1) = -z3 - z4 + sin z1: block triangular, a = (1, 0, 1).
+TEST(MultiKalmanTheta, RunsInBlockCoordinates) {
+  const Model m = parse(R"(
+model kt_lie_blocks
+states x1 x2 x3 x4
+inputs u
+f = [ x2 + x4, -x1 - x2, x4, -x3 - x4 + sin(x1) ]
+g = [ 0, u, 0, 0 ]
+h = [ x1, x3 ]
+domain x1 in [-2, 2], x2 in [-2, 2], x3 in [-2, 2], x4 in [-2, 2], u in [-1, 1]
+)",
+                        "kt_lie_blocks");
+  std::string why;
+  EXPECT_FALSE(triangular_in_x(m, &why).has_value());
+  const auto t = block_triangular_form(m, {2, 2}, &why);
+  ASSERT_TRUE(t.has_value()) << why;
+  const auto& z = t->z;
+  const GiNaC::ex u = m.inputs[0];
+  EXPECT_TRUE(zero(t->x_of_z[1] - (z[1] - z[3])));
+  EXPECT_TRUE(zero(t->phi[1] - (-z[0] - z[1] + u - z[2] + GiNaC::sin(z[0]))));
+  EXPECT_TRUE(zero(t->phi[3] - (-z[2] - z[3] + GiNaC::sin(z[0]))));
+  const Analysis a = analyse(m);
+  const ObserverSpec s = find_design("kalman-theta")->build(a, {});
+  EXPECT_NE(row(s, "coordinates").find("block coordinates"), std::string::npos)
+      << row(s, "coordinates");
+  const auto r = run(m, "kalman-theta", "sin(t)", {0.5, -0.5, 0.3, 0.2}, {0, 0, 0, 0}, 20);
+  ASSERT_TRUE(r.diverged.empty()) << r.diverged;
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_LT(std::abs(r.x.back()[i] - r.xh.back()[i]), 1e-4) << "x" << i + 1;
+  const auto rh = run(m, "high-gain", "sin(t)", {0.5, -0.5, 0.3, 0.2}, {0, 0, 0, 0}, 10);
+  ASSERT_TRUE(rh.diverged.empty()) << rh.diverged;
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_LT(std::abs(rh.x.back()[i] - rh.xh.back()[i]), 1e-6) << "x" << i + 1;
+}

@@ -436,6 +436,12 @@ PersistenceResult check_persistence(const Model& m, const PersistenceOptions& op
   for (const auto& a : form->a) as.push_back(to_string(a));
   r.reason =
       fmt::format("in seed 002's form {}, superdiagonal a(u) = [{}]", where, fmt::join(as, ", "));
+  if (!form->blocks.empty()) {  // p > 1: say which rows C reads
+    std::vector<std::string> e;
+    for (const std::size_t s : block_starts(form->blocks)) e.push_back(fmt::format("e_{}", s + 1));
+    r.reason += fmt::format(" (blocks of sizes {}, zero between them), C = [{}]^T",
+                            fmt::join(form->blocks, ", "), fmt::join(e, ", "));
+  }
   const InputPath path = make_path(m, *form, opt.input_text);
   std::vector<double> thetas = opt.thetas;
   std::sort(thetas.begin(), thetas.end());

@@ -923,10 +923,10 @@ Design high_gain_design() {
   d.options = {
       {"poles",
        "error poles, comma-separated negative reals (canonical: of A - K e_n^T; high-gain: "
-       "of A - K C, scaled by theta)",
+       "of A - K C, scaled by theta, split over the blocks in output order)",
        "-2, -2.5, -3, ..."},
       {"theta",
-       "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^n)); "
+       "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^k) per block); "
        "kalman-theta: forgetting rate theta of S",
        "1.25 theta* within [5, 200] (high-gain), 5 (kalman-theta)"}};
   d.plan = stateless_plan<applies, build, assess>;

@@ -520,11 +520,11 @@ Design kalman_theta_design() {
   Design d;
   d.name = "kalman-theta";
   d.summary =
-      "Kalman-like theta observer for systems not uniformly observable (seed 002 eq. 7/10; "
-      "needs a strongly persistent input)";
+      "Kalman-like theta observer for systems not uniformly observable, p >= 1 outputs in "
+      "seed 002's form block by block (seed 002 eq. 7/10; needs a strongly persistent input)";
   d.options = {
       {"theta",
-       "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^n)); "
+       "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^k) per block); "
        "kalman-theta: forgetting rate theta of S",
        "5 (high-gain), 5 (kalman-theta)"},
       {"S0", "kalman-theta: initial S (s, or n diagonal values, or the packed upper triangle)",
