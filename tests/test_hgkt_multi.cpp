@@ -360,3 +360,39 @@ domain x1 in [-2, 2], x2 in [-2, 2], x3 in [-2, 2], x4 in [-2, 2], u in [-1, 1]
   for (std::size_t i = 0; i < 4; ++i)
     EXPECT_LT(std::abs(rh.x.back()[i] - rh.xh.back()[i]), 1e-6) << "x" << i + 1;
 }
+
+// Unequal indices. y = (x1, x4), x1' = x2, x2' = x3, x3' = -x1 - x2 - x3, x4' = -x4 + x1 + u.
+// Rows k-major: dh1 = e1, dh2 = e4, d(L_f h1) = e2, d(L_f h2) = e1 - e4 (dependent), d(L_f^2 h1)
+// = e3: indices (3, 1), z = (x1, x2, x3, x4) = (z_{1,1}, z_{1,2}, z_{1,3}, z_{2,1}). The short
+// block's only row phi_{2,1} = L_{f+g} h2 = -z_{2,1} + z_{1,1} + u reads level 1 only: block
+// triangular. With x4' = -x4 + x2 instead, phi_{2,1} = -z_{2,1} + z_{1,2}: d phi_{2,1}/d z_{1,2}
+// = 1, a level-1 row reading level 2 (indices still (3, 1): d(L_f h2) = e2 - e4 is dependent).
+TEST(MultiHighGain, UnequalIndices) {
+  const char* text = R"(
+model hg_three_one
+states x1 x2 x3 x4
+inputs u
+f = [ x2, x3, -x1 - x2 - x3, -x4 + {} ]
+g = [ 0, 0, 0, u ]
+h = [ x1, x4 ]
+domain x1 in [-2, 2], x2 in [-2, 2], x3 in [-2, 2], x4 in [-2, 2], u in [-1, 1]
+)";
+  const Model good = parse(fmt::format(text, "x1").c_str(), "hg_three_one");
+  const Analysis a = analyse(good);
+  ASSERT_EQ(a.observability.indices, (std::vector<std::size_t>{3, 1}));
+  const HighGainStructure st = high_gain_structure(good, {3, 1});
+  ASSERT_TRUE(st.failures.empty()) << st.failures[0];
+  EXPECT_EQ(z_label(st.blocks, 3), "2,1");
+  const GiNaC::ex u = good.inputs[0];
+  EXPECT_TRUE(zero(st.phi[3] - (-good.states[3] + good.states[0] + u)));
+  const auto r = run(good, "high-gain", "sin(t)", {0.5, -0.5, 0.3, 0.2}, {0, 0, 0, 0}, 10);
+  ASSERT_TRUE(r.diverged.empty()) << r.diverged;
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_LT(std::abs(r.x.back()[i] - r.xh.back()[i]), 1e-6) << "x" << i + 1;
+  const Model bad = parse(fmt::format(text, "x2").c_str(), "hg_three_one");
+  const Analysis b = analyse(bad);
+  ASSERT_EQ(b.observability.indices, (std::vector<std::size_t>{3, 1}));
+  const Verdict v = design_verdict(*find_design("high-gain"), b, false);
+  EXPECT_FALSE(v.applies);
+  EXPECT_NE(v.text().find("d phi_2,1/d z_1,2 = 1"), std::string::npos) << v.text();
+}
