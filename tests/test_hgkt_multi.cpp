@@ -305,6 +305,11 @@ TEST(MultiKalmanTheta, ConvergesForPersistentInput) {
   const Analysis a = analyse(m);
   const Verdict v = design_verdict(*find_design("kalman-theta"), a, false);
   EXPECT_TRUE(v.applies) << v.text();
+  // Seed 002's Theorem is for one output: no guarantee claimed for the block extension.
+  EXPECT_EQ(v.guarantee, Guarantee::none);
+  EXPECT_NE(v.guarantee_text.find("p > 1: seed 002 states and proves its Theorem for one output"),
+            std::string::npos)
+      << v.guarantee_text;
   const ObserverSpec s = find_design("kalman-theta")->build(a, {});
   EXPECT_NE(row(s, "form").find("C = [e_1, e_3]^T"), std::string::npos) << row(s, "form");
   const auto r = run(m, "kalman-theta", "1 + 0.5*sin(t)", {0.5, 1, -0.5, 0.3}, {0, 0, 0, 0}, 20);

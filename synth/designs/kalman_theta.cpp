@@ -189,7 +189,14 @@ bool every_input_persistent(const Model& m, const KtForm& form) {
 // a threshold it does not make explicit, so no chosen theta is proven sufficient.
 void set_guarantee(Verdict& v, const Model& m, const KtForm& form, const PhiLipschitz& lip) {
   const std::string singular_estimate = form.in_x ? "" : denominators_text(m, form);
-  if (lip.kind != PhiLipschitz::proved) {
+  if (form.blocks.size() > 1) {  // seed 002's Theorem has one output
+    v.guarantee = Guarantee::none;
+    v.guarantee_text =
+        "p > 1: seed 002 states and proves its Theorem for one output (y = z1); for the block "
+        "form (C picking each block's first row, phi triangular by level) its hypotheses are "
+        "checked (persistence with that C by `obsynth check --input`; " +
+        lip.text + "), but the Theorem itself is not proved here";
+  } else if (lip.kind != PhiLipschitz::proved) {
     v.guarantee = Guarantee::none;
     v.guarantee_text = lip.text;
   } else if (!every_input_persistent(m, form)) {
