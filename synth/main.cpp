@@ -426,6 +426,7 @@ int check_body(const CheckCommand& c, const std::optional<CanonicalStop>& canoni
       PersistenceOptions po;
       po.input_text = c.input;
       po.horizon = c.horizon;
+      po.indices = a.observability.indices;
       if (!c.thetas.empty()) {
         po.thetas.clear();
         for (const auto& v : split_list(c.thetas))

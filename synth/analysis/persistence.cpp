@@ -19,29 +19,73 @@ namespace obsynth {
 
 using GiNaC::ex;
 
+namespace {
+
+// The blocks when the outputs are states in increasing order, the first being x1: y_i = x_{s_i},
+// 0 = s_1 < ... < s_p, block i = x_{s_i}..x_{s_{i+1}-1}. Or the reason they are not.
+std::optional<std::vector<std::size_t>> blocks_in_x(const Model& m, std::string& why) {
+  std::vector<std::size_t> starts;
+  for (std::size_t i = 0; i < m.p(); ++i) {
+    const auto it = std::find_if(m.states.begin(), m.states.end(),
+                                 [&](const GiNaC::symbol& x) { return (m.h[i] - x).is_zero(); });
+    const auto s = static_cast<std::size_t>(it - m.states.begin());
+    if (it == m.states.end() || (i == 0 && s != 0) || (i > 0 && s <= starts.back())) {
+      why = m.p() == 1
+                ? fmt::format("the output is not the first state (y = {}, the form needs y = {})",
+                              to_string(m.h[0]), m.states[0].get_name())
+                : fmt::format(
+                      "output {} (y{} = {}) is not a state after the previous outputs' "
+                      "(the form in x needs y_1 = x1 and each y_i a later state, starting "
+                      "its block)",
+                      i + 1, i + 1, to_string(m.h[i]));
+      return std::nullopt;
+    }
+    starts.push_back(s);
+  }
+  std::vector<std::size_t> blocks;
+  for (std::size_t i = 0; i < starts.size(); ++i)
+    blocks.push_back((i + 1 < starts.size() ? starts[i + 1] : m.n()) - starts[i]);
+  return blocks;
+}
+
+}  // namespace
+
 std::optional<TriangularInX> triangular_in_x(const Model& m, std::string* why) {
   auto fail = [&](const std::string& s) -> std::optional<TriangularInX> {
     if (why) *why = s;
     return std::nullopt;
   };
   const std::size_t n = m.n();
-  if (m.p() != 1) return fail(fmt::format("single output needed (p = {})", m.p()));
   if (n < 1) return fail("no states");
-  if (!(m.h[0] - m.states[0]).is_zero())
-    return fail(fmt::format("the output is not the first state (y = {}, the form needs y = {})",
-                            to_string(m.h[0]), m.states[0].get_name()));
+  std::string why_blocks;
+  const auto blocks = blocks_in_x(m, why_blocks);
+  if (!blocks) return fail(why_blocks);
   const SampleBoxes boxes = m.sample_boxes();
   const ExVec F = m.field();
+  const auto& B = *blocks;
   TriangularInX t;
+  t.blocks = m.p() == 1 ? std::vector<std::size_t>{} : B;
   for (std::size_t i = 0; i < n; ++i) {
+    // Row i may read the states of its level or below, and the next state of its block.
+    const bool last = level_of(B, i) == B[block_of(B, i)];
+    for (std::size_t j = 0; j < n; ++j)
+      if (level_of(B, j) > level_of(B, i) && !(j == i + 1 && !last) &&
+          !is_zero_verdict(zero_test(F[i].diff(m.states[j]), boxes)))
+        return fail(m.p() == 1 ? fmt::format("row {} depends on {} (beyond the superdiagonal)",
+                                             i + 1, m.states[j].get_name())
+                               : fmt::format("row {} (level {}) depends on {} (level {}): not "
+                                             "block triangular",
+                                             i + 1, level_of(B, i), m.states[j].get_name(),
+                                             level_of(B, j)));
     if (i + 1 == n) {
       t.phi.push_back(F[i]);
       break;
     }
-    for (std::size_t j = i + 2; j < n; ++j)
-      if (!is_zero_verdict(zero_test(F[i].diff(m.states[j]), boxes)))
-        return fail(fmt::format("row {} depends on {} (beyond the superdiagonal)", i + 1,
-                                m.states[j].get_name()));
+    if (last) {  // the superdiagonal is zero between blocks
+      t.a.push_back(0);
+      t.phi.push_back(F[i]);
+      continue;
+    }
     const ex a = simplify(F[i].diff(m.states[i + 1]));
     if (depends_on(a, m.states))
       return fail(fmt::format("row {}: the coefficient of {} is {}, which depends on the state",
@@ -139,6 +183,7 @@ struct InputPath {
   NumericFunction u_of_t;
   NumericFunction a_of_u;
   std::size_t n = 0;
+  std::vector<std::size_t> blocks;  // {n} for one output
   Mat A(double t) const {
     const std::vector<double> u = u_of_t({t});
     const std::vector<double> a = a_of_u(u);
@@ -166,13 +211,17 @@ InputPath make_path(const Model& m, const TriangularInX& t, const std::string& i
   if (a.empty()) a.push_back(0);  // n = 1: no superdiagonal
   std::vector<std::string> un;
   for (const auto& s : m.inputs) un.push_back(s.get_name());
-  InputPath p{NumericFunction(u_of_t, {"t"}), NumericFunction(a, un), m.n()};
+  InputPath p{NumericFunction(u_of_t, {"t"}), NumericFunction(a, un), m.n(),
+              t.blocks.empty() ? std::vector<std::size_t>{m.n()} : t.blocks};
   return p;
 }
 
-Mat CtC(std::size_t n) {
-  Mat M = Mat::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
-  M(0, 0) = 1;
+// C^T C: C selects the first coordinate of every block.
+Mat CtC(const InputPath& path) {
+  const auto N = static_cast<Eigen::Index>(path.n);
+  Mat M = Mat::Zero(N, N);
+  for (const std::size_t s : block_starts(path.blocks))
+    M(static_cast<Eigen::Index>(s), static_cast<Eigen::Index>(s)) = 1;
   return M;
 }
 
@@ -181,7 +230,7 @@ PersistenceAtTheta at_theta(const InputPath& path, double theta, double horizon,
   PersistenceAtTheta r;
   r.theta = theta;
   const std::size_t n = path.n;
-  const Mat Q = CtC(n);
+  const Mat Q = CtC(path);
   auto rhs = [&](double t, const Mat& P) {
     const Mat A = path.A(t);
     return Mat(-theta * P - A.transpose() * P - P * A + Q);
@@ -209,7 +258,10 @@ PersistenceAtTheta at_theta(const InputPath& path, double theta, double horizon,
       r.gamma_invertible = false;
     } else {
       for (Eigen::Index i = 0; i < d.size(); ++i)
-        for (Eigen::Index j = 0; j <= i; ++j) r.gamma = std::max(r.gamma, d(i) / d(j));
+        for (Eigen::Index j = 0; j < d.size(); ++j)
+          if (level_of(path.blocks, static_cast<std::size_t>(j)) <=
+              level_of(path.blocks, static_cast<std::size_t>(i)))
+            r.gamma = std::max(r.gamma, d(i) / d(j));
     }
     const Eigen::SelfAdjointEigenSolver<Mat> es(S);
     const double lmin = es.eigenvalues().minCoeff(), lmax = es.eigenvalues().maxCoeff();
@@ -240,7 +292,7 @@ PersistenceAtTheta at_theta(const InputPath& path, double theta, double horizon,
 double gramian_min_eig(const InputPath& path, double a, double b, double dt_max) {
   const std::size_t n = path.n;
   const auto N = static_cast<Eigen::Index>(n);
-  const Mat Q = CtC(n);
+  const Mat Q = CtC(path);
   const auto steps =
       std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil((b - a) / dt_max)));
   const double dt = (b - a) / static_cast<double>(steps);
@@ -352,12 +404,23 @@ PersistenceResult check_persistence(const Model& m, const PersistenceOptions& op
     // The triangular form in other coordinates (z a permutation of x, or z = (h, L_f h, ...)):
     // only A(u) enters Psi, Gamma and the Gramian.
     std::string why_t;
-    if (const auto t = triangular_form(m, &why_t)) {
-      form = TriangularInX{t->a, t->phi};
+    std::optional<TriangularForm> t;
+    if (m.p() == 1)
+      t = triangular_form(m, &why_t);
+    else if (opt.indices.empty())
+      why_t =
+          "the observability indices are needed for the block form (obsynth check passes the "
+          "analysis' indices)";
+    else
+      t = block_triangular_form(m, opt.indices, &why_t);
+    if (t) {
+      form = TriangularInX{t->a, t->phi, t->blocks};
       r.lipschitz = phi_lipschitz_on_box(m, t->z, t->phi, t->z_of_x);
       where = t->coordinates == TriangularForm::Coordinates::states
                   ? "in the states reordered"
-                  : fmt::format("in the coordinates z = (h, L_f h, ...) = [{}]",
+                  : fmt::format("in the coordinates z = {} = [{}]",
+                                m.p() == 1 ? "(h, L_f h, ...)"
+                                           : "(h_i, L_f h_i, ..., L_f^{k_i-1} h_i) per output",
                                 fmt::join(to_strings(t->z_of_x), ", "));
     } else {
       r.reason = fmt::format(
@@ -373,6 +436,12 @@ PersistenceResult check_persistence(const Model& m, const PersistenceOptions& op
   for (const auto& a : form->a) as.push_back(to_string(a));
   r.reason =
       fmt::format("in seed 002's form {}, superdiagonal a(u) = [{}]", where, fmt::join(as, ", "));
+  if (!form->blocks.empty()) {  // p > 1: say which rows C reads
+    std::vector<std::string> e;
+    for (const std::size_t s : block_starts(form->blocks)) e.push_back(fmt::format("e_{}", s + 1));
+    r.reason += fmt::format(" (blocks of sizes {}, zero between them), C = [{}]^T",
+                            fmt::join(form->blocks, ", "), fmt::join(e, ", "));
+  }
   const InputPath path = make_path(m, *form, opt.input_text);
   std::vector<double> thetas = opt.thetas;
   std::sort(thetas.begin(), thetas.end());

@@ -1,6 +1,10 @@
 // Seed 002 (Dufour, Flila, Hammouri): the normal form z' = A(u) z + phi(u, z), y = C z
 // (output first, a_i(u) on the superdiagonal, phi_i depending on z_1..z_i, C = e_1), detected
 // when the model is already in that form in x, and the strong persistence of a given input:
+// With p > 1 outputs C selects each block's first coordinate (the block form of
+// analysis/triangular_form.hpp), Psi and the Gramian use that C, and ii) compares the levels:
+// Gamma_rr / Gamma_cc for level(c) <= level(r) (p = 1: j <= i). Seed 002 states the Definition for
+// one output; this is its direct reading for the block form, not a theorem of the seed.
 //   Psi(t, theta) = int_0^t e^{-theta (t-s)} Phi_u(s,t)^T C^T C Phi_u(s,t) ds, obtained as the
 //     solution of Psi' = -theta Psi - A^T Psi - Psi A + C^T C, Psi(0) = 0 (eq. 8 with S(0) = 0);
 //   Gamma(t, theta) = diag(Psi_11, ..., Psi_nn) (eq. 9);
@@ -25,9 +29,12 @@
 namespace obsynth {
 
 // The model in seed 002's form directly in x: F(x, u) = A(u) x + phi(u, x), y = x_1.
+// With p > 1 outputs (analysis/triangular_form.hpp's block form): y_1 = x1 and each y_i a later
+// state starting its block, a zero between blocks, phi triangular by level.
 struct TriangularInX {
-  ExVec a;    // a_1(u) .. a_{n-1}(u): superdiagonal
-  ExVec phi;  // phi_i(u, x_1..x_i) (phi_n may depend on every state)
+  ExVec a;                          // a_1(u) .. a_{n-1}(u): superdiagonal
+  ExVec phi;                        // phi_i(u, x_1..x_i) (phi_n may depend on every state)
+  std::vector<std::size_t> blocks;  // block sizes (empty: one block)
 };
 // nullopt with `why` set when the model is not in that form in x.
 std::optional<TriangularInX> triangular_in_x(const Model& m, std::string* why);
@@ -53,6 +60,8 @@ struct PersistenceOptions {
   double horizon = 20;
   double t0 = -1;  // start of the checked interval; < 0: horizon / 2
   std::vector<double> thetas = {1, 2, 5, 10, 20, 50};
+  // p > 1 outside x: the observability indices (Observability::indices) giving the blocks.
+  std::vector<std::size_t> indices;
 };
 
 struct PersistenceAtTheta {

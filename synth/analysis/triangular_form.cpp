@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "analysis/inverse.hpp"
 #include "front/fresh_names.hpp"
 #include "symbolic/expr_print.hpp"
@@ -14,6 +16,36 @@ using GiNaC::numeric;
 
 const char* coordinates_name(TriangularForm::Coordinates c) {
   return c == TriangularForm::Coordinates::states ? "states" : "lie_derivatives";
+}
+
+std::size_t block_of(const std::vector<std::size_t>& blocks, std::size_t r) {
+  std::size_t i = 0;
+  for (std::size_t start = 0; i < blocks.size(); start += blocks[i++])
+    if (r < start + blocks[i]) return i;
+  return blocks.size();
+}
+
+std::size_t level_of(const std::vector<std::size_t>& blocks, std::size_t r) {
+  for (const std::size_t k : blocks) {
+    if (r < k) return r + 1;
+    r -= k;
+  }
+  return 0;
+}
+
+std::vector<std::size_t> block_starts(const std::vector<std::size_t>& blocks) {
+  std::vector<std::size_t> out;
+  std::size_t start = 0;
+  for (const std::size_t k : blocks) {
+    out.push_back(start);
+    start += k;
+  }
+  return out;
+}
+
+std::string z_label(const std::vector<std::size_t>& blocks, std::size_t r) {
+  if (blocks.size() <= 1) return std::to_string(r + 1);
+  return fmt::format("{},{}", block_of(blocks, r) + 1, level_of(blocks, r));
 }
 
 namespace {
@@ -310,6 +342,83 @@ std::optional<TriangularForm> triangular_form(const Model& m, std::string* why,
   w = fmt::format("not in the form in the states ({}), nor in the coordinates (h, L_f h, ...) ({})",
                   why_states, why_lie);
   return std::nullopt;
+}
+
+std::optional<TriangularForm> block_triangular_form(const Model& m,
+                                                    const std::vector<std::size_t>& indices,
+                                                    std::string* why) {
+  std::string local;
+  std::string& w = why ? *why : local;
+  const std::size_t n = m.n(), p = m.p();
+  std::size_t sum = 0;
+  for (const std::size_t k : indices) sum += k;
+  if (indices.size() != p || sum != n ||
+      std::find(indices.begin(), indices.end(), std::size_t{0}) != indices.end()) {
+    w = fmt::format(
+        "the observability indices ({}) do not give {} blocks of sizes >= 1 summing to n = {}",
+        fmt::join(indices, ", "), p, n);
+    return std::nullopt;
+  }
+  for (const auto& h : m.h)
+    if (depends_on(h, m.inputs)) {
+      w = "an output depends on the input (the form needs y_i = z_{i,1} = h_i(x))";
+      return std::nullopt;
+    }
+  TriangularForm t;
+  t.coordinates = TriangularForm::Coordinates::lie_derivatives;
+  t.blocks = indices;
+  for (std::size_t i = 0; i < p; ++i) {
+    ex e = simplify(m.h[i]);
+    for (std::size_t j = 0; j < indices[i]; ++j) {
+      t.z_of_x.push_back(e);
+      e = simplify(lie_derivative(e, m.f, m.states));
+    }
+  }
+  t.z = fresh_symbols(m, "z", n);
+  const auto steps = triangular_elimination(t.z_of_x, m.states, t.z);
+  if (!steps) {
+    w = "no explicit inverse of the block coordinates z_{i,j} = L_f^{j-1} h_i by elimination";
+    return std::nullopt;
+  }
+  GiNaC::exmap solved;
+  for (const auto& st : *steps) solved[m.states[st.state]] = st.value.subs(solved);
+  t.x_of_z.assign(n, ex(0));
+  for (std::size_t j = 0; j < n; ++j) {
+    const auto it = solved.find(m.states[j]);
+    if (it == solved.end()) {
+      w = fmt::format("the elimination does not give {}", m.states[j].get_name());
+      return std::nullopt;
+    }
+    t.x_of_z[j] = it->second;
+  }
+  ExVec F;
+  for (const auto& e : m.field()) F.push_back(simplify(e));
+  for (std::size_t r = 0; r < n; ++r) {
+    const bool last = level_of(indices, r) == indices[block_of(indices, r)];
+    const ex phix = simplify(lie_derivative(t.z_of_x[r], last ? F : m.g, m.states));
+    const ex phiz = simplify(phix.subs(solved));
+    for (std::size_t c = 0; c < n; ++c)
+      if (level_of(indices, c) > level_of(indices, r) && phiz.has(t.z[c])) {
+        w = fmt::format(
+            "phi_{} = {} depends on z_{} (z{}), of a higher level (not block triangular: "
+            "phi_{{i,j}} "
+            "may depend on z_{{l,1..j}} only)",
+            z_label(indices, r), to_string(phiz), z_label(indices, c), c + 1);
+        return std::nullopt;
+      }
+    if (depends_on(phiz, m.states)) {
+      w = fmt::format("phi_{} still depends on x after substituting the inverse",
+                      z_label(indices, r));
+      return std::nullopt;
+    }
+    t.phi_x.push_back(phix);
+    t.phi.push_back(phiz);
+  }
+  const auto starts = block_starts(indices);
+  for (std::size_t r = 0; r + 1 < n; ++r)
+    t.a.push_back(std::find(starts.begin(), starts.end(), r + 1) != starts.end() ? ex(0) : ex(1));
+  finish(t, n);
+  return t;
 }
 
 }  // namespace obsynth

@@ -12,6 +12,13 @@
 //  - lie_derivatives: z = (h, L_f h, ..., L_f^{n-1} h) (drift f), so a_i = 1 and
 //    phi_i = L_g L_f^{i-1} h for i < n, phi_n = L_{f+g} L_f^{n-1} h, each expressed in z
 //    through an explicit inverse x = Z^-1(z) (an elimination sequence).
+//
+// With p > 1 outputs (block_triangular_form) the form has one block per output, of size k_i
+// (the observability indices), output first in each block: z = (z_{1,1}..z_{1,k_1}, ...,
+// z_{p,1}..z_{p,k_p}), y_i = z_{i,1} (C selects each block's first coordinate), A(u) =
+// blockdiag(A_i(u)) with a_{i,j}(u) on each block's superdiagonal (zero between blocks), and phi
+// triangular by level: phi_{i,j} depends on (u, z_{l,1..j}) of every block l only (the level of
+// z_{l,m} is m; p = 1 is the form above).
 #pragma once
 
 #include <ginac/ginac.h>
@@ -39,7 +46,17 @@ struct TriangularForm {
   ExVec C;                         // the output row [1, 0, ..., 0]
   ExVec phi;                       // phi_i(u, z_1..z_i), i = 1..n
   ExVec phi_x;                     // phi_i(u, Z(x)) as expressions in x
+  // Block sizes k_1..k_p (empty: one block, p = 1). `a` is then the whole superdiagonal, zero
+  // between blocks, and C (above) the first output's row only: see block_starts.
+  std::vector<std::size_t> blocks;
 };
+
+// Rows of z by block: row r's block (0-based) and level (1-based, its place in the block); the
+// first row of every block (where C has its ones); the label "r+1" (one block) or "i,j".
+std::size_t block_of(const std::vector<std::size_t>& blocks, std::size_t r);
+std::size_t level_of(const std::vector<std::size_t>& blocks, std::size_t r);
+std::vector<std::size_t> block_starts(const std::vector<std::size_t>& blocks);
+std::string z_label(const std::vector<std::size_t>& blocks, std::size_t r);
 
 const char* coordinates_name(TriangularForm::Coordinates c);  // "states", "lie_derivatives"
 
@@ -50,6 +67,14 @@ const char* coordinates_name(TriangularForm::Coordinates c);  // "states", "lie_
 std::optional<TriangularForm> triangular_form(const Model& m, std::string* why = nullptr,
                                               const ExVec* drift_lie = nullptr,
                                               bool lie_coordinates = true);
+
+// p >= 1 outputs with observability indices k (sum n): the block form in the coordinates
+// z_{i,j} = L_f^{j-1} h_i (a = 1 inside the blocks, phi_{i,j} = L_g z_{i,j} for j < k_i,
+// phi_{i,k_i} = L_{f+g} z_{i,k_i}), through an explicit inverse; nullopt with `why` naming the
+// first entry that breaks the level condition (or the step that failed).
+std::optional<TriangularForm> block_triangular_form(const Model& m,
+                                                    const std::vector<std::size_t>& indices,
+                                                    std::string* why = nullptr);
 
 // Whether an expression in some variables (inputs, parameters, states) vanishes somewhere in
 // their boxes:

@@ -34,16 +34,72 @@ std::vector<numeric> high_gain_K(const std::vector<numeric>& poles) {
   return K;
 }
 
-HighGainStructure high_gain_structure(const Model& m) {
+std::vector<numeric> high_gain_K(const std::vector<numeric>& poles,
+                                 const std::vector<std::size_t>& blocks) {
+  std::vector<numeric> K;
+  auto first = poles.begin();
+  for (const std::size_t k : blocks) {
+    const auto block = high_gain_K(std::vector<numeric>(first, first + static_cast<long>(k)));
+    K.insert(K.end(), block.begin(), block.end());
+    first += static_cast<long>(k);
+  }
+  return K;
+}
+
+namespace {
+
+// Why the indices cannot give block coordinates, or nothing.
+std::optional<std::string> blocks_problem(const std::vector<std::size_t>& k, std::size_t n,
+                                          std::size_t p) {
+  if (k.size() != p)
+    return fmt::format("the observability indices are not available for the {} outputs", p);
+  std::size_t sum = 0;
+  for (std::size_t i = 0; i < p; ++i) {
+    if (k[i] == 0)
+      return fmt::format(
+          "output {} has observability index 0 (it adds no coordinate to the others): the "
+          "block form needs every index >= 1 (drop that output)",
+          i + 1);
+    sum += k[i];
+  }
+  if (sum != n)
+    return fmt::format("the observability indices sum to {} < n = {} (generic rank deficient)", sum,
+                       n);
+  return std::nullopt;
+}
+
+std::string indices_text(const std::vector<std::size_t>& k) {
+  return fmt::format("({})", fmt::join(k, ", "));
+}
+
+}  // namespace
+
+std::string high_gain_coordinates(const std::vector<std::size_t>& blocks) {
+  if (blocks.size() <= 1) return "z = (h, L_f h, ..., L_f^{n-1} h)";
+  return fmt::format(
+      "z = (h_1, ..., L_f^{{k_1-1}} h_1, ..., h_p, ..., L_f^{{k_p-1}} h_p), indices (k_1, ..., "
+      "k_p) = {}",
+      indices_text(blocks));
+}
+
+HighGainStructure high_gain_structure(const Model& m, std::vector<std::size_t> indices) {
   HighGainStructure s;
-  const std::size_t n = m.n();
-  if (m.p() != 1) {
-    s.failures.push_back(fmt::format("the high-gain design is single-output (p = {})", m.p()));
+  const std::size_t n = m.n(), p = m.p();
+  if (indices.empty() && p == 1) indices = {n};
+  if (const auto why = blocks_problem(indices, n, p)) {
+    s.failures.push_back(*why);
     return s;
   }
-  const LieChain chain = lie_chain_with_gradients(m.h[0], m.f, m.states, n + 1);
-  s.Phi.assign(chain.derivatives.begin(), chain.derivatives.begin() + static_cast<long>(n));
-  s.O.assign(chain.gradients.begin(), chain.gradients.begin() + static_cast<long>(n));
+  s.blocks = indices;
+  // Per output: its chain h_i, ..., L_f^{k_i-1} h_i, and L_f^{k_i} h_i for the block's last row.
+  ExVec tops;
+  for (std::size_t i = 0; i < p; ++i) {
+    const LieChain chain = lie_chain_with_gradients(m.h[i], m.f, m.states, indices[i] + 1);
+    const auto k = static_cast<long>(indices[i]);
+    s.Phi.insert(s.Phi.end(), chain.derivatives.begin(), chain.derivatives.begin() + k);
+    s.O.insert(s.O.end(), chain.gradients.begin(), chain.gradients.begin() + k);
+    tops.push_back(chain.derivatives[indices[i]]);
+  }
   GiNaC::matrix O(static_cast<unsigned>(n), static_cast<unsigned>(n));
   for (std::size_t r = 0; r < n; ++r)
     for (std::size_t c = 0; c < n; ++c)
@@ -52,16 +108,21 @@ HighGainStructure high_gain_structure(const Model& m) {
   const SampleBoxes boxes = m.sample_boxes();
   if (is_zero_verdict(zero_test(s.det, boxes))) {
     s.failures.push_back(
-        "det O = 0 identically: (h, L_f h, ..., L_f^{n-1} h) are not coordinates (the drift "
-        "alone does not make the system observable)");
+        p == 1 ? "det O = 0 identically: (h, L_f h, ..., L_f^{n-1} h) are not coordinates (the "
+                 "drift alone does not make the system observable)"
+               : "det O = 0 identically: " + high_gain_coordinates(indices) +
+                     " are not coordinates (the drift alone does not make the system observable "
+                     "with these indices)");
     return s;
   }
-  // phi in x: z_i' = z_{i+1} + L_g L_f^{i-1} h, z_n' = L_f^n h + L_g L_f^{n-1} h.
-  const ExVec g = m.g;
-  for (std::size_t i = 0; i < n; ++i) {
+  // phi in x: z_{i,j}' = z_{i,j+1} + L_g L_f^{j-1} h_i, z_{i,k_i}' = L_f^{k_i} h_i + L_g
+  // L_f^{k_i-1} h_i.
+  for (std::size_t r = 0; r < n; ++r) {
     ex Lg = 0;
-    for (std::size_t k = 0; k < n; ++k) Lg += chain.gradients[i][k] * g[k];
-    s.phi.push_back(simplify(i + 1 < n ? Lg : chain.derivatives[n] + Lg));
+    for (std::size_t k = 0; k < n; ++k) Lg += s.O[r][k] * m.g[k];
+    const std::size_t i = block_of(indices, r);
+    const bool last = level_of(indices, r) == indices[i];
+    s.phi.push_back(simplify(last ? tops[i] + Lg : Lg));
   }
   const GiNaC::matrix Oinv = O.inverse(GiNaC::solve_algo::gauss);
   const ExMatrix Dphi = jacobian(s.phi, m.states);
@@ -73,16 +134,25 @@ HighGainStructure high_gain_structure(const Model& m) {
         acc += Dphi[i][k] * Oinv(static_cast<unsigned>(k), static_cast<unsigned>(j));
       s.J[i][j] = GiNaC::normal(acc);
     }
+  // The structural condition of the header: d phi_r / d z_c = 0 where c's level exceeds r's.
   std::vector<std::string> bad;
-  for (std::size_t i = 0; i + 1 < n; ++i)
-    for (std::size_t j = i + 1; j < n; ++j)
-      if (!is_zero_verdict(zero_test(GiNaC::numer(s.J[i][j]), boxes)))
-        bad.push_back(fmt::format("d phi_{}/d z_{} = {}", i + 1, j + 1, to_string(s.J[i][j])));
-  if (!bad.empty())
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = 0; c < n; ++c)
+      if (level_of(indices, c) > level_of(indices, r) &&
+          !is_zero_verdict(zero_test(GiNaC::numer(s.J[r][c]), boxes)))
+        bad.push_back(fmt::format("d phi_{}/d z_{} = {}", z_label(indices, r), z_label(indices, c),
+                                  to_string(s.J[r][c])));
+  if (bad.empty()) return s;
+  if (p == 1)
     s.failures.push_back(fmt::format(
         "not uniformly observable in the form z' = A z + phi(z, u) with phi triangular, z = (h, "
         "L_f h, ...): {}",
         fmt::join(bad, "; ")));
+  else
+    s.failures.push_back(fmt::format(
+        "not in the block-triangular form z' = A z + phi(z, u) with phi_{{i,j}} depending on "
+        "z_{{l,1}}..z_{{l,j}} of every block l only, {}: {} (z_{{l,m}} with m > j)",
+        high_gain_coordinates(indices), fmt::join(bad, "; ")));
   return s;
 }
 
@@ -94,9 +164,18 @@ std::string numbers_text(const std::vector<numeric>& v) {
   return fmt::format("{}", fmt::join(s, ", "));
 }
 
-std::vector<numeric> chosen_poles(const DesignOptions& o, std::size_t n) {
+// --poles: n poles, split consecutively by the blocks; default: each block's default poles.
+std::vector<numeric> chosen_poles(const DesignOptions& o, const std::vector<std::size_t>& blocks) {
+  std::size_t n = 0;
+  for (const std::size_t k : blocks) n += k;
   std::vector<numeric> poles = real_list_option(o, "poles");
-  if (poles.empty()) return default_poles(n);
+  if (poles.empty()) {
+    for (const std::size_t k : blocks) {
+      const auto d = default_poles(k);
+      poles.insert(poles.end(), d.begin(), d.end());
+    }
+    return poles;
+  }
   if (poles.size() != n)
     throw UserError(SourceLoc{}, fmt::format("--poles: {} poles given, the model has n = {} states",
                                              poles.size(), n));
@@ -160,6 +239,18 @@ double lyapunov_lambda_max(const std::vector<numeric>& K) {
   return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(P).eigenvalues().maxCoeff();
 }
 
+// The same for A - K C block diagonal: P is block diagonal, its largest eigenvalue the blocks'.
+double lyapunov_lambda_max(const std::vector<numeric>& K, const std::vector<std::size_t>& blocks) {
+  double out = 0;
+  auto first = K.begin();
+  for (const std::size_t k : blocks) {
+    out = std::max(out,
+                   lyapunov_lambda_max(std::vector<numeric>(first, first + static_cast<long>(k))));
+    first += static_cast<long>(k);
+  }
+  return out;
+}
+
 // sup over the model's domain box (states, inputs, free parameters) of |e|: certify's Arb
 // enclosure (rigorous), or its sampled fallback (labelled so) where Arb cannot bound e.
 struct EntryBound {
@@ -202,32 +293,33 @@ Certificate certify(const Model& m, const HighGainStructure& st, const std::vect
   const std::size_t n = m.n();
   Eigen::MatrixXd M =
       Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  const auto& B = st.blocks;
   for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t j = 0; j <= i; ++j) {
-      if (GiNaC::is_zero(st.J[i][j])) continue;
+    for (std::size_t j = 0; j < n; ++j) {
+      if (level_of(B, j) > level_of(B, i) || GiNaC::is_zero(st.J[i][j])) continue;
       const EntryBound b = sup_abs_over_domain(st.J[i][j], m);
       if (!std::isfinite(b.value)) {  // a pole in the box, or undefined at every sample
         c.unbounded = true;
         c.rigorous = false;
         c.entries.push_back(fmt::format("d phi_{}/d z_{} has no finite bound on the domain ({})",
-                                        i + 1, j + 1, b.method));
+                                        z_label(B, i), z_label(B, j), b.method));
         continue;
       }
       M(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = b.value;
       c.rigorous = c.rigorous && b.rigorous;
-      c.entries.push_back(
-          fmt::format("sup abs(d phi_{}/d z_{}) <= {} ({})", i + 1, j + 1, up6(b.value), b.method));
+      c.entries.push_back(fmt::format("sup abs(d phi_{}/d z_{}) <= {} ({})", z_label(B, i),
+                                      z_label(B, j), up6(b.value), b.method));
     }
   // L and lambda_max(P) are computed in double from the (rigorous) entry bounds and the exact K;
   // both are rounded up by a relative 1e-9, far above the rounding of these small problems.
   if (c.unbounded) {
     c.L = c.theta_star = std::numeric_limits<double>::infinity();
-    c.lambda_P = (1 + 1e-9) * lyapunov_lambda_max(K);
+    c.lambda_P = (1 + 1e-9) * lyapunov_lambda_max(K, st.blocks);
     return c;
   }
   const double up = 1 + 1e-9;
   c.L = up * (M.norm() > 0 ? Eigen::JacobiSVD<Eigen::MatrixXd>(M).singularValues()(0) : 0.0);
-  c.lambda_P = up * lyapunov_lambda_max(K);
+  c.lambda_P = up * lyapunov_lambda_max(K, st.blocks);
   c.theta_star = std::max(1.0, 2 * c.lambda_P * c.L);
   return c;
 }
@@ -401,14 +493,41 @@ std::optional<std::string> phi_not_triangular(const Model& m, const Observabilit
 // analysis' O (rows dL_f^k h) must have generic rank n, and phi_i = dL_f^{i-1} h . g (i < n) must
 // depend on z_1..z_i only, i.e. rank [dz_1; ...; dz_i; dphi_i] = i, decided by the rank at
 // sampled points (numeric elimination at 40 digits).
+// p > 1: the block structure computed symbolically with the analysis' indices (the sampled
+// shortcut above is single-output); the verdict names every entry breaking the condition.
+Verdict applies_blocks(const Analysis& a) {
+  Verdict v;
+  const Model& m = a.model;
+  const Observability& ob = a.observability;
+  if (!a.completed("observability") || ob.indices.size() != m.p()) {
+    v.reasons.push_back("undecided: the observability indices are not available");
+    return v;
+  }
+  if (ob.generic_rank < m.n()) {
+    v.reasons.push_back(fmt::format(
+        "generic rank {} < n = {}: the Lie derivatives of the outputs along the drift are not "
+        "coordinates (the drift alone does not make the system observable)",
+        ob.generic_rank, m.n()));
+    return v;
+  }
+  const HighGainStructure st = high_gain_structure(m, ob.indices);
+  if (!st.failures.empty()) {
+    v.reasons = st.failures;
+    return v;
+  }
+  v.applies = true;
+  v.reasons.push_back(
+      fmt::format("uniformly observable: in {} the model is z' = A z + phi(z, u) with phi block "
+                  "triangular (phi_{{i,j}} depends on z_{{l,1}}..z_{{l,j}} of every block l only)",
+                  high_gain_coordinates(st.blocks)));
+  return v;
+}
+
 Verdict applies(const Analysis& a) {
   Verdict v;
   const Model& m = a.model;
   const std::size_t n = m.n();
-  if (m.p() != 1) {
-    v.reasons.push_back(fmt::format("single-output design (p = {})", m.p()));
-    return v;
-  }
+  if (m.p() != 1) return applies_blocks(a);
   const Observability& ob = a.observability;
   if (!a.completed("observability") || ob.O.size() != n) {
     v.reasons.push_back("undecided: the symbolic observability matrix is not available (" +
@@ -461,20 +580,25 @@ struct GainChoice {
 };
 
 // theta: --theta, else from the certificate's theta* (automatic_theta).
-GainChoice choose_gain(const DesignOptions& o, std::vector<numeric> poles, double theta_star) {
+// Per block: K_i from its poles, and theta^j on the block's level j.
+GainChoice choose_gain(const DesignOptions& o, std::vector<numeric> poles, double theta_star,
+                       const std::vector<std::size_t>& blocks) {
   const std::size_t n = poles.size();
   GainChoice g;
   g.poles = std::move(poles);
-  g.K = high_gain_K(g.poles);
+  g.K = high_gain_K(g.poles, blocks);
   const auto given = user_theta(o);
   g.theta_given = given.has_value();
   g.theta = given ? *given : automatic_theta(theta_star);
-  numeric th = 1;
-  for (std::size_t i = 0; i < n; ++i) {
-    th *= g.theta;
-    g.gain.push_back(th * g.K[i]);
-  }
+  for (std::size_t r = 0; r < n; ++r)
+    g.gain.push_back(g.theta.power(numeric(static_cast<long>(level_of(blocks, r)))) * g.K[r]);
   return g;
+}
+
+// (h, L_f h, ..., L_f^{n-1} h), or the block chains.
+std::string chains_text(const std::vector<std::size_t>& blocks) {
+  return blocks.size() <= 1 ? "(h, L_f h, ..., L_f^{n-1} h)"
+                            : "(h_1, ..., L_f^{k_1-1} h_1, ..., h_p, ..., L_f^{k_p-1} h_p)";
 }
 
 // The rule of the gain solve's guard (SolveCorrection with LU; runtime/obsynth/linear_solve.hpp
@@ -498,8 +622,8 @@ void add_hg_functions(ObserverSpec& s, const Model& m, const HighGainStructure& 
   const std::size_t n = m.n();
   const FunctionArg w =
       vector_arg("w", "ObserverState", m.states, FunctionArg::Kind::observer_state);
-  const GiNaC::symbol y = fresh_symbol(m, "y");
-  const FunctionArg u = input_arg(m), yarg = output_arg({y});
+  const std::vector<GiNaC::symbol> y = measurement_symbols(m);
+  const FunctionArg u = input_arg(m), yarg = output_arg(y);
   const ExVec F = m.field();
   s.functions.push_back(
       fn("hg_rhs", "xh' = f(xh) + g(xh, u); the gain term is added by an LU solve with O(xh).",
@@ -509,10 +633,13 @@ void add_hg_functions(ObserverSpec& s, const Model& m, const HighGainStructure& 
     for (std::size_t r = 0; r < n; ++r) Ocol.push_back(st.O[r][c]);
   s.functions.push_back(
       fn("observability_matrix",
-         "O(xh) = d(h, L_f h, ..., L_f^{n-1} h)/dx, the matrix of the gain solve.", {w, u}, Ocol, n,
-         "GainMatrix"));
-  ExVec v;
-  for (std::size_t i = 0; i < n; ++i) v.push_back(g.gain[i] * (y - m.h[0]));
+         "O(xh) = d" + chains_text(st.blocks) + "/dx, the matrix of the gain solve.", {w, u}, Ocol,
+         n, "GainMatrix"));
+  ExVec v;  // row r of block i: theta^j K_r (y_i - h_i(xh))
+  for (std::size_t r = 0; r < n; ++r) {
+    const std::size_t i = block_of(st.blocks, r);
+    v.push_back(g.gain[r] * (y[i] - m.h[i]));
+  }
   s.functions.push_back(fn("gain_vector", "Delta_theta K (y - h(xh)), solved with O(xh).",
                            {w, u, yarg}, v, 1, "GainVector"));
   s.init = InitKind::identity;
@@ -570,7 +697,8 @@ Convergence convergence(const GainChoice& g, const Certificate& cert,
 
 // Title, description, class documentation and constants.
 void describe_hg(ObserverSpec& s, const GainChoice& g, const Certificate& cert,
-                 const Convergence& c, const std::string& where_singular) {
+                 const Convergence& c, const std::string& where_singular,
+                 const std::vector<std::size_t>& blocks) {
   s.title = "High-gain observer (Gauthier-Hammouri-Kupka), realised in the original coordinates";
   s.description = {
       "Observer: high-gain observer (Gauthier-Hammouri-Kupka; seed 002 eq. 3)",
@@ -595,6 +723,15 @@ void describe_hg(ObserverSpec& s, const GainChoice& g, const Certificate& cert,
                  "is singular or ill-conditioned returns Status::singular and keeps the state:",
                  "in any RK4 stage, the smallest LU pivot of O(xh) is at most sqrt(epsilon) times "
                  "the largest (epsilon of Scalar; obsynth::lu_conditioning_limit)."};
+  if (blocks.size() > 1) {
+    s.class_doc[1] =
+        "with O = d" + chains_text(blocks) + "/dx (indices " + indices_text(blocks) +
+        ") and Delta_theta = blockdiag(diag(theta, ..., theta^{k_i})); in z this is the";
+    s.class_doc[2] =
+        "observer zh' = A zh + phi(zh, u) + Delta_theta K (y - C zh), C zh = (zh_{1,1}, ..., "
+        "zh_{p,1}). A step where O(xh) is singular or ill-conditioned returns Status::singular "
+        "and keeps the state:";
+  }
   s.constants.push_back({"theta", {g.theta}, "high-gain parameter"});
   s.constants.push_back(
       {"poles", g.poles, "poles of A - K C (the error poles are theta times these)"});
@@ -658,7 +795,10 @@ void report_hg(ObserverSpec& s, const HighGainStructure& st, const GainChoice& g
                const Certificate& cert, const Convergence& c, const std::string& where_singular,
                const DesignOptions& o) {
   s.report = {
-      {"coordinates", "z = (h, L_f h, ..., L_f^{n-1} h), output first (seed 002 convention)"},
+      {"coordinates", high_gain_coordinates(st.blocks) +
+                          (st.blocks.size() > 1 ? ", output first in each block (seed 002 "
+                                                  "convention per block)"
+                                                : ", output first (seed 002 convention)")},
       {"theta", theta_text(g, cert)},
       {"largest safe sample period",
        fmt::format("{:.3g} s (RK4 stability on the fastest error pole theta max|pole|; the "
@@ -690,18 +830,24 @@ void report_hg(ObserverSpec& s, const HighGainStructure& st, const GainChoice& g
                                                                : "not guaranteed");
 }
 
+// The blocks' sizes: the analysis' observability indices (p = 1: {n} whatever the analysis).
+std::vector<std::size_t> indices(const Analysis& a) {
+  if (a.model.p() == 1) return {a.model.n()};
+  return a.observability.indices;
+}
+
 // The certificate behind the verdict, with the default poles and theta (the main job's
 // choice): withdrawn where it shows the design useless (no finite L, theta* above the cap, O
 // singular inside the box), otherwise rigorous (Arb L) or partial (sampled L).
 void assess(const Analysis& a, Verdict& v) {
   const Model& m = a.model;
-  const HighGainStructure st = high_gain_structure(m);
+  const HighGainStructure st = high_gain_structure(m, indices(a));
   if (!st.failures.empty()) {
     v = Verdict{false, st.failures, Guarantee::none, ""};
     return;
   }
-  const std::vector<numeric> poles = default_poles(m.n());
-  const Certificate cert = certify(m, st, high_gain_K(poles));
+  const std::vector<numeric> poles = chosen_poles({}, st.blocks);
+  const Certificate cert = certify(m, st, high_gain_K(poles, st.blocks));
   const auto singular = singular_in_box(m, st);
   if (cert.unbounded || cert.theta_star * kThetaMargin > kThetaCap) {
     v.applies = false;
@@ -739,14 +885,14 @@ void assess(const Analysis& a, Verdict& v) {
 
 ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Model& m = a.model;
-  const HighGainStructure st = high_gain_structure(m);
+  const HighGainStructure st = high_gain_structure(m, indices(a));
   if (!st.failures.empty())
     throw UserError(SourceLoc{m.file, 0, 0}, fmt::format("method 'high-gain' does not apply: {}",
                                                          fmt::join(st.failures, "; ")));
   const std::size_t n = m.n();
-  std::vector<numeric> poles = chosen_poles(o, n);
-  const Certificate cert = certify(m, st, high_gain_K(poles));
-  const GainChoice g = choose_gain(o, std::move(poles), cert.theta_star);
+  std::vector<numeric> poles = chosen_poles(o, st.blocks);
+  const Certificate cert = certify(m, st, high_gain_K(poles, st.blocks));
+  const GainChoice g = choose_gain(o, std::move(poles), cert.theta_star, st.blocks);
   const std::string where_singular = singular_set(m, st);
 
   ObserverSpec s;
@@ -759,7 +905,7 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   s.functions = model_functions(m);
   add_hg_functions(s, m, st, g, where_singular);
   const Convergence c = convergence(g, cert, singular_in_box(m, st));
-  describe_hg(s, g, cert, c, where_singular);
+  describe_hg(s, g, cert, c, where_singular, st.blocks);
   report_hg(s, st, g, cert, c, where_singular, o);
   if (!c.guaranteed)
     s.warnings.push_back("the high-gain observer as built is " + convergence_text(g, cert, c));
@@ -772,15 +918,15 @@ Design high_gain_design() {
   Design d;
   d.name = "high-gain";
   d.summary =
-      "high-gain observer for uniformly observable systems (seed 002 eq. 3; gain through an LU "
-      "solve with O(xh))";
+      "high-gain observer for uniformly observable systems, p >= 1 outputs in block-triangular "
+      "form (seed 002 eq. 3; gain through an LU solve with O(xh))";
   d.options = {
       {"poles",
        "error poles, comma-separated negative reals (canonical: of A - K e_n^T; high-gain: "
-       "of A - K C, scaled by theta)",
+       "of A - K C, scaled by theta, split over the blocks in output order)",
        "-2, -2.5, -3, ..."},
       {"theta",
-       "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^n)); "
+       "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^k) per block); "
        "kalman-theta: forgetting rate theta of S",
        "1.25 theta* within [5, 200] (high-gain), 5 (kalman-theta)"}};
   d.plan = stateless_plan<applies, build, assess>;
@@ -788,7 +934,7 @@ Design high_gain_design() {
   d.observes_along_inputs = true;
   d.along_inputs_note = "if uniformly observable";
   d.needs_uniform_observability = true;
-  d.max_outputs = 1;
+  d.max_outputs = 0;  // any p: one block per output (observability indices)
   return d;
 }
 

@@ -34,15 +34,36 @@ std::string numbers_text(const std::vector<numeric>& v) {
 struct KtForm {
   bool in_x = true;
   TriangularForm::Coordinates coordinates = TriangularForm::Coordinates::states;
-  std::vector<GiNaC::symbol> z;  // the first n symbols of w
-  ExVec a;                       // a_1(u) .. a_{n-1}(u)
-  ExVec phi;                     // phi_i(u, z)
-  ExVec field;                   // A(u) z + phi(u, z), in the z symbols
-  ExVec z_of_x, x_of_z;          // empty when in_x
+  std::vector<GiNaC::symbol> z;     // the first n symbols of w
+  ExVec a;                          // a_1(u) .. a_{n-1}(u)
+  ExVec phi;                        // phi_i(u, z)
+  ExVec field;                      // A(u) z + phi(u, z), in the z symbols
+  ExVec z_of_x, x_of_z;             // empty when in_x
+  std::vector<std::size_t> blocks;  // one per output (p = 1: {n}); C picks each block's first z
 };
+
+// The rows where C^T C has its ones (block starts), and C as text.
+std::vector<std::size_t> output_rows(const KtForm& f) {
+  return block_starts(f.blocks);
+}
+
+std::string C_text(const KtForm& f) {
+  if (f.blocks.size() <= 1) return "C = e_1";
+  std::vector<std::string> e;
+  for (const std::size_t r : output_rows(f)) e.push_back(fmt::format("e_{}", r + 1));
+  return fmt::format("C = [{}]^T (blocks {})", fmt::join(e, ", "), fmt::join(f.blocks, ", "));
+}
+
+// The states the outputs are when the form is in x: "x1", or "(x1, x3)".
+std::string output_states_text(const Model& m, const KtForm& f) {
+  std::vector<std::string> names;
+  for (const std::size_t r : output_rows(f)) names.push_back(m.states[r].get_name());
+  return names.size() == 1 ? names[0] : fmt::format("({})", fmt::join(names, ", "));
+}
 
 std::string coordinates_text(const KtForm& f) {
   if (f.in_x) return "in x";
+  if (f.blocks.size() > 1) return "in the block coordinates z_{i,j} = L_f^{j-1} h_i";
   return f.coordinates == TriangularForm::Coordinates::states
              ? "in the states reordered (z a permutation of x)"
              : "in the coordinates z = (h, L_f h, ..., L_f^{n-1} h)";
@@ -58,6 +79,7 @@ KtForm from_triangular(const TriangularForm& t) {
   f.z_of_x = t.z_of_x;
   f.x_of_z = t.x_of_z;
   const std::size_t n = t.z.size();
+  f.blocks = t.blocks.empty() ? std::vector<std::size_t>{n} : t.blocks;
   for (std::size_t i = 0; i < n; ++i) {
     ex e = t.phi[i];
     for (std::size_t j = 0; j < n; ++j)
@@ -79,7 +101,18 @@ std::optional<KtForm> find_form(const Analysis& a, bool compute, std::string& wh
     f.a = t->a;
     f.phi = t->phi;
     f.field = m.field();
+    f.blocks = t->blocks.empty() ? std::vector<std::size_t>{m.n()} : t->blocks;
     return f;
+  }
+  if (m.p() > 1) {  // the block form in z_{i,j} = L_f^{j-1} h_i (small models: computed here)
+    std::string why_b;
+    if (const auto t = block_triangular_form(m, a.observability.indices, &why_b))
+      return from_triangular(*t);
+    why = fmt::format(
+        "not in seed 002's block form z' = A(u) z + phi(u, z), y = C z in x ({}), nor in the "
+        "block coordinates z_{{i,j}} = L_f^{{j-1}} h_i ({})",
+        why_x, why_b);
+    return std::nullopt;
   }
   const ObservabilityUnderInputs& ui = a.under_inputs;
   if (ui.triangular) return from_triangular(*ui.triangular);
@@ -140,10 +173,15 @@ std::string form_text(const KtForm& form) {
 // Then A is a constant nilpotent matrix, Psi(t, theta) tends to the same limit for every input,
 // and scaling z_i by theta^(i-1) / (a_1 ... a_{i-1}) makes alpha(theta) and Gamma_ii / Gamma_jj
 // (theta >= 1) constants: i) and ii) of the Definition hold whatever u.
+// With blocks, the same block by block (the superdiagonal between blocks is zero by structure).
 bool every_input_persistent(const Model& m, const KtForm& form) {
   const SampleBoxes boxes = m.sample_boxes();
-  for (const auto& ai : form.a)
+  const auto starts = output_rows(form);
+  for (std::size_t i = 0; i < form.a.size(); ++i) {
+    if (std::find(starts.begin(), starts.end(), i + 1) != starts.end()) continue;
+    const ex& ai = form.a[i];
     if (depends_on(ai, m.inputs) || zeros_in_box(ai, boxes).kind != BoxZeros::never) return false;
+  }
   return true;
 }
 
@@ -151,7 +189,14 @@ bool every_input_persistent(const Model& m, const KtForm& form) {
 // a threshold it does not make explicit, so no chosen theta is proven sufficient.
 void set_guarantee(Verdict& v, const Model& m, const KtForm& form, const PhiLipschitz& lip) {
   const std::string singular_estimate = form.in_x ? "" : denominators_text(m, form);
-  if (lip.kind != PhiLipschitz::proved) {
+  if (form.blocks.size() > 1) {  // seed 002's Theorem has one output
+    v.guarantee = Guarantee::none;
+    v.guarantee_text =
+        "p > 1: seed 002 states and proves its Theorem for one output (y = z1); for the block "
+        "form (C picking each block's first row, phi triangular by level) its hypotheses are "
+        "checked (persistence with that C by `obsynth check --input`; " +
+        lip.text + "), but the Theorem itself is not proved here";
+  } else if (lip.kind != PhiLipschitz::proved) {
     v.guarantee = Guarantee::none;
     v.guarantee_text = lip.text;
   } else if (!every_input_persistent(m, form)) {
@@ -273,9 +318,11 @@ ExVec kt_rhs(const KtForm& form, const ExMatrix& S, const numeric& theta) {
   ExMatrix A(n, std::vector<ex>(n, 0));
   for (std::size_t i = 0; i + 1 < n; ++i) A[i][i + 1] = form.a[i];
   ExVec rhs = form.field;
+  const auto outs = output_rows(form);
   for (std::size_t r = 0; r < n; ++r)
     for (std::size_t c = r; c < n; ++c) {
-      ex acc = -theta * S[r][c] + (r == 0 && c == 0 ? 1 : 0);
+      const bool CtC = r == c && std::find(outs.begin(), outs.end(), r) != outs.end();
+      ex acc = -theta * S[r][c] + (CtC ? 1 : 0);
       for (std::size_t k = 0; k < n; ++k) acc -= A[k][r] * S[k][c] + S[r][k] * A[k][c];
       rhs.push_back(acc);
     }
@@ -286,16 +333,17 @@ ExVec kt_rhs(const KtForm& form, const ExMatrix& S, const numeric& theta) {
 // init is (z_of_x(xh0), S0) and the estimate x_of_z(zh).
 void add_kt_functions(ObserverSpec& s, const Model& m, const KtForm& form, const KtSymbols& sym,
                       const ExVec& rhs, const std::vector<numeric>& S0packed) {
-  const GiNaC::symbol y = fresh_symbol(m, "y");
+  const std::vector<GiNaC::symbol> y = measurement_symbols(m);
   const FunctionArg w = vector_arg("w", "ObserverState", sym.w, FunctionArg::Kind::observer_state);
-  const FunctionArg u = input_arg(m), yarg = output_arg({y});
+  const FunctionArg u = input_arg(m), yarg = output_arg(y);
   s.functions.push_back(
       make_function("kt_rhs",
                     "zh' = A(u) zh + phi(u, zh); S' = -theta S - A(u)^T S - S A(u) + C^T C "
                     "(packed); the gain is added by a Cholesky solve with S.",
                     {w, u, yarg}, rhs, "ObserverState"));
-  ExVec v(m.n(), 0);
-  v[0] = y - form.z[0];  // -C^T (C zh - y)
+  ExVec v(m.n(), 0);  // -C^T (C zh - y): y_i - zh at the first row of block i
+  const auto outs = output_rows(form);
+  for (std::size_t i = 0; i < outs.size(); ++i) v[outs[i]] = y[i] - form.z[outs[i]];
   s.functions.push_back(make_function("kt_gain_vector", "-C^T (C zh - y), solved with S.",
                                       {w, u, yarg}, v, "GainVector"));
   ExVec init = form.in_x ? ExVec(m.states.begin(), m.states.end()) : form.z_of_x;
@@ -370,7 +418,7 @@ void describe_kt(ObserverSpec& s, const Model& m, const KtForm& form, const nume
   if (form.in_x) {
     s.description.push_back(
         fmt::format("Form in x: a(u) = [{}], y = {}; theta = {}; S0 (packed) = [{}]", as,
-                    m.states[0].get_name(), to_string(theta), numbers_text(S0packed)));
+                    output_states_text(m, form), to_string(theta), numbers_text(S0packed)));
   } else {
     s.description.push_back(fmt::format(
         "Form {}: z = [{}], a(u) = [{}]; theta = {}; S0 (packed) = [{}]", coordinates_text(form),
@@ -391,14 +439,15 @@ void describe_kt(ObserverSpec& s, const Model& m, const KtForm& form, const nume
   s.constants.push_back({"theta", {theta}, "forgetting rate of S"});
   s.constants.push_back({"S0", S0packed, "initial S, packed upper triangle"});
   if (form.in_x) {
-    s.report = {{"form", fmt::format("z = x, a(u) = [{}], phi = [{}], C = e_1", as, phis)}};
+    s.report = {
+        {"form", fmt::format("z = x, a(u) = [{}], phi = [{}], {}", as, phis, C_text(form))}};
   } else {
     std::vector<std::string> zs;
     for (const auto& z : form.z) zs.push_back(z.get_name());
     s.report = {{"coordinates", fmt::format("{} ({}): [{}] = [{}]", coordinates_text(form),
                                             coordinates_name(form.coordinates), fmt::join(zs, ", "),
                                             fmt::join(to_strings(form.z_of_x), ", "))},
-                {"form", fmt::format("a(u) = [{}], phi(u, z) = [{}], C = e_1", as, phis)},
+                {"form", fmt::format("a(u) = [{}], phi(u, z) = [{}], {}", as, phis, C_text(form))},
                 {"estimate", fmt::format("x = x_of_z(zh) = [{}] (explicit inverse; zh starts at "
                                          "z(xh0)){}",
                                          fmt::join(to_strings(form.x_of_z), ", "),
@@ -478,11 +527,11 @@ Design kalman_theta_design() {
   Design d;
   d.name = "kalman-theta";
   d.summary =
-      "Kalman-like theta observer for systems not uniformly observable (seed 002 eq. 7/10; "
-      "needs a strongly persistent input)";
+      "Kalman-like theta observer for systems not uniformly observable, p >= 1 outputs in "
+      "seed 002's form block by block (seed 002 eq. 7/10; needs a strongly persistent input)";
   d.options = {
       {"theta",
-       "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^n)); "
+       "high-gain: gain scale theta (Delta_theta = diag(theta, ..., theta^k) per block); "
        "kalman-theta: forgetting rate theta of S",
        "5 (high-gain), 5 (kalman-theta)"},
       {"S0", "kalman-theta: initial S (s, or n diagonal values, or the packed upper triangle)",
@@ -490,7 +539,7 @@ Design kalman_theta_design() {
   d.plan = stateless_plan<applies, build>;
   d.observes_along_inputs = true;
   d.along_inputs_note = "Kalman-like, strongly persistent inputs";
-  d.max_outputs = 1;  // y = z1 (seed 002)
+  d.max_outputs = 0;  // y = C z, one block per output (seed 002's form block by block)
   return d;
 }
 

@@ -1,6 +1,9 @@
 // Kalman-like theta observer (Dufour-Flila-Hammouri, seed 002 eq. 7/10) for systems in the
 // form z' = A(u) z + phi(u, z), y = C z (C = e_1, a_i(u) on the superdiagonal, phi
-// triangular) that need not be uniformly observable (e.g. seed 002's example (4), where u = 0
+// triangular; with p > 1 outputs one such block per output, C picking each block's first
+// coordinate, A(u) block diagonal and phi triangular by level: analysis/triangular_form.hpp's
+// block form, in x or in z_{i,j} = L_f^{j-1} h_i with the observability indices as block sizes)
+// that need not be uniformly observable (e.g. seed 002's example (4), where u = 0
 // makes the system unobservable). The observer state is w = (zh, S) with S symmetric,
 // stored as its packed upper triangle and kept positive definite:
 //   zh' = A(u) zh + phi(u, zh) - S^-1 C^T (C zh - y),
