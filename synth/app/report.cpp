@@ -580,6 +580,18 @@ struct LineWriter {
   void operator()(const std::string& t) const { s += t + "\n"; }
 };
 
+// Where O loses rank: the zeros of det O (one output). With several outputs det is the
+// selected rows' minor: where it vanishes, O's other rows (L_f^k h_i, k >= k_i) may keep the
+// rank, which is not checked, so the set only bounds where the rank may drop.
+std::string rank_drop_text(const Observability& ob) {
+  if (ob.rank_drop.empty()) return "the rank never drops";
+  const std::string factors = fmt::format("{}", fmt::join(to_strings(ob.rank_drop), "; "));
+  if (ob.p == 1) return "the rank drops where any of these vanish: " + factors;
+  return "the selected rows lose rank where any of these vanish: " + factors +
+         " (O's other rows may keep the rank there: not checked, so the rank may drop only "
+         "there)";
+}
+
 // The observability section of the text report: Lie derivatives, O, its rank, det O, and
 // observability under inputs.
 void text_observability(const Analysis& a, SectionMarks& marks, const LineWriter& line) {
@@ -605,9 +617,7 @@ void text_observability(const Analysis& a, SectionMarks& marks, const LineWriter
     line("  det O and the rank-drop set: not computed (they need the symbolic O)");
   } else if (ob.generic_rank == ob.n) {
     line(fmt::format("  det O{} = {}", ob.p > 1 ? " (selected rows)" : "", to_string(ob.det)));
-    line(ob.rank_drop.empty() ? "  the rank never drops"
-                              : fmt::format("  the rank drops where any of these vanish: {}",
-                                            fmt::join(to_strings(ob.rank_drop), "; ")));
+    line("  " + rank_drop_text(ob));
   } else {
     line("  " + drift_deficit_text(a));
   }
@@ -734,8 +744,9 @@ void markdown_observability(const Analysis& a, SectionMarks& marks, const LineWr
   if (ob.jets) line("- " + jets_inputs_text(ob));
   if (!ob.jets && ob.generic_rank == ob.n) {
     line(fmt::format("- $\\det O = {}$", to_latex(ob.det)));
-    if (ob.rank_drop.empty()) line("- the rank never drops");
-    for (const auto& f : ob.rank_drop) line(fmt::format("- rank drops on ${} = 0$", to_latex(f)));
+    if (ob.rank_drop.empty() || ob.p > 1) line("- " + rank_drop_text(ob));
+    if (ob.p == 1)
+      for (const auto& f : ob.rank_drop) line(fmt::format("- rank drops on ${} = 0$", to_latex(f)));
   }
   for (const auto& f : ob.undefined) line(fmt::format("- $O$ undefined on ${} = 0$", to_latex(f)));
   if (ob.generic_rank < ob.n) line("- " + drift_deficit_text(a));

@@ -184,6 +184,8 @@ TrialOutcome closed_loop_trial(const Analysis& a, const ObserverSpec& spec) {
   opt.u_text = input_text(m, rho);
   opt.t_end = kHorizonSpans / rho;
   opt.dt = kStepShare / rho;
+  // Half the observer's own RK4 limit when its error dynamics are faster than the plant's.
+  if (spec.largest_safe_step > 0) opt.dt = std::min(opt.dt, spec.largest_safe_step / 2);
   if (spec.sampled_delay) opt.dt = spec.sampled_delay->sample_period;
   opt.t_end = std::min(opt.t_end, opt.dt * static_cast<double>(kMaxSteps));
   TrialOutcome out;

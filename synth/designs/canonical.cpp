@@ -191,13 +191,18 @@ double predicted_peaking(const std::vector<numeric>& poles,
 
 // The "largest safe sample period" row: the exact step is stable at any period (Phi = e^{A_cl
 // dt}); RK4 needs dt max|pole| within its stability interval [-2.785, 0].
-std::string safe_period_text(const Choices& c) {
-  if (c.realisation == Realisation::z && c.exact)
-    return "any: the linear error dynamics are discretised exactly (Phi = exp(A_cl dt)); l(u, y) "
-           "is held over the step, so the period sets only how well u and y are sampled";
+double rk4_safe_step(const Choices& c) {
+  if (c.realisation == Realisation::z && c.exact) return 0;  // any
   double fastest = 0;
   for (const auto& q : c.poles) fastest = std::max(fastest, std::abs(q.to_double()));
-  return fmt::format("{:.3g} s (RK4 stability on the fastest error pole)", 2.785 / fastest);
+  return 2.785 / fastest;
+}
+
+std::string safe_period_text(const Choices& c) {
+  if (rk4_safe_step(c) == 0)
+    return "any: the linear error dynamics are discretised exactly (Phi = exp(A_cl dt)); l(u, y) "
+           "is held over the step, so the period sets only how well u and y are sampled";
+  return fmt::format("{:.3g} s (RK4 stability on the fastest error pole)", rk4_safe_step(c));
 }
 
 // The "predicted peaking" report row.
@@ -562,6 +567,7 @@ void describe(const Analysis& a, const Choices& c, ObserverSpec& s) {
         fmt::format("poles {}.", numbers_text(c.poles))};
   s.constants.push_back({"poles", c.poles, fmt::format("error poles of ({})", A_cl)});
   s.constants.push_back({"K", c.K, "output-injection gain, K_i = c_{i-1} of prod (s - pole)"});
+  s.largest_safe_step = rk4_safe_step(c);
   s.report = {{"realisation", fmt::format("{} ({})", zreal ? "z" : "x", c.realisation_reason)},
               {"poles", numbers_text(c.poles) + " (" + c.poles_reason + ")"},
               {"predicted peaking", peaking_text(c.peaking)},

@@ -794,6 +794,7 @@ std::string convergence_text(const GainChoice& g, const Certificate& cert, const
 void report_hg(ObserverSpec& s, const HighGainStructure& st, const GainChoice& g,
                const Certificate& cert, const Convergence& c, const std::string& where_singular,
                const DesignOptions& o) {
+  s.largest_safe_step = rk4_safe_period(g.theta, g.poles);
   s.report = {
       {"coordinates", high_gain_coordinates(st.blocks) +
                           (st.blocks.size() > 1 ? ", output first in each block (seed 002 "

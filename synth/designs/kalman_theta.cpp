@@ -438,6 +438,7 @@ void describe_kt(ObserverSpec& s, const Model& m, const KtForm& form, const nume
                                    fmt::join(to_strings(form.x_of_z), ", ")));
   s.constants.push_back({"theta", {theta}, "forgetting rate of S"});
   s.constants.push_back({"S0", S0packed, "initial S, packed upper triangle"});
+  s.largest_safe_step = kStagePositivity / theta.to_double();
   if (form.in_x) {
     s.report = {
         {"form", fmt::format("z = x, a(u) = [{}], phi = [{}], {}", as, phis, C_text(form))}};

@@ -246,6 +246,11 @@ struct ObserverSpec {
 
   int newton_iterations = 8;
 
+  // The largest step at which the observer's own RK4 update is stable (its fastest error
+  // dynamics), for the closed-loop trial and simulate's choice of step; 0: any step (exact
+  // discretisation, sub-stepping) or unknown.
+  double largest_safe_step = 0;
+
   // sampled_delay: the filter bank, delay line and inverse tables.
   std::optional<SampledDelay> sampled_delay;
   std::vector<ConstTable> tables;
