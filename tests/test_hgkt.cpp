@@ -16,6 +16,7 @@
 #include "designs/registry.hpp"
 #include "foundation/diagnostics.hpp"
 #include "front/parse.hpp"
+#include "support/closed_loop.hpp"
 
 using namespace obsynth;
 
@@ -36,19 +37,7 @@ Model test_model(const std::string& name) {  // tests/models/<name>.sym
   return load_model(std::string(OBSYNTH_SOURCE_DIR) + "/tests/models/" + name + ".sym");
 }
 
-SimulationResult run(const Model& m, const std::string& method, const std::string& u,
-                     std::vector<double> x0, std::vector<double> xh0, double t_end,
-                     DesignOptions d = {}) {
-  SimulationOptions o;
-  o.method = method;
-  o.design = std::move(d);
-  o.u_text = u;
-  o.x0 = std::move(x0);
-  o.xhat0 = std::move(xh0);
-  o.t_end = t_end;
-  o.dt = 1e-3;
-  return simulate(analyse(m), o);
-}
+using obsynth::testing::run;
 
 double final_error(const SimulationResult& r, std::size_t i) {
   return std::abs(r.x.back()[i] - r.xh.back()[i]);

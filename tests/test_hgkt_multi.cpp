@@ -14,6 +14,7 @@
 #include "designs/registry.hpp"
 #include "foundation/diagnostics.hpp"
 #include "front/parse.hpp"
+#include "support/closed_loop.hpp"
 
 using namespace obsynth;
 
@@ -75,19 +76,7 @@ std::string row(const ObserverSpec& s, const std::string& key) {
   return "";
 }
 
-SimulationResult run(const Model& m, const std::string& method, const std::string& u,
-                     std::vector<double> x0, std::vector<double> xh0, double t_end,
-                     DesignOptions d = {}) {
-  SimulationOptions o;
-  o.method = method;
-  o.design = std::move(d);
-  o.u_text = u;
-  o.x0 = std::move(x0);
-  o.xhat0 = std::move(xh0);
-  o.t_end = t_end;
-  o.dt = 1e-3;
-  return simulate(analyse(m), o);
-}
+using obsynth::testing::run;
 
 }  // namespace
 
