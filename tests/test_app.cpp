@@ -292,5 +292,8 @@ TEST(Plans, SingleOutputDesignsRefuseTwoOutputsThroughTheRegistry) {
     EXPECT_FALSE(v.applies) << d.name;
     EXPECT_NE(v.text().find("the model has p = 2"), std::string::npos)
         << d.name << ": " << v.text();
+    // ... and says why (the design's reason, not a bare count)
+    EXPECT_FALSE(d.outputs_note.empty()) << d.name;
+    EXPECT_NE(v.text().find(d.outputs_note), std::string::npos) << d.name << ": " << v.text();
   }
 }

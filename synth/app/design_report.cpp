@@ -29,6 +29,7 @@ nlohmann::ordered_json methods_json() {
                        {"in_auto", d.in_all},
                        {"needs_canonical_form", d.needs_canonical_form},
                        {"max_outputs", d.max_outputs},
+                       {"outputs_note", d.outputs_note},
                        {"accepts_feedthrough", d.accepts_feedthrough},
                        {"observes_output_offset", d.observes_output_offset},
                        {"observes_along_inputs", d.observes_along_inputs},
