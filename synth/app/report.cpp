@@ -447,34 +447,38 @@ ordered_json observability_json(const Analysis& a) {
 ordered_json conditions_json(const Analysis& a) {
   const CanonicalForm& cf = a.canonical;
   ordered_json c;
-  ordered_json drift = ordered_json::array(), input = ordered_json::array();
-  for (const auto& b : cf.drift) {
-    drift.push_back({{"i", b.i},
-                     {"j", b.j},
-                     {"name", drift_condition_name(cf, b)},
-                     {"holds", b.holds()},
-                     {"verdict", verdict_name(b.verdict)},
-                     {"residual", residual_json(b)}});
-    add_evidence_json(a.model, b, drift.back());
-  }
-  for (const auto& b : cf.input) {
-    input.push_back({{"j", b.j},
-                     {"name", input_condition_name(cf, b)},
-                     {"holds", b.holds()},
-                     {"verdict", verdict_name(b.verdict)},
-                     {"residual", residual_json(b)}});
-    add_evidence_json(a.model, b, input.back());
-  }
-  ordered_json output = ordered_json::array();
-  for (const auto& b : cf.output) {
-    output.push_back({{"output", b.i},
-                      {"j", b.j},
-                      {"name", output_condition_name(cf, b)},
-                      {"holds", b.holds()},
-                      {"verdict", verdict_name(b.verdict)},
-                      {"residual", residual_json(b)}});
-    add_evidence_json(a.model, b, output.back());
-  }
+  // One list: each check's indices (`head`), then name, verdict, residual and evidence.
+  auto list = [&](const std::vector<BracketCheck>& checks, auto head, auto name) {
+    ordered_json out = ordered_json::array();
+    for (const auto& b : checks) {
+      ordered_json e = head(b);
+      e["name"] = name(cf, b);
+      e["holds"] = b.holds();
+      e["verdict"] = verdict_name(b.verdict);
+      e["residual"] = residual_json(b);
+      add_evidence_json(a.model, b, e);
+      out.push_back(std::move(e));
+    }
+    return out;
+  };
+  const ordered_json drift = list(
+      cf.drift,
+      [](const BracketCheck& b) {
+        return ordered_json{{"i", b.i}, {"j", b.j}};
+      },
+      drift_condition_name);
+  const ordered_json input = list(
+      cf.input,
+      [](const BracketCheck& b) {
+        return ordered_json{{"j", b.j}};
+      },
+      input_condition_name);
+  const ordered_json output = list(
+      cf.output,
+      [](const BracketCheck& b) {
+        return ordered_json{{"output", b.i}, {"j", b.j}};
+      },
+      output_condition_name);
   c["observable"] = a.observability.generic_rank == a.observability.n;
   c["drift"] = drift;
   c["input"] = input;
