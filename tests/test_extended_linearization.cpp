@@ -76,14 +76,15 @@ std::vector<std::complex<double>> error_eigenvalues(const Model& m, const Observ
   GiNaC::exmap pt = params;
   for (std::size_t i = 0; i < m.n(); ++i) pt[m.states[i]] = x[i];
   pt[m.inputs[0]] = u;
-  // The output argument y = h(x).
+  // The output argument y = h(x), every output.
   const auto& yarg = rhs->args[2];
-  const ex hx = GiNaC::evalf(m.h[0].subs(pt));
+  GiNaC::exmap y_at;
+  for (std::size_t l = 0; l < m.p(); ++l) y_at[yarg.symbols[l]] = GiNaC::evalf(m.h[l].subs(pt));
   const std::size_t n = m.n();
   Eigen::MatrixXd J(n, n);
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t j = 0; j < n; ++j) {
-      ex d = out[i].diff(m.states[j]).subs(yarg.symbols[0] == hx).subs(pt);
+      ex d = out[i].diff(m.states[j]).subs(y_at).subs(pt);
       J(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) =
           GiNaC::ex_to<GiNaC::numeric>(GiNaC::evalf(d)).to_double();
     }
@@ -118,7 +119,7 @@ TEST(ExtendedLinearization, PendulumClosedForm) {
   EXPECT_TRUE(exactly_equal(r.u_eps, GiNaC::sin(r.eps)));
   EXPECT_DOUBLE_EQ(r.det_A0, 1);   // det [[0, 1], [-1, -1/4]]
   EXPECT_DOUBLE_EQ(r.dy_deps, 1);  // -[1 0] A0^-1 [0 1]^T
-  const ExVec k = pendulum_k(r.y);
+  const ExVec k = pendulum_k(r.y[0]);
   ASSERT_EQ(r.injection.size(), 2u);
   for (int i = 0; i < 2; ++i) EXPECT_TRUE(exactly_equal(r.injection[i], k[i])) << r.injection[i];
 }
@@ -132,9 +133,9 @@ TEST(ExtendedLinearization, PendulumSeriesAgreesWithClosedForm) {
     ASSERT_TRUE(r.failures.empty());
     EXPECT_FALSE(r.injection_closed);
     EXPECT_EQ(r.injection_order, order);
-    const ExVec k = pendulum_k(r.y);
+    const ExVec k = pendulum_k(r.y[0]);
     for (int i = 0; i < 2; ++i)
-      EXPECT_TRUE(exactly_equal(r.injection[i], taylor_of(k[i], r.y, order)))
+      EXPECT_TRUE(exactly_equal(r.injection[i], taylor_of(k[i], r.y[0], order)))
           << "order " << order << ": " << r.injection[i];
   }
 }
@@ -151,15 +152,15 @@ TEST(ExtendedLinearization, CartPendulumSeriesFamilyAndInjection) {
   EXPECT_TRUE(exactly_equal(r.x_eps[0], taylor_of(GiNaC::asin(r.eps), r.eps, N)));
   EXPECT_TRUE(exactly_equal(r.x_eps[1], 0));
   EXPECT_TRUE(exactly_equal(r.u_eps, taylor_of(r.eps / GiNaC::sqrt(1 - r.eps * r.eps), r.eps, N)));
-  const ExVec k = cart_k(r.y);
+  const ExVec k = cart_k(r.y[0]);
   for (int i = 0; i < 2; ++i)
-    EXPECT_TRUE(exactly_equal(r.injection[i], taylor_of(k[i], r.y, M))) << r.injection[i];
+    EXPECT_TRUE(exactly_equal(r.injection[i], taylor_of(k[i], r.y[0], M))) << r.injection[i];
   // A longer series agrees too (order 9).
   const auto& r9 = extended_linearization(m, opts({{"el-order", "9"}}));
   ASSERT_TRUE(r9.failures.empty());
-  const ExVec k9 = cart_k(r9.y);  // each result has its own symbol y
+  const ExVec k9 = cart_k(r9.y[0]);  // each result has its own symbol y
   for (int i = 0; i < 2; ++i)
-    EXPECT_TRUE(exactly_equal(r9.injection[i], taylor_of(k9[i], r9.y, 9))) << r9.injection[i];
+    EXPECT_TRUE(exactly_equal(r9.injection[i], taylor_of(k9[i], r9.y[0], 9))) << r9.injection[i];
 }
 
 // Eigenvalues of the linearized error at points of the family: exactly the poles for the closed
@@ -431,3 +432,106 @@ TEST(ExtendedLinearization, NestedFunctionsTakeTheSeries) {
 }
 
 }  // namespace
+
+// Two outputs (seed 001 eq. 35-41). Hand derivations:
+// (a) x1' = x2, x2' = -sin x1 - x2/2 + u, x3' = -x3 + x1^2/2, y = (x1, x3): equilibria x2 = 0,
+//     u = sin x1, x3 = x1^2/2, so with eps = y1 the family is x = (e, 0, e^2/2), u = sin e.
+//     A0 = [[0, 1, 0], [-1, -1/2, 0], [0, 0, -1]]: y1 alone does not see x3 and y2 alone does
+//     not see (x1, x2) at the base point, their sum does (det O = 3/2), so w = (1, 1), L0 = 0.
+// (b) x1' = -x1 + u, x2' = -x2 + x1^2, y = (x1, x2): A0 = -I is not cyclic, no combination of
+//     the outputs observes it alone: a pre-gain L0 is needed; family x = (e, e^2), u = e.
+// Oracle: the eigenvalues of the generated rhs's Jacobian at xh = x on the hand family (every
+// output at y = h(x)), by Eigen, against the default poles -1, -2, -3 (-1, -2).
+const char* kTwoOutputSum = R"(model el2a
+states x1 x2 x3
+inputs u
+f = [ x2, -sin(x1) - x2/2, -x3 + x1^2/2 ]
+g = [ 0, u, 0 ]
+h = [ x1, x3 ]
+domain x1 in [-1, 1], x2 in [-1, 1], x3 in [-1, 1], u in [-2, 2]
+)";
+const char* kTwoOutputNotCyclic = R"(model el2b
+states x1 x2
+inputs u
+f = [ -x1, -x2 + x1^2 ]
+g = [ u, 0 ]
+h = [ x1, x2 ]
+domain x1 in [-1, 1], x2 in [-1, 1], u in [-2, 2]
+)";
+
+TEST(ExtendedLinearization, TwoOutputsPlaceTheEigenvaluesAlongTheHandFamily) {
+  {
+    const Model m = model_text(kTwoOutputSum);
+    const auto r = extended_linearization(m, {});
+    ASSERT_TRUE(r.failures.empty()) << r.failures[0];
+    EXPECT_EQ(r.level_output, 0u);
+    ASSERT_EQ(r.combination.size(), 2u);
+    EXPECT_EQ(r.combination[0], 1);
+    EXPECT_EQ(r.combination[1], 1);
+    const GiNaC::symbol& e = r.eps;
+    EXPECT_TRUE(exactly_equal(r.x_eps[0], e));
+    EXPECT_TRUE(exactly_equal(r.x_eps[1], 0));
+    EXPECT_TRUE(exactly_equal(r.x_eps[2], e * e / 2));
+    EXPECT_TRUE(exactly_equal(r.u_eps, GiNaC::sin(e)));
+    // c(eps) is rational in eps and cos(eps): no closed-form antiderivative, the series
+    // injection of order 6 (eq. 42-45), exact at eps = 0 and O(eps^6) along the family.
+    EXPECT_FALSE(r.injection_closed);
+    const ObserverSpec s = build_design(analyse(m), "extended-linearization", {});
+    auto dev = [&](double v) {
+      return deviation(error_eigenvalues(m, s, {v, 0, v * v / 2}, std::sin(v)), {-3, -2, -1});
+    };
+    EXPECT_LT(dev(0), 1e-12);
+    const double d1 = dev(0.2), d2 = dev(0.1), d3 = dev(0.05), d4 = dev(-0.05);
+    EXPECT_GT(d2 / d3, 40) << d2 << " " << d3;
+    EXPECT_LT(d2 / d3, 100) << d2 << " " << d3;
+    EXPECT_GT(d1 / d2, 30) << d1 << " " << d2;
+    EXPECT_LT(d3, 1e-6);
+    EXPECT_LT(d4, 1e-6);
+  }
+  {
+    const Model m = model_text(kTwoOutputNotCyclic);
+    const auto r = extended_linearization(m, {});
+    ASSERT_TRUE(r.failures.empty()) << r.failures[0];
+    bool nonzero = false;
+    for (const auto& row : r.pre_gain)
+      for (const auto& x : row) nonzero = nonzero || !x.is_zero();
+    EXPECT_TRUE(nonzero) << "A0 = -I needs a pre-gain";
+    const ObserverSpec s = build_design(analyse(m), "extended-linearization", {});
+    for (double v : {-0.8, -0.3, 0.0, 0.4, 0.9}) {
+      const auto ev = error_eigenvalues(m, s, {v, v * v}, v);
+      EXPECT_LT(deviation(ev, {-2, -1}), 1e-9) << "eps = " << v;
+    }
+  }
+}
+
+// The two-output observer converges in closed loop near the family, from a 0.15 error.
+TEST(ExtendedLinearization, TwoOutputsClosedLoopConverges) {
+  SimulationOptions o;
+  o.method = "extended-linearization";
+  o.u_text = "sin(1/2) + 1/5*sin(t)";
+  o.x0 = {0.5, 0, 0.125};
+  o.xhat0 = {0.65, -0.15, 0.275};
+  o.t_end = 15;
+  o.dt = 1e-3;
+  const auto r = simulate(analyse(model_text(kTwoOutputSum)), o);
+  EXPECT_TRUE(r.diverged.empty()) << r.diverged;
+  EXPECT_LT(final_error(r), 1e-5);
+}
+
+// Where the outputs do not move with the family, constraint (iii) names the slopes of all.
+TEST(ExtendedLinearization, TwoOutputsWithFlatLevelsFailConstraintThree) {
+  const Model m = model_text(R"(model el2c
+states x1 x2
+inputs u
+f = [ -x1 + x2, -x2 ]
+g = [ 0, u ]
+h = [ x1 - x2, x2 - x1 ]
+domain x1 in [-1, 1], x2 in [-1, 1], u in [-1, 1]
+)");
+  const auto r = extended_linearization(m, {});
+  ASSERT_FALSE(r.failures.empty());
+  // By hand: x_eps = (u, u) for u = eps, so y = (0, 0) along it: dy/deps = (0, 0).
+  EXPECT_NE(r.failures[0].find("constraint (iii) fails: dy_eps/deps = -H0 A0^-1 B0 = [0, 0]"),
+            std::string::npos)
+      << r.failures[0];
+}

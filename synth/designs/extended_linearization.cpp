@@ -7,8 +7,10 @@
 #include <map>
 #include <set>
 
+#include "analysis/observability.hpp"
 #include "designs/design_helpers.hpp"
 #include "designs/options.hpp"
+#include "front/fresh_names.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/integrate.hpp"
 #include "symbolic/symbolic.hpp"
@@ -79,6 +81,14 @@ std::string num_text(double v) {
   return fmt::format("{:.6g}", v);
 }
 
+// dy_eps/deps: one number, or a list for p outputs.
+std::string slopes_text(const std::vector<double>& v) {
+  if (v.size() == 1) return num_text(v[0]);
+  std::vector<std::string> s;
+  for (double x : v) s.push_back(num_text(x));
+  return fmt::format("[{}]", fmt::join(s, ", "));
+}
+
 // Entry by entry: to_string orders each entry deterministically, GiNaC's matrix printing does not.
 std::string vec_text(const ExVec& v) {
   return fmt::format("[{}]", fmt::join(to_strings(v), ", "));
@@ -95,9 +105,9 @@ ex taylor(const ex& e, const GiNaC::symbol& eps, int order) {
 
 struct Problem {
   ExVec F;                              // f + g with the other inputs at u0
-  ex h;                                 // the output
+  ExVec H;                              // the outputs
   std::vector<GiNaC::symbol> unknowns;  // states, then the first input
-  ExVec equations;                      // F, h - y0 - eps
+  ExVec equations;                      // F, h_k - y0_k - eps
   GiNaC::exmap base;                    // unknowns -> base values
 };
 
@@ -247,16 +257,9 @@ RunOptions read_options(const DesignOptions& o, std::size_t n, ExtendedLineariza
   return ro;
 }
 
-// The model shapes the construction handles (one output, an input, y = h(x), n small); false
-// with the failure in r otherwise.
+// The model shapes the construction handles (an input, y = h(x)); false with the failure in r
+// otherwise.
 bool supported(const Model& m, ExtendedLinearization& r) {
-  if (m.p() != 1) {
-    r.failures.push_back(
-        fmt::format("the model has p = {} outputs; extended linearization is built "
-                    "here for one output (seed 001 §5, p = 1)",
-                    m.p()));
-    return false;
-  }
   if (m.m() == 0) {
     r.failures.push_back(
         "the model has no input: there is no family of equilibria x_eps, u_eps "
@@ -292,7 +295,7 @@ Problem base_problem(const Model& m, const DesignOptions& o, ExtendedLinearizati
   }
   for (const auto& e : m.field())
     P.F.push_back(e.subs(other_inputs, GiNaC::subs_options::no_pattern));
-  P.h = m.h[0];
+  P.H = m.h;
   for (std::size_t i = 0; i < n; ++i) {
     P.unknowns.push_back(m.states[i]);
     r.x0.push_back(base.empty() ? numeric(0) : base[i]);
@@ -300,7 +303,8 @@ Problem base_problem(const Model& m, const DesignOptions& o, ExtendedLinearizati
   }
   P.unknowns.push_back(m.inputs[0]);
   P.base[m.inputs[0]] = r.u0[0];
-  r.y0 = simplify(P.h.subs(P.base, GiNaC::subs_options::no_pattern));
+  for (const auto& h : P.H)
+    r.y0.push_back(simplify(h.subs(P.base, GiNaC::subs_options::no_pattern)));
   return P;
 }
 
@@ -323,56 +327,110 @@ bool at_equilibrium(const Model& m, const Problem& P, ExtendedLinearization& r) 
 }
 
 // The failures of constraints (i)-(iii) into r.
-void constraint_failures(bool c1, bool c2, bool c3, double det_O0, ExtendedLinearization& r) {
+void constraint_failures(bool c1, bool c2, bool c3, const std::string& obs_text,
+                         ExtendedLinearization& r) {
   if (!c1)
     r.failures.push_back(fmt::format("constraint (i) fails: det(d(f+g)/dx) at the base point = {}",
                                      num_text(r.det_A0)));
   if (!c2)
     r.failures.push_back(
-        fmt::format("constraint (ii) fails: (A0, H0) not observable, det of its "
-                    "observability matrix = {}",
-                    num_text(det_O0)));
+        fmt::format("constraint (ii) fails: (A0, H0) not observable, {}", obs_text));
   if (c1 && !c3)
     r.failures.push_back(fmt::format("constraint (iii) fails: dy_eps/deps = -H0 A0^-1 B0 = {}",
-                                     num_text(r.dy_deps)));
+                                     slopes_text(r.output_slopes)));
+}
+
+// (A0, H0)'s observability at the parameter point: the determinant of its observability matrix
+// for one output, else the rank of the stacked [H0; H0 A0; ...] (exact when every entry is
+// rational); the text names the figure.
+std::size_t observability_rank(const GiNaC::matrix& A0, const GiNaC::matrix& H0,
+                               const GiNaC::exmap& params, std::string& text) {
+  const unsigned n = A0.rows(), p = H0.rows();
+  if (p == 1) {
+    const double det = value_at(linear_observability_matrix(A0, H0).determinant(), params);
+    const std::size_t rank = std::isfinite(det) && std::fabs(det) > kTiny ? n : n - 1;
+    text = fmt::format("det of its observability matrix = {}", num_text(det));
+    return rank;
+  }
+  std::vector<std::vector<numeric>> rows;
+  bool exact = true;
+  GiNaC::matrix row = H0;
+  for (unsigned k = 0; k < n; ++k) {
+    for (unsigned i = 0; i < p; ++i) {
+      rows.emplace_back();
+      for (unsigned j = 0; j < n; ++j) {
+        const ex e = row(i, j).subs(params, GiNaC::subs_options::no_pattern);
+        if (GiNaC::is_a<numeric>(e) && GiNaC::ex_to<numeric>(e).is_rational()) {
+          rows.back().push_back(GiNaC::ex_to<numeric>(e));
+        } else {
+          exact = false;
+          const double v = value_at(e, params);
+          rows.back().push_back(std::isfinite(v) ? numeric(v) : numeric(0));
+        }
+      }
+    }
+    row = row.mul(A0);
+  }
+  const std::size_t rank = numeric_rank(rows, exact);
+  text = fmt::format("rank of [H0; H0 A0; ...; H0 A0^{}] = {} of n = {}{}", n - 1, rank, n,
+                     exact ? "" : " (floating point)");
+  return rank;
 }
 
 // The linearisation at the base point and constraints (i) det A0 != 0, (ii) (A0, H0)
-// observable, (iii) dy_eps/deps != 0, with notes; false when one fails.
+// observable, (iii) dy_eps/deps != 0 for some output (the first such output parametrises the
+// family: r.level_output), with notes; false when one fails.
 bool check_constraints(const Model& m, const Problem& P, const GiNaC::exmap& params,
                        ExtendedLinearization& r) {
   const std::size_t n = m.n();
+  const unsigned p = static_cast<unsigned>(P.H.size());
   GiNaC::matrix A0(static_cast<unsigned>(n), static_cast<unsigned>(n)),
-      B0(static_cast<unsigned>(n), 1), H0(1, static_cast<unsigned>(n));
+      B0(static_cast<unsigned>(n), 1), H0(p, static_cast<unsigned>(n));
   for (unsigned i = 0; i < n; ++i) {
     for (unsigned j = 0; j < n; ++j)
       A0(i, j) = P.F[i].diff(m.states[j]).subs(P.base, GiNaC::subs_options::no_pattern);
     B0(i, 0) = P.F[i].diff(m.inputs[0]).subs(P.base, GiNaC::subs_options::no_pattern);
-    H0(0, i) = P.h.diff(m.states[i]).subs(P.base, GiNaC::subs_options::no_pattern);
+    for (unsigned l = 0; l < p; ++l)
+      H0(l, i) = P.H[l].diff(m.states[i]).subs(P.base, GiNaC::subs_options::no_pattern);
   }
   r.det_A0 = value_at(A0.determinant(), params);
-  const double det_O0 = value_at(linear_observability_matrix(A0, H0).determinant(), params);
-  r.obs_rank = std::isfinite(det_O0) && std::fabs(det_O0) > kTiny ? n : n - 1;
+  std::string obs_text;
+  r.obs_rank = observability_rank(A0, H0, params, obs_text);
   const std::string at_params =
       params.empty() ? std::string() : " (free parameters at the centre of their boxes)";
   const bool c1 = std::isfinite(r.det_A0) && std::fabs(r.det_A0) > kTiny;
   const bool c2 = r.obs_rank == n;
-  r.notes.push_back(
-      fmt::format("base point x0 = ({}), u0 = {}, y0 = h(x0) = {}; A0 = d(f+g)/dx = {}, "
-                  "B0 = d(f+g)/du = {}, H0 = dh/dx = {}{}",
-                  poles_list(r.x0), to_string(ex(r.u0[0])), to_string(r.y0), matrix_text(A0),
-                  matrix_text(B0), matrix_text(H0), at_params));
-  r.dy_deps = c1 ? value_at((H0.mul(A0.inverse()).mul(B0))(0, 0) * -1, params)
-                 : std::numeric_limits<double>::quiet_NaN();
-  const bool c3 = c1 && std::isfinite(r.dy_deps) && std::fabs(r.dy_deps) > kTiny;
+  r.notes.push_back(fmt::format(
+      "base point x0 = ({}), u0 = {}, y0 = h(x0) = {}; A0 = d(f+g)/dx = {}, "
+      "B0 = d(f+g)/du = {}, H0 = dh/dx = {}{}",
+      poles_list(r.x0), to_string(ex(r.u0[0])), p == 1 ? to_string(r.y0[0]) : vec_text(r.y0),
+      matrix_text(A0), matrix_text(B0), matrix_text(H0), at_params));
+  r.output_slopes.assign(p, std::numeric_limits<double>::quiet_NaN());
+  if (c1) {
+    const GiNaC::matrix slopes = H0.mul(A0.inverse()).mul(B0);
+    for (unsigned l = 0; l < p; ++l) r.output_slopes[l] = value_at(slopes(l, 0) * -1, params);
+  }
+  bool c3 = false;
+  for (unsigned l = 0; l < p && c1 && !c3; ++l)
+    if (std::isfinite(r.output_slopes[l]) && std::fabs(r.output_slopes[l]) > kTiny) {
+      c3 = true;
+      r.level_output = l;
+    }
+  r.dy_deps = r.output_slopes[r.level_output];
   r.notes.push_back(
       fmt::format("constraint (i) {}: det A0 = {}", c1 ? "holds" : "fails", num_text(r.det_A0)));
-  r.notes.push_back(fmt::format("constraint (ii) {}: det O(A0, H0) = {} (rank {} of n = {})",
-                                c2 ? "holds" : "fails", num_text(det_O0), c2 ? n : r.obs_rank, n));
-  r.notes.push_back(fmt::format("constraint (iii) {}: dy_eps/deps = -H0 A0^-1 B0 = {}",
-                                c3 ? "holds" : "fails",
-                                c1 ? num_text(r.dy_deps) : std::string("undefined (A0 singular)")));
-  constraint_failures(c1, c2, c3, det_O0, r);
+  r.notes.push_back(
+      p == 1 ? fmt::format("constraint (ii) {}: det O(A0, H0) = {} (rank {} of n = {})",
+                           c2 ? "holds" : "fails", obs_text.substr(obs_text.find("= ") + 2),
+                           c2 ? n : r.obs_rank, n)
+             : fmt::format("constraint (ii) {}: {}", c2 ? "holds" : "fails", obs_text));
+  r.notes.push_back(fmt::format(
+      "constraint (iii) {}: dy_eps/deps = -H0 A0^-1 B0 = {}{}", c3 ? "holds" : "fails",
+      c1 ? slopes_text(r.output_slopes) : std::string("undefined (A0 singular)"),
+      c3 && p > 1 ? fmt::format("; the family is parametrised by the level of output {} ({})",
+                                r.level_output + 1, to_string(P.H[r.level_output]))
+                  : std::string()));
+  constraint_failures(c1, c2, c3, obs_text, r);
   return r.failures.empty();
 }
 
@@ -419,24 +477,118 @@ struct FamilyJacobians {
 FamilyJacobians family_jacobians(const Model& m, const Problem& P, const GiNaC::exmap& on_family,
                                  bool closed) {
   const unsigned n = static_cast<unsigned>(m.n());
-  FamilyJacobians j{GiNaC::matrix(n, n), GiNaC::matrix(1, n)};
+  const unsigned p = static_cast<unsigned>(P.H.size());
+  FamilyJacobians j{GiNaC::matrix(n, n), GiNaC::matrix(p, n)};
   // Series family: entries stay unsimplified (the Taylor expansion of the gain does the work).
   auto tidy = [&](const ex& e) { return closed ? simplify(e) : e; };
   for (unsigned i = 0; i < n; ++i) {
     for (unsigned k = 0; k < n; ++k)
       j.A(i, k) = tidy(P.F[i].diff(m.states[k]).subs(on_family, GiNaC::subs_options::no_pattern));
-    j.H(0, i) = tidy(P.h.diff(m.states[i]).subs(on_family, GiNaC::subs_options::no_pattern));
+    for (unsigned l = 0; l < p; ++l)
+      j.H(l, i) = tidy(P.H[l].diff(m.states[i]).subs(on_family, GiNaC::subs_options::no_pattern));
   }
   return j;
 }
 
-// The gain schedule c(eps) by Ackermann's formula on the family into r.c_eps (simplified, or a
-// Taylor polynomial to eps^(m-1)); false with the failure in r when O_eps is singular.
-bool gain_schedule(const FamilyJacobians& J, int order, ExtendedLinearization& r) {
-  const unsigned n = J.A.rows();
+// The single-output pair (A_eps - L0 H_eps, w^T H_eps) of the reduction C^T = L0 + c w^T.
+struct ReducedPair {
+  GiNaC::matrix A, h;
+};
+
+ReducedPair reduced_pair(const FamilyJacobians& J, const std::vector<std::vector<numeric>>& L0,
+                         const std::vector<numeric>& w) {
+  const unsigned n = J.A.rows(), p = J.H.rows();
+  ReducedPair r{J.A, GiNaC::matrix(1, n)};
+  for (unsigned j = 0; j < n; ++j) {
+    ex hj = 0;
+    for (unsigned l = 0; l < p; ++l) hj += w[l] * J.H(l, j);
+    r.h(0, j) = hj;
+    for (unsigned i = 0; i < n; ++i)
+      for (unsigned l = 0; l < p; ++l)
+        if (!L0[i][l].is_zero()) r.A(i, j) = r.A(i, j) - L0[i][l] * J.H(l, j);
+  }
+  return r;
+}
+
+// The candidates (L0, w) of the reduction, in order: L0 = 0 with one output (the family's own
+// first), then the sum of the outputs, then pre-gains with entries in {-1, 0, 1} from a fixed
+// sequence (A0 - L0 H0 is cyclic for almost every L0). One candidate (0, 1) for p = 1.
+std::vector<std::pair<std::vector<std::vector<numeric>>, std::vector<numeric>>>
+reduction_candidates(unsigned n, unsigned p, std::size_t first) {
+  using L = std::vector<std::vector<numeric>>;
+  const L zero(n, std::vector<numeric>(p, 0));
+  std::vector<std::pair<L, std::vector<numeric>>> out;
+  auto unit = [&](std::size_t k) {
+    std::vector<numeric> w(p, 0);
+    w[k] = 1;
+    return w;
+  };
+  out.push_back({zero, unit(first)});
+  for (std::size_t k = 0; k < p; ++k)
+    if (k != first) out.push_back({zero, unit(k)});
+  if (p == 1) return out;
+  out.push_back({zero, std::vector<numeric>(p, 1)});
+  unsigned seed = 12345;  // a fixed linear congruential sequence: deterministic output
+  for (int attempt = 0; attempt < 6; ++attempt) {
+    L l0 = zero;
+    for (auto& row : l0)
+      for (auto& e : row) {
+        seed = seed * 1103515245u + 12345u;
+        e = static_cast<long>((seed >> 16) % 3) - 1;
+      }
+    out.push_back({l0, unit(first)});
+  }
+  return out;
+}
+
+std::string combination_text(const std::vector<numeric>& w) {
+  std::vector<std::string> s;
+  for (const auto& x : w) s.push_back(to_string(ex(x)));
+  return fmt::format("({})", fmt::join(s, ", "));
+}
+
+std::string pre_gain_text(const std::vector<std::vector<numeric>>& L0) {
+  std::vector<std::string> rows;
+  for (const auto& r : L0) rows.push_back(combination_text(r));
+  return fmt::format("[{}]", fmt::join(rows, ", "));
+}
+
+// The first candidate (L0, w) whose reduced pair is observable at the base point (eps = 0,
+// parameters at their centre) into r.pre_gain, r.combination; false with the failure in r.
+bool choose_reduction(const FamilyJacobians& J, const GiNaC::exmap& params,
+                      ExtendedLinearization& r) {
+  const unsigned n = J.A.rows(), p = J.H.rows();
+  GiNaC::exmap at0 = params;
+  at0[r.eps] = 0;
+  for (const auto& [L0, w] : reduction_candidates(n, p, r.level_output)) {
+    const ReducedPair red = reduced_pair(J, L0, w);
+    const GiNaC::matrix A0 = GiNaC::ex_to<GiNaC::matrix>(red.A.subs(at0));
+    const GiNaC::matrix h0 = GiNaC::ex_to<GiNaC::matrix>(red.h.subs(at0));
+    const double det = value_at(linear_observability_matrix(A0, h0).determinant(), params);
+    if (!std::isfinite(det) || std::fabs(det) <= kTiny) continue;
+    r.pre_gain = L0;
+    r.combination = w;
+    if (p > 1)
+      r.notes.push_back(fmt::format(
+          "gain reduction C^T = L0 + c(eps) w^T: w = {}, L0 = {}; det O(A0 - L0 H0, w^T H0) = {}",
+          combination_text(w), pre_gain_text(L0), num_text(det)));
+    return true;
+  }
+  r.failures.push_back(
+      "no reduction C^T = L0 + c(eps) w^T to one output was found: (A0 - L0 H0, w^T H0) is not "
+      "observable for any output, the sum of the outputs, or six pre-gains L0 (A0 not cyclic)");
+  return false;
+}
+
+// The gain schedule C(eps)^T = L0 + c(eps) w^T, c(eps) by Ackermann's formula on the reduced
+// pair along the family, into r.c_eps and r.gain (simplified, or Taylor polynomials to
+// eps^(m-1)); false with the failure in r when a budget stops it or O_eps is singular.
+bool gain_schedule(const FamilyJacobians& J, const GiNaC::exmap& params, int order,
+                   ExtendedLinearization& r) {
+  const unsigned n = J.A.rows(), p = J.H.rows();
   std::size_t nodes = 0;
   for (unsigned i = 0; i < n; ++i) {
-    nodes += expression_size(J.H(0, i));
+    for (unsigned l = 0; l < p; ++l) nodes += expression_size(J.H(l, i));
     for (unsigned j = 0; j < n; ++j) nodes += expression_size(J.A(i, j));
   }
   if (nodes > kJacobianNodes) {
@@ -448,9 +600,11 @@ bool gain_schedule(const FamilyJacobians& J, int order, ExtendedLinearization& r
         kJacobianNodes));
     return false;
   }
+  if (!choose_reduction(J, params, r)) return false;
+  const ReducedPair red = reduced_pair(J, r.pre_gain, r.combination);
   GiNaC::matrix en(n, 1);
   en(n - 1, 0) = 1;
-  const GiNaC::matrix O = linear_observability_matrix(J.A, J.H);
+  const GiNaC::matrix O = linear_observability_matrix(red.A, red.h);
   // O's rows H A^k grow with k: the inverse's cost follows O's size, not A's (nested chain
   // family: 3002 nodes 0.7 s, 58710 nodes 2 s, 200971 nodes 13 s at n = 5, 7, 8).
   std::size_t o_nodes = 0;
@@ -475,13 +629,19 @@ bool gain_schedule(const FamilyJacobians& J, int order, ExtendedLinearization& r
   }
   GiNaC::matrix pA = GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(n));
   for (const auto& q : r.poles)
-    pA = pA.mul(J.A.sub(GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(n)).mul_scalar(q)));
+    pA = pA.mul(red.A.sub(GiNaC::ex_to<GiNaC::matrix>(GiNaC::unit_matrix(n)).mul_scalar(q)));
   const GiNaC::matrix c = pA.mul(v);
   for (unsigned i = 0; i < n; ++i) {
     const ex ci =
         r.family_closed ? simplify(c(i, 0)) : taylor(c(i, 0), r.eps, std::max(0, order - 1));
     r.c_eps.push_back(ci);
   }
+  r.gain.assign(p, ExVec{});
+  for (unsigned l = 0; l < p; ++l)
+    for (unsigned i = 0; i < n; ++i)
+      r.gain[l].push_back(r.combination[l].is_zero()
+                              ? ex(r.pre_gain[i][l])
+                              : ex(r.pre_gain[i][l]) + r.combination[l] * r.c_eps[i]);
   return true;
 }
 
@@ -492,7 +652,10 @@ bool check_charpoly(const Model& m, const FamilyJacobians& J, int order, Extende
   const GiNaC::symbol lambda("lambda");
   GiNaC::matrix M(n, n);
   for (unsigned i = 0; i < n; ++i)
-    for (unsigned j = 0; j < n; ++j) M(i, j) = J.A(i, j) - r.c_eps[i] * J.H(0, j);
+    for (unsigned j = 0; j < n; ++j) {
+      M(i, j) = J.A(i, j);
+      for (unsigned l = 0; l < J.H.rows(); ++l) M(i, j) = M(i, j) - r.gain[l][i] * J.H(l, j);
+    }
   ex want = 1;
   for (const auto& q : r.poles) want *= lambda - q;
   // GiNaC's charpoly is det(M - lambda I) = (-1)^n det(lambda I - M).
@@ -522,29 +685,55 @@ bool check_charpoly(const Model& m, const FamilyJacobians& J, int order, Extende
   return true;
 }
 
-// The injection k(y) = int_0^{y - y0} c(e) de in closed form into r.injection: false with
-// r.injection_reason when the family is a series or an antiderivative is missing or undefined
-// at 0.
-bool closed_injection(const GiNaC::exmap& params, ExtendedLinearization& r) {
+// The family's output levels y_j,eps = h_j(x_eps) (absolute), one per output (y_k,eps = y0_k +
+// eps).
+ExVec family_outputs(const Model& m, const ExtendedLinearization& r) {
+  GiNaC::exmap on;
+  for (std::size_t i = 0; i < m.n(); ++i) on[m.states[i]] = r.x_eps[i];
+  on[m.inputs[0]] = r.u_eps;
+  for (std::size_t j = 1; j < m.m(); ++j) on[m.inputs[j]] = r.u0[j];
+  ExVec out;
+  for (std::size_t l = 0; l < m.p(); ++l)
+    out.push_back(l == r.level_output ? r.y0[l] + r.eps
+                                      : ex(m.h[l].subs(on, GiNaC::subs_options::no_pattern)));
+  return out;
+}
+
+// Component i of the integrand of G(s) = int_0^s C(e)^T dy_e/de de (eq. 39):
+// c_ki + sum_{j != k} c_ji d ybar_j/deps (y_k,eps = y0_k + eps).
+ex integrand(const ExtendedLinearization& r, const ExVec& ybar, std::size_t i) {
+  ex e = r.gain[r.level_output][i];
+  for (std::size_t l = 0; l < r.gain.size(); ++l)
+    if (l != r.level_output && !r.gain[l][i].is_zero()) e += r.gain[l][i] * ybar[l].diff(r.eps);
+  return e;
+}
+
+// The injection k(y) = G(s) + sum_{j != k} c_j(s) (y_j - ybar_j(s)), s = y_k - y0_k (eq. 40), in
+// closed form into r.injection: false with r.injection_reason when the family is a series or an
+// antiderivative is missing or undefined at 0.
+bool closed_injection(const Model& m, const GiNaC::exmap& params, ExtendedLinearization& r) {
   if (!r.family_closed) {
     r.injection_reason = fmt::format(
         "the equilibrium family is a series (order {}), so c(eps) is too", r.family_order);
     return false;
   }
-  const ex shift = r.y - r.y0;
+  const std::size_t k = r.level_output;
+  const ex shift = r.y[k] - r.y0[k];
   const GiNaC::symbol& eps = r.eps;
-  ExVec k;
-  for (unsigned i = 0; i < r.c_eps.size(); ++i) {
-    if (function_depth(r.c_eps[i]) > kNesting) {
+  const ExVec ybar = family_outputs(m, r);
+  ExVec out;
+  for (unsigned i = 0; i < m.n(); ++i) {
+    const ex c = integrand(r, ybar, i);
+    if (function_depth(c) > kNesting) {
       r.injection_reason = fmt::format(
           "c_{}(eps) nests functions {} deep (budget {}): not integrated in closed form", i + 1,
-          function_depth(r.c_eps[i]), kNesting);
+          function_depth(c), kNesting);
       return false;
     }
-    const Integral I = integrate(r.c_eps[i], eps);
+    const Integral I = integrate(c, eps);
     if (!I.value) {
       r.injection_reason = fmt::format("no antiderivative of c_{}(eps) = {} found: {}", i + 1,
-                                       to_string(r.c_eps[i]), I.reason);
+                                       to_string(c), I.reason);
       return false;
     }
     const ex at0 = I.value->subs(eps == 0);
@@ -553,31 +742,43 @@ bool closed_injection(const GiNaC::exmap& params, ExtendedLinearization& r) {
       r.injection_reason = fmt::format("the antiderivative of c_{} is undefined at eps = 0", i + 1);
       return false;
     }
-    k.push_back(simplify(I.value->subs(eps == shift) - at0));
+    ex ki = I.value->subs(eps == shift) - at0;
+    for (std::size_t l = 0; l < m.p(); ++l)
+      if (l != k && !r.gain[l][i].is_zero())
+        ki += (r.gain[l][i] * (r.y[l] - ybar[l])).subs(eps == shift);
+    out.push_back(simplify(ki));
   }
-  r.injection = k;
+  r.injection = out;
   return true;
 }
 
-// The injection as the integral of c's Taylor polynomial to eps^(m-1).
-void series_injection(int order, ExtendedLinearization& r) {
-  const ex shift = r.y - r.y0;
+// The injection from the Taylor polynomials to eps^(m-1) of G's integrand and of c_j, and to
+// eps^m of ybar_j.
+void series_injection(const Model& m, int order, ExtendedLinearization& r) {
+  const std::size_t k = r.level_output;
+  const ex shift = r.y[k] - r.y0[k];
+  const ExVec ybar = family_outputs(m, r);
   r.injection_order = order;
   r.injection.clear();
-  for (unsigned i = 0; i < r.c_eps.size(); ++i) {
-    const ex ci = taylor(r.c_eps[i], r.eps, order - 1);
-    ex k = 0;
-    for (int j = 0; j < order; ++j) k += ci.coeff(r.eps, j) / (j + 1) * GiNaC::pow(shift, j + 1);
-    r.injection.push_back(k);
+  for (unsigned i = 0; i < m.n(); ++i) {
+    const ex ci = taylor(integrand(r, ybar, i), r.eps, order - 1);
+    ex ki = 0;
+    for (int j = 0; j < order; ++j) ki += ci.coeff(r.eps, j) / (j + 1) * GiNaC::pow(shift, j + 1);
+    for (std::size_t l = 0; l < m.p(); ++l)
+      if (l != k && !r.gain[l][i].is_zero())
+        ki += (taylor(r.gain[l][i], r.eps, order - 1) * (r.y[l] - taylor(ybar[l], r.eps, order)))
+                  .subs(r.eps == shift);
+    r.injection.push_back(ki);
   }
 }
 
 // The injection: closed form unless --el-injection series (an error when closed is demanded
 // and not found), else the series.
-void injection(const GiNaC::exmap& params, const RunOptions& ro, ExtendedLinearization& r) {
+void injection(const Model& m, const GiNaC::exmap& params, const RunOptions& ro,
+               ExtendedLinearization& r) {
   bool closed = false;
   if (ro.injection != "series") {
-    closed = closed_injection(params, r);
+    closed = closed_injection(m, params, r);
     if (!closed && ro.injection == "closed") {
       r.failures.push_back("--el-injection closed: " + r.injection_reason);
       return;
@@ -586,7 +787,7 @@ void injection(const GiNaC::exmap& params, const RunOptions& ro, ExtendedLineari
     r.injection_reason = "--el-injection series";
   }
   r.injection_closed = closed;
-  if (!closed) series_injection(ro.order, r);
+  if (!closed) series_injection(m, ro.order, r);
 }
 
 ExtendedLinearization run(const Model& m, const DesignOptions& o) {
@@ -595,11 +796,16 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   if (!supported(m, r)) return r;
   const GiNaC::exmap params = param_point(m);
   GiNaC::exmap other_inputs;
+  if (m.p() == 1) {
+    r.y = {GiNaC::symbol("y")};
+  } else {
+    for (std::size_t l = 0; l < m.p(); ++l) r.y.push_back(GiNaC::symbol(fmt::format("y{}", l + 1)));
+  }
   Problem P = base_problem(m, o, r, other_inputs);
   if (!at_equilibrium(m, P, r)) return r;
-  for (const auto& e : P.F) P.equations.push_back(e);
-  P.equations.push_back(P.h - r.y0 - r.eps);
   if (!check_constraints(m, P, params, r)) return r;
+  for (const auto& e : P.F) P.equations.push_back(e);
+  P.equations.push_back(P.H[r.level_output] - r.y0[r.level_output] - r.eps);
 
   const std::optional<GiNaC::exmap> fam = equilibrium_family(m, P, params, ro, r);
   if (!fam) return r;
@@ -607,8 +813,8 @@ ExtendedLinearization run(const Model& m, const DesignOptions& o) {
   GiNaC::exmap on_family = *fam;
   for (const auto& kv : other_inputs) on_family[kv.first] = kv.second;
   const FamilyJacobians J = family_jacobians(m, P, on_family, r.family_closed);
-  if (!gain_schedule(J, ro.order, r) || !check_charpoly(m, J, ro.order, r)) return r;
-  injection(params, ro, r);
+  if (!gain_schedule(J, params, ro.order, r) || !check_charpoly(m, J, ro.order, r)) return r;
+  injection(m, params, ro, r);
   return r;
 }
 
@@ -663,30 +869,25 @@ Verdict verdict_of(const Analysis&, const Lazy<ExtendedLinearization>& work) {
   return v;
 }
 
-// The output symbols y (measured) and yh (= h(xh)) of the generated functions, unique against
-// the model's names.
-std::pair<GiNaC::symbol, GiNaC::symbol> output_symbols(const Model& m) {
-  std::set<std::string> used;
-  for (const auto& s : m.all_symbols()) used.insert(s.get_name());
-  for (const auto& p : m.params) used.insert(p.name);
-  std::string yname = "y";
-  while (used.count(yname)) yname += "_";
-  used.insert(yname);
-  std::string yhname = "yh";
-  while (used.count(yhname)) yhname += "_";
-  return {GiNaC::symbol(yname), GiNaC::symbol(yhname)};
-}
-
-// The spec without its texts: the injection k(y) and xh' = f + g + k(y) - k(h(xh)).
+// The spec without its texts: the injection k(y) and xh' = f + g + k(y) - k(h(xh)), with the
+// measured outputs y and yh = h(xh) named apart from the model's names.
 ObserverSpec el_skeleton(const Model& m, const ExtendedLinearization& r) {
   const std::size_t n = m.n();
-  const auto [y, yh] = output_symbols(m);
+  const std::vector<GiNaC::symbol> y = measurement_symbols(m);
+  const std::vector<GiNaC::symbol> yh = m.p() == 1
+                                            ? std::vector<GiNaC::symbol>{fresh_symbol(m, "yh")}
+                                            : fresh_symbols(m, "yh", m.p());
+  GiNaC::exmap to_y, to_yh;
+  for (std::size_t l = 0; l < m.p(); ++l) {
+    to_y[r.y[l]] = y[l];
+    to_yh[r.y[l]] = yh[l];
+  }
   ExVec k_y, rhs;
   const ExVec F = m.field();
   for (std::size_t i = 0; i < n; ++i) {
     const ex ki = r.injection[i];
-    k_y.push_back(ki.subs(r.y == y));
-    rhs.push_back(F[i] + ki.subs(r.y == y) - ki.subs(r.y == yh));
+    k_y.push_back(ki.subs(to_y));
+    rhs.push_back(F[i] + ki.subs(to_y) - ki.subs(to_yh));
   }
   ObserverSpec spec;
   spec.method = "extended-linearization";
@@ -696,11 +897,11 @@ ObserverSpec el_skeleton(const Model& m, const ExtendedLinearization& r) {
   spec.functions = model_functions(m);
   spec.functions.push_back(make_function(
       "injection", "Output injection k(y) with dk/dy(y_eps) = C(eps)^T (seed 001 eq. 34, 40).",
-      {output_arg({y})}, k_y, "State"));
+      {output_arg(y)}, k_y, "State"));
   GeneratedFunction x_rhs =
       make_function("x_rhs", "xh' = f(xh) + g(xh, u) + k(y) - k(h(xh))  (seed 001 eq. 29).",
-                    {state_arg(m), input_arg(m), output_arg({y})}, rhs, "State");
-  x_rhs.lets.push_back({yh, m.h[0]});
+                    {state_arg(m), input_arg(m), output_arg(y)}, rhs, "State");
+  for (std::size_t l = 0; l < m.p(); ++l) x_rhs.lets.push_back({yh[l], m.h[l]});
   spec.functions.push_back(x_rhs);
   spec.state_name = "xh";
   spec.state_doc = "the estimate itself";
@@ -717,16 +918,27 @@ std::vector<ReportRow> el_report(const Model& m, const ExtendedLinearization& r)
       {"equations",
        "xh' = f(xh, u) + k(y) - k(h(xh)) (seed 001 eq. 29), dk/dy(y_eps) = C(eps)^T (eq. 34)"},
       {"parametrisation",
-       "eps = y - y0, the output level of the equilibrium (regular by constraint (iii)); u is the "
-       "model's first input"}};
+       m.p() == 1 ? std::string("eps = y - y0, the output level of the equilibrium (regular by "
+                                "constraint (iii)); u is the model's first input")
+                  : fmt::format("eps = y{0} - y0_{0}, the level of output {0} at the equilibrium "
+                                "(regular by constraint (iii)); u is the model's first input",
+                                r.level_output + 1)}};
   for (const auto& nt : r.notes) rows.push_back({"constraints", nt});
   rows.push_back({"equilibrium family", family_text(m, r)});
   rows.push_back(
       {"poles", fmt::format("{} ({})", poles_text(r.poles),
                             r.poles_given ? "given with --el-poles" : "default -1, -2, ..., -n")});
-  rows.push_back({"gain schedule C(eps)^T",
-                  fmt::format("{} (Ackermann: p(A_eps) O_eps^-1 e_n{})", vec_text(r.c_eps),
-                              r.family_closed ? "" : ", as a series")});
+  if (m.p() == 1) {
+    rows.push_back({"gain schedule C(eps)^T",
+                    fmt::format("{} (Ackermann: p(A_eps) O_eps^-1 e_n{})", vec_text(r.c_eps),
+                                r.family_closed ? "" : ", as a series")});
+  } else {
+    rows.push_back({"gain schedule C(eps)^T",
+                    fmt::format("L0 + c(eps) w^T, w = {}, L0 = {}, c(eps) = {} (Ackermann on "
+                                "(A_eps - L0 H_eps, w^T H_eps): p(A) O^-1 e_n{})",
+                                combination_text(r.combination), pre_gain_text(r.pre_gain),
+                                vec_text(r.c_eps), r.family_closed ? "" : ", as a series")});
+  }
   rows.push_back(
       {"injection k(y)", fmt::format("{}; {}", vec_text(r.injection), injection_kind(r))});
   return rows;
@@ -803,10 +1015,6 @@ Design extended_linearization_design() {
        "extended-linearization: base equilibrium, n + 1 numbers: the states, then the first input",
        "the origin, nominal input"}};
   d.plan = work_plan<ExtendedLinearization, extended_linearization, verdict_of, build_from>;
-  d.max_outputs = 1;
-  d.outputs_note =
-      "seed 001 §5 builds the injection k(y) from one output's series along the equilibrium "
-      "family; its extension to p outputs (square, or one output per block) is not built";
   return d;
 }
 
