@@ -384,7 +384,7 @@ class SampledDelayObserver {
     const std::size_t pz = d_.filters, slots = d_.delay_steps + 1;
     const std::size_t next = (head_ + 1) % slots;
     for (std::size_t j = 0; j < pz; ++j)
-      ring_[next * pz + j] = decay_[j] * ring_[head_ * pz + j] + gain_[j] * y[0];
+      ring_[next * pz + j] = decay_[j] * ring_[head_ * pz + j] + gain_[j] * y[j % d_.outputs];
     u_ring_[next] = d_.levels > 1 ? u[d_.input_index] : 0.0;
     head_ = next;
     if (filled_ < d_.delay_steps) ++filled_;

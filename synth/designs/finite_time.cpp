@@ -135,6 +135,7 @@ struct Choices {
   int power = 1;
   std::size_t backward_steps = 200;
   std::size_t bound_samples = 300;
+  std::size_t outputs = 1;  // p: filter j is fed y_(j mod p)
   bool whiten = true;
   bool nearest = true, window_mean = true, interpolate = true;
   double rate = 0;  // --input-rate: |u'| of the ramps the sampled bound covers
@@ -364,6 +365,7 @@ void choose_kernel(const DesignOptions& o, Choices& c) {
 Choices choose(const Analysis& a, const DesignOptions& o) {
   const Model& m = a.model;
   Choices c;
+  c.outputs = m.p();
   choose_window(o, c);
   choose_filters(o, c);
   choose_grid(o, m, c);
@@ -391,7 +393,7 @@ class Tabulator {
       : m_(m), c_(c), field_(m.field(), names(m)), output_(m.h, names(m)) {}
 
   // q_nu at the given points (one array per state): N x filters, by RK4 backward over [0, T]
-  // with the quadrature of e^{lambda s} h carried along (Simpson on the RK4 stages).
+  // with the quadrature of e^{lambda_j s} h_(j mod p) carried along (Simpson on the RK4 stages).
   // With rate != 0 the input is the ramp u(t - s) = nu + rate (T/2 - s) over the window (mean
   // nu), for the sampled bound of time-varying inputs; the tables use rate = 0.
   Eigen::MatrixXd map(std::vector<Array> X, double nu, double rate = 0) const {
@@ -399,11 +401,11 @@ class Tabulator {
     const std::size_t n = X.size(), pz = c_.lambda.size();
     const double hs = c_.T / static_cast<double>(c_.backward_steps);
     double s = 0;  // backward time of the stage
-    auto rhs = [&](const std::vector<Array>& x, Array& y) {
+    auto rhs = [&](const std::vector<Array>& x, std::vector<Array>& y) {
       std::vector<Array> in = x;
       if (m_.m() > 0) in.push_back(Array::Constant(N, nu + rate * (c_.T / 2 - s)));
       const auto f = field_(in);
-      y = output_(x)[0];
+      y = output_(x);
       std::vector<Array> dx(n);
       for (std::size_t i = 0; i < n; ++i) dx[i] = -f[i];
       return dx;
@@ -414,7 +416,7 @@ class Tabulator {
       return r;
     };
     Eigen::MatrixXd Q = Eigen::MatrixXd::Zero(N, static_cast<Eigen::Index>(pz));
-    Array y1, y2, y3, y4;
+    std::vector<Array> y1, y2, y3, y4;
     for (std::size_t k = 0; k < c_.backward_steps; ++k) {
       const double s0 = static_cast<double>(k) * hs;
       s = s0;
@@ -427,10 +429,11 @@ class Tabulator {
       s = s0;
       for (std::size_t j = 0; j < pz; ++j) {
         const double l = c_.lambda[j];
+        const std::size_t o = j % c_.outputs;
         Q.col(static_cast<Eigen::Index>(j)).array() +=
             hs / 6 *
-            (std::exp(l * s) * y1 + 2 * std::exp(l * (s + hs / 2)) * (y2 + y3) +
-             std::exp(l * (s + hs)) * y4);
+            (std::exp(l * s) * y1[o] + 2 * std::exp(l * (s + hs / 2)) * (y2[o] + y3[o]) +
+             std::exp(l * (s + hs)) * y4[o]);
       }
       for (std::size_t i = 0; i < n; ++i) X[i] += hs / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
     }
@@ -909,12 +912,10 @@ Tables design_tables(const Model& m, Choices& c) {
 
 // ---- verdict and spec -------------------------------------------------------------------
 
-// Whether the model qualifies (one output, at most one input, bound parameters, a box).
+// Whether the model qualifies (at most one input, bound parameters, a box).
 Verdict requirements(const Analysis& a) {
   const Model& m = a.model;
   Verdict v;
-  if (m.p() != 1)
-    v.reasons.push_back(fmt::format("finite-time: single output only (p = {})", m.p()));
   if (m.m() > 1)
     v.reasons.push_back(
         fmt::format("finite-time: at most one input selects the inverse table (m = {})", m.m()));
@@ -1017,6 +1018,7 @@ SampledDelay sampled_delay(const Choices& c) {
   d.grid_step = c.step;
   d.grid_count = c.count;
   d.input_index = 0;
+  d.outputs = c.outputs;
   d.level_lo = c.level_lo;
   d.level_step = c.level_step;
   d.levels = c.levels;
@@ -1107,6 +1109,10 @@ void describe_finite_time(ObserverSpec& s, const Choices& c, const Tables& t, do
   }
   s.class_doc.push_back(
       "period; until T has passed since reset() the estimate stays the reset value.");
+  if (c.outputs > 1)
+    s.class_doc.push_back(fmt::format(
+        "{} outputs: filter j is fed y_(j mod {}) (the filters are dealt round the outputs).",
+        c.outputs, c.outputs));
   s.class_doc.push_back(
       fmt::format("Sampled accuracy (u {} over the window): |x - xh| <= {:.4g}.", covered, bound));
   std::vector<GiNaC::numeric> poles;
@@ -1298,10 +1304,6 @@ Design finite_time_design() {
   d.plan = [](const Analysis& a, const DesignOptions& o) -> std::unique_ptr<Plan> {
     return std::make_unique<FiniteTimePlan>(a, o);
   };
-  d.max_outputs = 1;
-  d.outputs_note =
-      "seed 004's delay line and tabulated inverse are built for a scalar y; a vector y "
-      "multiplies the table dimensions and is not built";
   d.in_all = false;  // tables of 10^4..10^6 entries: by name only, not by auto or all
   d.observes_output_offset = false;  // feeds y itself to its filter bank
   return d;

@@ -138,6 +138,8 @@ struct SampledDelay {
   std::vector<double> grid_lo, grid_step;
   std::vector<std::size_t> grid_count;
   std::size_t input_index = 0;
+  // p outputs: filter j is fed y[j % outputs] (the filters are dealt round the outputs).
+  std::size_t outputs = 1;
   double level_lo = 0, level_step = 1;
   std::size_t levels = 1;
   bool level_nearest = false, level_window_mean = false, level_interpolate = false;

@@ -325,12 +325,12 @@ void {{P}}_init({{P}}_observer* o) {
   int idx[{{P}}_n];
   int i, j, s, k, next, old;
   const Scalar* q;
-{{q_next_decl}}  if (!({{fabs}}(dt - {{dt}}) <= {{tol}} * {{dt}}) || !obsynth_all_finite(u, {{m}}) || !obsynth_all_finite(y, 1))
+{{q_next_decl}}  if (!({{fabs}}(dt - {{dt}}) <= {{tol}} * {{dt}}) || !obsynth_all_finite(u, {{m}}) || !obsynth_all_finite(y, {{p}}))
     return o->status = {{P}}_non_finite;
   next = o->head == {{P}}_delay_steps ? 0 : o->head + 1;
   for (j = 0; j < {{P}}_filters; ++j)
     o->ring[next * {{P}}_filters + j] =
-        {{decay}}[j] * o->ring[o->head * {{P}}_filters + j] + {{gain}}[j] * y[0];
+        {{decay}}[j] * o->ring[o->head * {{P}}_filters + j] + {{gain}}[j] * {{filter_input}};
   o->u_ring[next] = {{u_now}};
   o->head = next;
   if (o->filled < {{P}}_delay_steps) ++o->filled;
@@ -850,6 +850,8 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
                           (slope ? "  o->slope = " + b.lit(0) + ";\n" : "")},
        {"decay", d.decay_table},
        {"gain", d.gain_table},
+       {"p", std::to_string(d.outputs)},
+       {"filter_input", d.outputs == 1 ? "y[0]" : fmt::format("y[j % {}]", d.outputs)},
        {"delay", d.delay_table},
        {"metric", d.metric_table},
        {"map", d.map_table},

@@ -446,7 +446,7 @@ const char* kSampledDelayClass = R"({{class_comment}}{{preamble}}  using Tables 
       return status_ = obsynth::Status::non_finite;
     const int next = head_ == delay_steps ? 0 : head_ + 1;
     for (int j = 0; j < filters; ++j)
-      ring_[next][j] = Scalar(Tables::{{decay}}[j]) * ring_[head_][j] + Scalar(Tables::{{gain}}[j]) * y(0);
+      ring_[next][j] = Scalar(Tables::{{decay}}[j]) * ring_[head_][j] + Scalar(Tables::{{gain}}[j]) * {{filter_input}};
     u_ring_[next] = {{u_now}};
     head_ = next;
     if (filled_ < delay_steps) ++filled_;
@@ -1217,6 +1217,7 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const 
                           (slope ? "    slope_ = Scalar(0);\n" : "")},
        {"decay", d.decay_table},
        {"gain", d.gain_table},
+       {"filter_input", d.outputs == 1 ? "y(0)" : fmt::format("y(j % {})", d.outputs)},
        {"delay", d.delay_table},
        {"metric", d.metric_table},
        {"map", d.map_table},
