@@ -13,6 +13,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "symbolic/dag.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/lie.hpp"
 #include "symbolic/zero_test.hpp"
@@ -51,21 +52,32 @@ struct Node {
   numeric value;       // constant value, or the exponent of pow_rat
 };
 
-class Dag {
+// The evaluators' program: the project's one GiNaC-to-DAG conversion (symbolic/dag, hash-consed
+// and order-independent) lowered to binary add/mul, inversion, rational powers and the unary
+// functions that Taylor arithmetic over a field implements.
+class Program {
  public:
-  Dag(const Symbols& states, const Symbols& symbols, const Model& m)
+  Program(const Symbols& states, const Symbols& symbols, const Model& m)
       : states_(states), symbols_(symbols), model_(m) {}
 
   int add(const ex& e) {
-    if (auto it = memo_.find(e); it != memo_.end()) return it->second;
-    const int id = build(e);
-    memo_.emplace(e, id);
-    return id;
+    const int id = source_.add(e);
+    try {
+      return lower(id);
+    } catch (const UnsupportedNode& u) {
+      throw UserError(SourceLoc{model_.file, 0, 0},
+                      fmt::format("the jets rank cannot evaluate {} in '{}' (supported: + - * / "
+                                  "^, sin, cos, tan, exp, log, sqrt, tanh, atan)",
+                                  u.what, to_string(e)));
+    }
   }
   const std::vector<Node>& nodes() const { return nodes_; }
   bool rational() const { return rational_; }
 
  private:
+  struct UnsupportedNode {
+    std::string what;
+  };
   int push(Node n) {
     nodes_.push_back(std::move(n));
     return static_cast<int>(nodes_.size()) - 1;
@@ -86,91 +98,98 @@ class Dag {
     rational_ &= op == Op::inv;
     return binary(op, a, -1);
   }
-  [[noreturn]] void unsupported(const ex& e) const {
-    throw UserError(SourceLoc{model_.file, 0, 0},
-                    fmt::format("the jets rank cannot evaluate '{}' (supported: + - * / ^, sin, "
-                                "cos, tan, exp, log, sqrt, tanh, atan)",
-                                to_string(e)));
-  }
   int integer_power(int base, long k) {
     if (k == 1) return base;
     const int half = integer_power(base, k / 2);
     const int sq = binary(Op::mul, half, half);
     return k % 2 ? binary(Op::mul, sq, base) : sq;
   }
-  int build(const ex& e);
+  int fold(Op op, const std::vector<int>& args) {
+    int acc = lower(args[0]);
+    for (std::size_t i = 1; i < args.size(); ++i) acc = binary(op, acc, lower(args[i]));
+    return acc;
+  }
+  int lower(int id);
+  int lower_node(const obsynth::Node& n);
+  int variable(const std::string& name);
 
   const Symbols& states_;
   const Symbols& symbols_;
   const Model& model_;
+  Dag source_;
+  std::vector<int> lowered_;  // by source node id, -1 until lowered
   std::vector<Node> nodes_;
-  struct Hash {
-    std::size_t operator()(const ex& e) const { return e.gethash(); }
-  };
-  std::unordered_map<ex, int, Hash, GiNaC::ex_is_equal> memo_;
   bool rational_ = true;
 };
 
-int Dag::build(const ex& e) {
-  if (GiNaC::is_a<numeric>(e)) {
-    const numeric& v = GiNaC::ex_to<numeric>(e);
-    if (!v.is_rational()) unsupported(e);
-    return constant(v);
+int Program::lower(int id) {
+  if (lowered_.size() < source_.size()) lowered_.resize(source_.size(), -1);
+  int& slot = lowered_[static_cast<std::size_t>(id)];
+  if (slot < 0) {
+    const int value = lower_node(source_.node(id));
+    lowered_[static_cast<std::size_t>(id)] = value;  // the vector may have grown
+    return value;
   }
-  if (GiNaC::is_a<GiNaC::symbol>(e)) {
-    for (std::size_t i = 0; i < states_.size(); ++i)
-      if (e.is_equal(states_[i])) {
-        Node n;
-        n.op = Op::state;
-        n.index = static_cast<int>(i);
-        return push(n);
-      }
-    for (std::size_t i = 0; i < symbols_.size(); ++i)
-      if (e.is_equal(symbols_[i])) {
-        Node n;
-        n.op = Op::symbol;
-        n.index = static_cast<int>(i);
-        return push(n);
-      }
-    for (const auto& p : model_.params)
-      if (p.value && e.is_equal(p.symbol)) return constant(*p.value);
-    unsupported(e);
-  }
-  if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
-    const Op op = GiNaC::is_a<GiNaC::add>(e) ? Op::add : Op::mul;
-    int acc = add(e.op(0));
-    for (std::size_t i = 1; i < e.nops(); ++i) acc = binary(op, acc, add(e.op(i)));
-    return acc;
-  }
-  if (GiNaC::is_a<GiNaC::power>(e)) {
-    const int base = add(e.op(0));
-    if (!GiNaC::is_a<numeric>(e.op(1))) {  // a^b = exp(b log a)
-      const int lg = unary(Op::log, base);
-      return unary(Op::exp, binary(Op::mul, add(e.op(1)), lg));
+  return slot;
+}
+
+int Program::variable(const std::string& name) {
+  for (std::size_t i = 0; i < states_.size(); ++i)
+    if (states_[i].get_name() == name) {
+      Node n;
+      n.op = Op::state;
+      n.index = static_cast<int>(i);
+      return push(n);
     }
-    const numeric q = GiNaC::ex_to<numeric>(e.op(1));
-    if (q.is_integer()) {
-      if (q.is_zero()) return constant(1);
-      if (q.to_long() > 0) return integer_power(base, q.to_long());
-      return unary(Op::inv, integer_power(base, -q.to_long()));
+  for (std::size_t i = 0; i < symbols_.size(); ++i)
+    if (symbols_[i].get_name() == name) {
+      Node n;
+      n.op = Op::symbol;
+      n.index = static_cast<int>(i);
+      return push(n);
     }
-    if (!q.is_rational()) unsupported(e);
-    rational_ = false;
-    Node n;
-    n.op = Op::pow_rat;
-    n.a = base;
-    n.value = q;
-    return push(n);
+  for (const auto& p : model_.params)
+    if (p.value && p.symbol.get_name() == name) return constant(*p.value);
+  throw UnsupportedNode{fmt::format("the symbol '{}'", name)};
+}
+
+int Program::lower_node(const obsynth::Node& n) {
+  switch (n.op) {
+    case NodeOp::constant:
+      if (!n.value.is_rational())
+        throw UnsupportedNode{fmt::format("the constant {}", to_string(ex(n.value)))};
+      return constant(n.value);
+    case NodeOp::variable:
+      return variable(n.name);
+    case NodeOp::add:
+      return fold(Op::add, n.args);
+    case NodeOp::mul:
+      return fold(Op::mul, n.args);
+    case NodeOp::div:
+      return binary(Op::mul, lower(n.args[0]), unary(Op::inv, lower(n.args[1])));
+    case NodeOp::neg:
+      return binary(Op::mul, constant(-1), lower(n.args[0]));
+    case NodeOp::pow_int:
+      return integer_power(lower(n.args[0]), n.exponent);
+    case NodeOp::sqrt:
+    case NodeOp::pow_real: {
+      Node p;
+      p.op = Op::pow_rat;
+      p.a = lower(n.args[0]);
+      p.value = n.op == NodeOp::sqrt ? numeric(1, 2) : n.value;
+      rational_ = false;
+      return push(p);
+    }
+    case NodeOp::call: {
+      static const std::pair<const char*, Op> table[] = {
+          {"exp", Op::exp}, {"log", Op::log},   {"sin", Op::sin},  {"cos", Op::cos},
+          {"tan", Op::tan}, {"tanh", Op::tanh}, {"atan", Op::atan}};
+      for (const auto& [fn, op] : table)
+        if (n.name == fn) return unary(op, lower(n.args[0]));
+      throw UnsupportedNode{fmt::format("the function '{}'", n.name)};
+    }
   }
-  if (GiNaC::is_a<GiNaC::function>(e) && e.nops() == 1) {
-    static const std::pair<const char*, Op> table[] = {
-        {"exp", Op::exp}, {"log", Op::log},   {"sin", Op::sin},  {"cos", Op::cos},
-        {"tan", Op::tan}, {"tanh", Op::tanh}, {"atan", Op::atan}};
-    const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
-    for (const auto& [fn, op] : table)
-      if (name == fn) return unary(op, add(e.op(0)));
-  }
-  unsupported(e);
+  throw UnsupportedNode{"an operation"};
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -184,7 +203,7 @@ unsigned long sat_add(unsigned long a, unsigned long b) {
   return a > ~0UL - b ? ~0UL : a + b;
 }
 
-std::vector<Degree> degrees(const Dag& dag) {
+std::vector<Degree> degrees(const Program& dag) {
   std::vector<Degree> d(dag.nodes().size());
   for (std::size_t i = 0; i < d.size(); ++i) {
     const Node& n = dag.nodes()[i];
@@ -426,7 +445,7 @@ template <class F>
 class Taylor {
  public:
   using T = typename F::T;
-  Taylor(const Dag& dag, const F& field, std::size_t n, std::size_t orders)
+  Taylor(const Program& dag, const F& field, std::size_t n, std::size_t orders)
       : dag_(dag),
         f_(field),
         n_(n),
@@ -531,7 +550,7 @@ class Taylor {
   bool log_atan_coefficient(std::size_t i, std::size_t k, const Node& nd, const T& inv_k);
   bool leading(std::size_t i);
 
-  const Dag& dag_;
+  const Program& dag_;
   const F& f_;
   std::size_t n_, W_, N_;
   std::vector<T> data_, aux_;
@@ -779,7 +798,7 @@ std::uint64_t splitmix(std::uint64_t& s) {
 
 struct Problem {
   const Model& m;
-  Dag dag;
+  Program dag;
   std::vector<int> drift, full, outputs;  // roots
   Problem(const Model& model, const Symbols& symbols)
       : m(model), dag(model.states, symbols, model) {
