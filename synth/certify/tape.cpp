@@ -148,57 +148,6 @@ std::string text_of(const ex& e) {
   return os.str();
 }
 
-// A leaf of the expression (a variable of the box, a number or a constant) as node n; why is
-// set for what balls cannot evaluate (a complex number, a constant other than pi). False when
-// e is not a leaf.
-bool leaf_node(const ex& e, const std::vector<GiNaC::symbol>& vars, Tape::Node& n,
-               std::string& why) {
-  if (GiNaC::is_a<GiNaC::symbol>(e)) {
-    std::size_t i = 0;
-    while (i < vars.size() && !(vars[i] == e)) ++i;
-    if (i == vars.size())
-      throw std::invalid_argument("certify: the symbol '" +
-                                  GiNaC::ex_to<GiNaC::symbol>(e).get_name() +
-                                  "' is not a variable of the box");
-    n.op = Tape::Op::var;
-    n.var = static_cast<long>(i);
-  } else if (GiNaC::is_a<numeric>(e)) {
-    const numeric& v = GiNaC::ex_to<numeric>(e);
-    if (!v.is_real()) why = "complex constant " + text_of(e);
-    n.op = Tape::Op::cst;
-    n.dval = v.is_real() ? v.to_double() : std::nan("");
-  } else if (GiNaC::is_a<GiNaC::constant>(e)) {
-    if (e == GiNaC::Pi) {
-      n.op = Tape::Op::cst;
-      n.var = 1;
-      n.dval = M_PI;
-    } else {
-      why = "constant " + text_of(e);
-    }
-  } else {
-    return false;
-  }
-  return true;
-}
-
-// The power op for exponent x: integer, rational, else general (exp(x log b), which needs x
-// compiled as a second argument: returns true then).
-bool set_power_op(const ex& x, Tape::Node& n) {
-  if (GiNaC::is_a<numeric>(x) && GiNaC::ex_to<numeric>(x).is_integer()) {
-    n.op = Tape::Op::powi;
-    n.var = GiNaC::ex_to<numeric>(x).to_long();
-    return false;
-  }
-  if (GiNaC::is_a<numeric>(x) && GiNaC::ex_to<numeric>(x).is_rational()) {
-    n.op = Tape::Op::powq;
-    n.p = GiNaC::ex_to<numeric>(x).numer().to_long();
-    n.q = GiNaC::ex_to<numeric>(x).denom().to_long();
-    return false;
-  }
-  n.op = Tape::Op::powgen;  // exp(x log b)
-  return true;
-}
-
 // The op of a function of one argument that balls evaluate; nullopt for others.
 std::optional<Tape::Op> function_op(const std::string& name) {
   static const std::map<std::string, Tape::Op> fns = {
@@ -301,7 +250,11 @@ double rational_upper(const numeric& v) {
 
 Tape::Tape(const std::vector<ex>& outputs, const std::vector<GiNaC::symbol>& vars)
     : nvars_(vars.size()) {
-  for (const auto& o : outputs) outputs_.push_back(compile(o, vars));
+  Dag dag;
+  std::vector<int> roots;
+  for (const auto& o : outputs) roots.push_back(dag.add(o));
+  std::vector<int> done(dag.size(), -1);
+  for (int r : roots) outputs_.push_back(lower(dag, r, vars, done));
 }
 
 // The balls of the constants, on the first ball evaluation: a tape used only in doubles (the
@@ -315,93 +268,107 @@ void Tape::init_balls() {
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
     const Node& n = nodes_[i];
     if (n.op != Op::cst) continue;
-    if (n.var == 1) arb_const_pi(consts_[i], kPrec);
-  }
-  // Rational constants were stored in consts_ lazily via `pending_`; see compile().
-  for (const auto& [e, id] : memo_) {
-    if (nodes_[static_cast<std::size_t>(id)].op == Op::cst && GiNaC::is_a<numeric>(e)) {
-      const numeric& v = GiNaC::ex_to<numeric>(e);
-      if (v.is_rational()) {
-        set_rational(consts_[static_cast<std::size_t>(id)], v);
-      } else {
-        // A float: its decimal expansion, read by Arb with rigorous rounding.
-        std::ostringstream os;
-        os << v;
-        if (arb_set_str(consts_[static_cast<std::size_t>(id)], os.str().c_str(), kPrec) != 0)
-          why_ = "cannot read the number " + os.str();
-      }
+    if (n.var != 0) {  // +-pi
+      arb_const_pi(consts_[i], kPrec);
+      if (n.var < 0) arb_neg(consts_[i], consts_[i]);
+      continue;
     }
-  }
-}
-
-std::uint64_t Tape::key(const ex& e) {
-  // A structural 64-bit hash (FNV-1a) independent of GiNaC's run-dependent term order: sums and
-  // products hash their operands' keys sorted. Collisions only affect the operand order.
-  if (auto it = keys_.find(e); it != keys_.end()) return it->second;
-  std::uint64_t h = 1469598103934665603ull;
-  auto mix = [&h](const std::string& text) {
-    for (unsigned char ch : text) {
-      h ^= ch;
-      h *= 1099511628211ull;
-    }
-  };
-  auto mix_key = [&mix](std::uint64_t k) { mix(std::to_string(k) + ","); };
-  if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
-    std::vector<std::uint64_t> parts;
-    for (std::size_t i = 0; i < e.nops(); ++i) parts.push_back(key(e.op(i)));
-    std::sort(parts.begin(), parts.end());
-    mix(GiNaC::is_a<GiNaC::add>(e) ? "+(" : "*(");
-    for (auto p : parts) mix_key(p);
-  } else if (GiNaC::is_a<GiNaC::power>(e)) {
-    mix("^(");
-    mix_key(key(e.op(0)));
-    mix_key(key(e.op(1)));
-  } else if (GiNaC::is_a<GiNaC::function>(e)) {
-    mix(GiNaC::ex_to<GiNaC::function>(e).get_name() + "(");
-    for (std::size_t i = 0; i < e.nops(); ++i) mix_key(key(e.op(i)));
-  } else {
-    std::ostringstream os;  // symbols, numbers, constants: their text is deterministic
-    os << e;
-    mix(os.str());
-  }
-  keys_.emplace(e, h);
-  return h;
-}
-
-int Tape::compile(const ex& e, const std::vector<GiNaC::symbol>& vars) {
-  if (auto it = memo_.find(e); it != memo_.end()) return it->second;
-  Node n{Op::cst, {}, 0, 0, 1, 0};
-  if (leaf_node(e, vars, n, why_)) {
-    // a variable, number or constant: n is complete
-  } else if (GiNaC::is_a<GiNaC::add>(e) || GiNaC::is_a<GiNaC::mul>(e)) {
-    n.op = GiNaC::is_a<GiNaC::add>(e) ? Op::add : Op::mul;
-    // Operands in a canonical order (GiNaC's own order varies between runs), so the tape, its
-    // rounding and every reported digit are deterministic.
-    std::vector<std::pair<std::uint64_t, ex>> ops;
-    for (std::size_t i = 0; i < e.nops(); ++i) ops.emplace_back(key(e.op(i)), e.op(i));
-    std::stable_sort(ops.begin(), ops.end(),
-                     [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (const auto& [k, op] : ops) n.args.push_back(compile(op, vars));
-  } else if (GiNaC::is_a<GiNaC::power>(e)) {
-    const ex b = e.op(0), x = e.op(1);
-    n.args.push_back(compile(b, vars));
-    if (set_power_op(x, n)) n.args.push_back(compile(x, vars));
-  } else if (GiNaC::is_a<GiNaC::function>(e)) {
-    const std::string name = GiNaC::ex_to<GiNaC::function>(e).get_name();
-    const auto op = function_op(name);
-    if (!op || e.nops() != 1) {
-      why_ = "function " + name;
+    const numeric& v = constants_[i];
+    if (!v.is_real()) continue;
+    if (v.is_rational()) {
+      set_rational(consts_[i], v);
     } else {
-      n.op = *op;
-      n.args.push_back(compile(e.op(0), vars));
+      // A float: its decimal expansion, read by Arb with rigorous rounding.
+      std::ostringstream os;
+      os << v;
+      if (arb_set_str(consts_[i], os.str().c_str(), kPrec) != 0)
+        why_ = "cannot read the number " + os.str();
     }
-  } else {
-    why_ = "expression " + text_of(e);
   }
-  nodes_.push_back(n);
-  const int id = static_cast<int>(nodes_.size()) - 1;
-  memo_.emplace(e, id);
-  return id;
+}
+
+// The tape is symbolic/dag's DAG (the project's one GiNaC-to-DAG conversion: hash-consed, in a
+// canonical operand order, so the tape, its rounding and every reported digit are deterministic)
+// lowered to the ops that balls evaluate, the needed nodes only, in the DAG's order.
+int Tape::lower(const Dag& dag, int id, const std::vector<GiNaC::symbol>& vars,
+                std::vector<int>& done) {
+  if (done[static_cast<std::size_t>(id)] >= 0) return done[static_cast<std::size_t>(id)];
+  const obsynth::Node& d = dag.node(id);
+  std::vector<int> args;
+  for (int a : d.args) args.push_back(lower(dag, a, vars, done));
+  Node n{Op::cst, {}, 0, 0, 1, 0};
+  auto push = [&](Node x) {
+    nodes_.push_back(std::move(x));
+    constants_.emplace_back();
+    return static_cast<int>(nodes_.size()) - 1;
+  };
+  switch (d.op) {
+    case NodeOp::constant: {
+      // pi reaches the DAG as its decimal value: an exact ball of pi keeps the enclosure rigorous.
+      static const numeric pi = GiNaC::ex_to<numeric>(GiNaC::evalf(GiNaC::Pi));
+      if (GiNaC::abs(d.value) == pi) {
+        n.var = d.value.is_negative() ? -1 : 1;
+        n.dval = d.value.is_negative() ? -M_PI : M_PI;
+      } else {
+        if (!d.value.is_real()) why_ = "complex constant " + text_of(d.value);
+        n.dval = d.value.is_real() ? d.value.to_double() : std::nan("");
+      }
+      const int k = push(n);
+      constants_[static_cast<std::size_t>(k)] = d.value;
+      return done[static_cast<std::size_t>(id)] = k;
+    }
+    case NodeOp::variable: {
+      std::size_t i = 0;
+      while (i < vars.size() && vars[i].get_name() != d.name) ++i;
+      if (i == vars.size())
+        throw std::invalid_argument("certify: the symbol '" + d.name +
+                                    "' is not a variable of the box");
+      n.op = Op::var;
+      n.var = static_cast<long>(i);
+      break;
+    }
+    case NodeOp::add:
+    case NodeOp::mul:
+      n.op = d.op == NodeOp::add ? Op::add : Op::mul;
+      n.args = args;
+      break;
+    case NodeOp::div: {  // a / b = a * b^-1
+      Node inv{Op::powi, {args[1]}, -1, 0, 1, 0};
+      n.op = Op::mul;
+      n.args = {args[0], push(inv)};
+      break;
+    }
+    case NodeOp::neg: {  // -a = (-1) * a
+      Node m1{Op::cst, {}, 0, 0, 1, -1.0};
+      const int k = push(m1);
+      constants_[static_cast<std::size_t>(k)] = numeric(-1);
+      n.op = Op::mul;
+      n.args = {k, args[0]};
+      break;
+    }
+    case NodeOp::pow_int:
+      n.op = Op::powi;
+      n.var = d.exponent;
+      n.args = args;
+      break;
+    case NodeOp::sqrt:
+    case NodeOp::pow_real:
+      n.op = Op::powq;
+      n.p = d.op == NodeOp::sqrt ? 1 : d.value.numer().to_long();
+      n.q = d.op == NodeOp::sqrt ? 2 : d.value.denom().to_long();
+      if (d.op == NodeOp::pow_real && !d.value.is_rational()) why_ = "irrational exponent";
+      n.args = args;
+      break;
+    case NodeOp::call:
+      if (const auto op = function_op(d.name)) {
+        n.op = *op;
+        n.args = args;
+      } else {
+        why_ = "function " + d.name;
+      }
+      break;
+  }
+  return done[static_cast<std::size_t>(id)] = push(n);
 }
 
 bool Tape::eval_box(const std::vector<double>& lo, const std::vector<double>& hi, BallVec& out) {

@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "symbolic/dag.hpp"
+
 namespace obsynth::certify::detail {
 
 inline constexpr slong kPrec = 64;  // bits; box widths are far wider than 2^-64
@@ -99,8 +101,7 @@ class Tape {
   };
 
  private:
-  int compile(const GiNaC::ex& e, const std::vector<GiNaC::symbol>& vars);
-  std::uint64_t key(const GiNaC::ex& e);
+  int lower(const Dag& dag, int id, const std::vector<GiNaC::symbol>& vars, std::vector<int>& done);
   bool run(BallVec& out);
   void init_balls();
 
@@ -112,8 +113,7 @@ class Tape {
   bool balls_ready_ = false;
   BallVec consts_;  // ball value of constant nodes (indexed like nodes_)
   BallVec work_;
-  std::map<GiNaC::ex, int, GiNaC::ex_is_less> memo_;
-  std::map<GiNaC::ex, std::uint64_t, GiNaC::ex_is_less> keys_;
+  std::vector<GiNaC::numeric> constants_;  // the value of each cst node (indexed like nodes_)
 };
 
 // Upper bound (rounded up) and lower bound (rounded down) of a ball as doubles.
