@@ -136,7 +136,12 @@ function(_obsynth_check_methods fn exe methods option_names)
       math(EXPR klast "${k} - 1")
       foreach(j RANGE ${klast})
         string(JSON oname GET "${listing}" methods ${i} options ${j} name)
+        string(JSON qname ERROR_VARIABLE no_qualified GET "${listing}" methods ${i} options ${j}
+               qualified)
         list(APPEND known_options "${oname}")
+        if(NOT no_qualified)
+          list(APPEND known_options "${qname}")  # design.option: for that design alone
+        endif()
       endforeach()
     endif()
   endforeach()

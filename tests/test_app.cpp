@@ -282,6 +282,28 @@ TEST(Plans, NothingOutlivesThePlanSet) {
   EXPECT_EQ(counts.computes, 2);  // no hidden cache: each plan set computes its own
 }
 
+// Options are namespaced by design automatically: a bare --poles reaches canonical and
+// high-gain, --canonical.poles canonical alone, and no design sees another's options.
+TEST(Plans, DesignOptionsAreNamespacedByDesign) {
+  const Design& canonical = *find_design("canonical");
+  const Design& high_gain = *find_design("high-gain");
+  DesignOptions given;
+  given.values = {{"poles", "-1,-2"}, {"canonical.poles", "-5,-6"}, {"kou-gain", "1"}};
+  const DesignOptions c = options_for(canonical, given), h = options_for(high_gain, given);
+  ASSERT_NE(c.find("poles"), nullptr);
+  EXPECT_EQ(*c.find("poles"), "-5,-6");
+  ASSERT_NE(h.find("poles"), nullptr);
+  EXPECT_EQ(*h.find("poles"), "-1,-2");
+  EXPECT_EQ(c.find("kou-gain"), nullptr);
+  EXPECT_EQ(c.find("canonical.poles"), nullptr);
+  EXPECT_EQ(qualified_option_name(high_gain, "theta"), "high-gain.theta");
+  // Every qualified name is listed once, after the bare ones (the CLI and CMake read the list).
+  std::size_t qualified = 0, declared = 0;
+  for (const auto& d : design_registry()) declared += d.options.size();
+  for (const auto& o : all_design_options()) qualified += o.name.find('.') != std::string::npos;
+  EXPECT_EQ(qualified, declared);
+}
+
 TEST(Plans, SingleOutputDesignsRefuseTwoOutputsThroughTheRegistry) {
   const Model m =
       parse_model("model two\nstates x1 x2\nf = [ x2, -x1 ]\nh = [ x1, x2 ]\n", "two.sym");

@@ -23,7 +23,10 @@ nlohmann::ordered_json methods_json() {
   for (const auto& d : design_registry()) {
     nlohmann::ordered_json options = nlohmann::ordered_json::array();
     for (const auto& o : d.options)
-      options.push_back({{"name", o.name}, {"help", o.help}, {"default", o.default_text}});
+      options.push_back({{"name", o.name},
+                         {"qualified", qualified_option_name(d, o.name)},
+                         {"help", o.help},
+                         {"default", o.default_text}});
     methods.push_back({{"name", d.name},
                        {"summary", d.summary},
                        {"in_auto", d.in_all},

@@ -115,7 +115,7 @@ Verdict design_verdict(const Design& d, const Analysis& a, bool assess) {
 
 Plan& PlanSet::plan(const Design& d) {
   std::unique_ptr<Plan>& p = plans_[d.name];
-  if (!p) p = d.plan(a_, options_);
+  if (!p) p = d.plan(a_, options_for(d, options_));
   return *p;
 }
 
@@ -169,12 +169,30 @@ std::string persistent_input_designs(const ObservabilityUnderInputs& u) {
   return fmt::format("{}", fmt::join(out, ", "));
 }
 
+std::string qualified_option_name(const Design& d, const std::string& option) {
+  return d.name + "." + option;
+}
+
+DesignOptions options_for(const Design& d, const DesignOptions& given) {
+  DesignOptions own;
+  for (const auto& o : d.options) {
+    const std::string* v = given.find(qualified_option_name(d, o.name));
+    if (!v || v->empty()) v = given.find(o.name);
+    if (v && !v->empty()) own.values[o.name] = *v;
+  }
+  return own;
+}
+
 std::vector<DesignOptionInfo> all_design_options() {
   std::vector<DesignOptionInfo> out;
   for (const auto& d : design_registry())
     for (const auto& o : d.options)
       if (std::none_of(out.begin(), out.end(), [&](const auto& q) { return q.name == o.name; }))
         out.push_back(o);
+  for (const auto& d : design_registry())
+    for (const auto& o : d.options)
+      out.push_back({qualified_option_name(d, o.name), o.help + " (for " + d.name + " alone)",
+                     o.default_text});
   return out;
 }
 

@@ -188,7 +188,15 @@ const Design* find_design(const std::string& name);
 // (Design::observes_along_inputs), as one line for reports and diagnostics.
 std::string persistent_input_designs(const ObservabilityUnderInputs& u);
 
-// Every option name any design declares, once, in registry order.
+// Design options are namespaced by their design automatically: an option `o` that design `d`
+// declares is also accepted as `d.o` (`--canonical.poles`, `--high-gain.poles`). A bare `--o`
+// reaches every design that declares `o`; `d.o` overrides it for `d` alone.
+std::string qualified_option_name(const Design& d, const std::string& option);
+// d's own view of the run's options: the options it declares, by their bare names (the qualified
+// value when given, else the bare one); nothing else, so that a design never reads another's.
+DesignOptions options_for(const Design& d, const DesignOptions& given);
+
+// Every option name any design declares, once, in registry order, then every qualified name.
 std::vector<DesignOptionInfo> all_design_options();
 
 }  // namespace obsynth
