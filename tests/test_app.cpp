@@ -243,6 +243,7 @@ std::unique_ptr<Plan> counting_plan(const Analysis& a, const DesignOptions& o) {
 Design counting_design() {
   Design d;
   d.name = "counting";
+  d.options = {{"k", "the work's value", "1"}};  // a plan sees only the options it declares
   d.plan = counting_plan;
   d.needs_canonical_form = false;
   return d;
