@@ -14,6 +14,7 @@
 #include "app/synthesize.hpp"
 #include "certify/sampling.hpp"
 #include "designs/registry.hpp"
+#include "emit/step_program.hpp"
 #include "front/parse.hpp"
 #include "obsynth/c_kernels.hpp"
 #include "obsynth/differentiator.hpp"
@@ -188,112 +189,287 @@ bool exact_discretisation(const ObserverSpec& s, double dt, Vec& E, Vec& Gamma) 
                                       work.data()) != 0;
 }
 
-// One observer run: its state w, estimate xh, and how both advance.
-class SpecObserver {
- public:
-  SpecObserver(const ObserverSpec& s, const GiNaC::exmap& params, const SimulationOptions& o)
-      : s_(s), fn_(s, params), o_(o) {}
+// ceil(dt / max_substep), 1..4096 (1 when max_substep is 0), as the generated guarded step.
+std::size_t substeps(double dt, const GiNaC::numeric& max_substep) {
+  if (!(max_substep > 0)) return 1;
+  const double ratio = dt / max_substep.to_double();
+  if (!(ratio > 1)) return 1;
+  return ratio >= 4096 ? 4096 : static_cast<std::size_t>(std::ceil(ratio));
+}
 
-  void reset(const Vec& xh0) {
-    xh_ = xh0;
-    w_ = s_.init == InitKind::function ? fn_(s_.roles.init)(xh0) : xh0;
+// One observer run: the step program (step_program.hpp) interpreted in double, op by op in the
+// program's order, with the spec's functions evaluated through the expression DAG and the
+// runtime's C kernels for discretisation, solves, definiteness and the differentiators. A guard
+// that fails sets `rejected` (the run stops there); a finiteness guard lets the value through,
+// so that the run reports where the observer left the finite numbers.
+class ProgramObserver {
+ public:
+  ProgramObserver(const ObserverSpec& s, const GiNaC::exmap& params, const SimulationOptions& o,
+                  std::size_t inputs, std::size_t outputs)
+      : s_(s), p_(lower(s)), fn_(s, params), o_(o) {
+    if (const auto* j = p_.find<op::JetUpdate>()) {
+      for (std::size_t q = 0; q < outputs; ++q)
+        y_.push_back(make_jet(j->y_order, s.default_epsilon));
+      for (std::size_t k = 0; k < inputs; ++k)
+        u_.push_back(make_jet(j->u_order, s.default_epsilon));
+    }
   }
-  // d/dt w at (w, u, y): the generated derivative(). A failed gain solve sets `rejected`.
+  const StepProgram& program() const { return p_; }
+
+  // y0: the output at xh0, where the differentiators start (JetUpdate).
+  void reset(const Vec& xh0, const Vec& y0 = {}) {
+    xh_ = xh0;
+    w_ = p_.init.empty() ? xh0 : fn_(p_.init)(xh0);
+    for (std::size_t q = 0; q < y_.size(); ++q) y_[q]->reset(y0[q]);
+    for (auto& d : u_) d->reset(0);
+    if (p_.has<op::RingPush>()) {
+      const SampledDelay& d = *s_.sampled_delay;
+      ring_.assign((d.delay_steps + 1) * d.filters, 0.0);
+      u_ring_.assign(d.delay_steps + 1, 0.0);
+      head_ = filled_ = level_ = 0;
+      frac_ = slope_ = 0;
+    }
+  }
+  // d/dt w at (w, u, y): the program's vector field (the generated derivative()). A failed gain
+  // solve sets `rejected`.
   Vec derivative(const Vec& w, const Vec& u, const Vec& y) {
-    if (s_.update != UpdateKind::ode)
-      return fn_(s_.roles.rhs)(concat(w, fn_(s_.roles.step_constant)(concat(u, y))));
-    Vec dw = fn_(s_.roles.rhs)(concat(concat(w, u), y));
-    if (s_.correction && !add_correction(*s_.correction, w, u, y, dw))
-      rejected_ = "the gain solve failed (" + s_.correction->singular_doc + ")";
+    bool solved = true;
+    Vec dw = field(*p_.derivative, w, u, y, nullptr, solved);
+    if (!solved) rejected_ = solve_failure(*p_.derivative);
     return dw;
   }
   // The firmware step with u, y held over dt.
   void step(double dt, const Vec& u, const Vec& y) {
-    if (s_.update == UpdateKind::linear_exact && !s_.rk4_for_linear) {
-      if (!(dt == dt_)) {
-        if (!exact_discretisation(s_, dt, E_, Gamma_)) {
-          rejected_ = "the exact discretisation failed (a bad dt or a non-finite e^{A dt})";
-          return;
-        }
-        dt_ = dt;
-      }
-      // w + (E w + Gamma c), the increment added once (as the C step and the float runtime)
-      const Vec c = fn_(s_.roles.step_constant)(concat(u, y));
-      const std::size_t n = w_.size();
-      Vec next(n);
-      for (std::size_t i = 0; i < n; ++i) {
-        double acc = 0;
-        for (std::size_t j = 0; j < n; ++j) acc += E_[i * n + j] * w_[j] + Gamma_[i * n + j] * c[j];
-        next[i] = w_[i] + acc;
-      }
-      w_ = next;
-    } else {
-      const Vec before = w_;
-      // Equal RK4 sub-steps no longer than the design's max_substep, as the generated step.
-      const std::size_t steps = substeps(dt);
-      for (std::size_t k = 0; k < steps; ++k)
-        rk4([&](double, const Vec& w) { return derivative(w, u, y); }, 0,
-            dt / static_cast<double>(steps), w_);
-      check_blocks();
-      if (!rejected_.empty()) w_ = before;  // the generated step keeps its state too
-    }
-    update_estimate();
-  }
-  // ceil(dt / max_substep), 1..4096 (ObserverSpec::max_substep; 1 when it is 0).
-  std::size_t substeps(double dt) const {
-    if (!(s_.max_substep > 0)) return 1;
-    const double ratio = dt / s_.max_substep.to_double();
-    if (!(ratio > 1)) return 1;
-    return ratio >= 4096 ? 4096 : static_cast<std::size_t>(std::ceil(ratio));
+    Step st{dt, u, y, w_, {}, {}, true};
+    for (const auto& o : p_.step)
+      if (!std::visit([&](const auto& op) { return run(op, st); }, o)) return;
   }
   // Why the last step or derivative was rejected (empty: it was not).
   const std::string& rejected() const { return rejected_; }
   void set_state(const Vec& w) {
     w_ = w;
-    check_blocks();
+    for (const auto& o : p_.step)
+      if (const auto* g = std::get_if<op::DefiniteGuard>(&o)) definite(*g, w_);
     update_estimate();
   }
   const Vec& state() const { return w_; }
   const Vec& estimate() const { return xh_; }
 
  private:
-  void update_estimate() {
-    switch (s_.estimate) {
-      case EstimateKind::identity:
-        xh_ = w_;
-        break;
-      case EstimateKind::function:
-        xh_ = fn_(s_.roles.estimate)(w_);
-        break;
-      case EstimateKind::newton:
-        xh_ = newton(fn_(s_.roles.newton_map), fn_(s_.roles.newton_inverse_jacobian), w_, xh_,
-                     s_.newton_iterations, o_.newton_tolerance);
-        break;
+  // The working values of one step.
+  struct Step {
+    double dt;
+    const Vec &u, &y;
+    Vec w, x, held;
+    bool solved;
+  };
+
+  bool run(const op::Discretise& d, Step& st) {
+    if (st.dt == dt_) return true;
+    if (!exact_discretisation(s_, st.dt, E_, Gamma_)) {
+      rejected_ = "the exact discretisation failed (a bad dt or a non-finite e^{A dt})";
+      return false;
     }
+    if (d.basis > 0) {  // Gamma B, folded once per dt as the generated discretise()
+      const std::size_t n = s_.closed_loop.size(), k = d.basis;
+      Vec gb(n * k, 0.0);
+      for (std::size_t i = 0; i < n; ++i)
+        for (std::size_t j = 0; j < k; ++j)
+          for (std::size_t r = 0; r < n; ++r)
+            gb[i * k + j] += Gamma_[i * n + r] * s_.input_map[r][j].to_double();
+      Gamma_ = gb;
+    }
+    dt_ = st.dt;
+    return true;
   }
-  // Symmetric blocks that must stay positive definite (Cholesky, as the generated step).
-  void check_blocks() {
-    for (const auto& b : s_.symmetric_blocks) {
-      if (!b.keep_positive_definite) continue;
-      Vec work(b.dim * b.dim + b.dim);
-      if (!c_double::obsynth_packed_positive_definite(w_.data(), static_cast<int>(b.offset),
-                                                      static_cast<int>(b.dim), work.data()))
-        rejected_ = b.name + " is no longer positive definite";
+  bool run(const op::HoldInput& h, Step& st) {
+    st.held = fn_(h.function)(concat(st.u, st.y));
+    return true;
+  }
+  // w + (E w + Gamma c), the increment added once (as the C step and the float runtime).
+  bool run(const op::ExactLinearStep& e, Step& st) {
+    const std::size_t n = w_.size(), k = st.held.size();
+    for (std::size_t i = 0; i < n; ++i) {
+      double acc = 0;
+      if (e.basis) {
+        for (std::size_t j = 0; j < n; ++j) acc += E_[i * n + j] * w_[j];
+        for (std::size_t j = 0; j < k; ++j) acc += Gamma_[i * k + j] * st.held[j];
+      } else {
+        for (std::size_t j = 0; j < n; ++j)
+          acc += E_[i * n + j] * w_[j] + Gamma_[i * n + j] * st.held[j];
+      }
+      st.w[i] = w_[i] + acc;
     }
+    return true;
+  }
+  bool run(const op::Rk4& r, Step& st) {
+    const std::size_t steps = substeps(st.dt, r.max_substep);
+    for (std::size_t k = 0; k < steps; ++k)
+      rk4([&](double, const Vec& w) { return field(r.field, w, st.u, st.y, &st.held, st.solved); },
+          0, st.dt / static_cast<double>(steps), st.w);
+    return true;
+  }
+  bool run(const op::StageGuard&, Step& st) {
+    if (st.solved) return true;
+    rejected_ = solve_failure(find_field());
+    return false;
+  }
+  bool run(const op::FiniteGuard&, Step&) { return true; }
+  bool run(const op::DefiniteGuard& g, Step& st) { return definite(g, st.w); }
+  bool run(const op::EstimateLocal& e, Step& st) {
+    st.x = fn_(e.function)(st.w);
+    return true;
+  }
+  bool run(const op::Commit& c, Step& st) {
+    w_ = st.w;
+    if (c.estimate) xh_ = st.x;
+    return true;
+  }
+  bool run(const op::Finish& f, Step&) {
+    if (f.update_estimate) update_estimate();
+    return false;
+  }
+  bool run(const op::JetUpdate&, Step& st) {
+    for (std::size_t q = 0; q < y_.size(); ++q) y_[q]->update(st.dt, st.y[q]);
+    for (std::size_t j = 0; j < u_.size(); ++j) u_[j]->update(st.dt, st.u[j]);
+    return true;
+  }
+  // Arguments (yj, uj): yj output by output; uj column-major (order k outer, input j inner).
+  bool run(const op::Reconstruct& r, Step&) {
+    Vec in;
+    for (const auto& d : y_) {
+      const Vec jet = d->jet();
+      in.insert(in.end(), jet.begin(), jet.end());
+    }
+    const std::size_t orders = p_.find<op::JetUpdate>()->u_order + 1;
+    for (std::size_t k = 0; k < orders; ++k)
+      for (const auto& d : u_) in.push_back(d->jet()[k]);
+    w_ = fn_(r.function)(in);
+    return true;
+  }
+  bool run(const op::SampleGuard& g, Step& st) {
+    if (std::fabs(st.dt - g.period) <= 1e-6 * g.period) return true;
+    rejected_ = "the sample period";
+    return false;
+  }
+  bool run(const op::RingPush&, Step& st) {
+    const SampledDelay& d = *s_.sampled_delay;
+    const std::size_t pz = d.filters, slots = d.delay_steps + 1;
+    const Vec &decay = table(d.decay_table), &gain = table(d.gain_table);
+    const std::size_t next = (head_ + 1) % slots;
+    for (std::size_t j = 0; j < pz; ++j)
+      ring_[next * pz + j] = decay[j] * ring_[head_ * pz + j] + gain[j] * st.y[j % d.outputs];
+    u_ring_[next] = d.levels > 1 ? st.u[d.input_index] : 0.0;
+    head_ = next;
+    if (filled_ < d.delay_steps) ++filled_;
+    return filled_ >= d.delay_steps;
+  }
+  bool run(const op::LevelSelect& ls, Step& st) {
+    const SampledDelay& d = *s_.sampled_delay;
+    level_ = 0;
+    frac_ = slope_ = 0;
+    if (!ls.by_input) return true;
+    const std::size_t slots = d.delay_steps + 1, old = (head_ + 1) % slots;  // D steps ago
+    double v = st.u[d.input_index];
+    if (d.level_window_mean) {
+      double acc = 0;
+      for (std::size_t k = 0; k < slots; ++k)
+        if (k != old) acc += u_ring_[k];
+      v = acc / static_cast<double>(d.delay_steps);
+      if (ls.slope) slope_ = window_slope(v, st.dt);
+    }
+    if (ls.interpolate) {
+      const double top = static_cast<double>(d.levels - 1);
+      const double r = std::clamp((v - d.level_lo) / d.level_step, 0.0, top);
+      level_ = std::min(static_cast<std::size_t>(std::floor(r)), d.levels - 2);
+      frac_ = r - static_cast<double>(level_);
+    } else {
+      v = std::floor((v - d.level_lo) / d.level_step + (d.level_nearest ? 0.5 : 0.0));
+      level_ = v <= 0                                   ? 0
+               : v >= static_cast<double>(d.levels - 1) ? d.levels - 1
+                                                        : static_cast<std::size_t>(v);
+    }
+    return true;
+  }
+  bool run(const op::TableLookup&, Step& st) {
+    const SampledDelay& d = *s_.sampled_delay;
+    const std::size_t pz = d.filters, slots = d.delay_steps + 1, old = (head_ + 1) % slots;
+    const Vec &delay = table(d.delay_table), &metric = table(d.metric_table),
+              &map = table(d.map_table);
+    const Vec& slope_table = d.slope_table.empty() ? map : table(d.slope_table);
+    Vec raw(pz), eta(pz, 0.0);
+    for (std::size_t j = 0; j < pz; ++j)
+      raw[j] = ring_[head_ * pz + j] - delay[j] * ring_[old * pz + j];
+    for (std::size_t j = 0; j < pz; ++j)
+      for (std::size_t k = 0; k < pz; ++k) eta[j] += metric[j * pz + k] * raw[k];
+    const std::size_t n = d.grid_count.size(), N = d.points();
+    std::vector<std::size_t> idx(n, 0);
+    Vec sx(n, 0.0);
+    double sw = 0;
+    const double* q = map.data() + level_ * N * pz;
+    // The next level's table (read only when interpolating, then level + 1 < levels).
+    const bool next_level = d.level_interpolate && d.levels > 1;
+    const double* q1 = next_level ? q + N * pz : q;
+    const double* dq = slope_table.data() + level_ * N * pz;  // read only with a slope table
+    const double* dq1 = next_level ? dq + N * pz : dq;
+    for (std::size_t i = 0; i < N; ++i, q += pz, q1 += pz, dq += pz, dq1 += pz) {
+      double d2 = 0;
+      for (std::size_t j = 0; j < pz; ++j) {
+        double e = q[j] + frac_ * (q1[j] - q[j]) - eta[j];
+        if (slope_ != 0) e += slope_ * (dq[j] + frac_ * (dq1[j] - dq[j]));
+        d2 += e * e;
+      }
+      const double b = 1 / (d.epsilon + std::sqrt(d2));
+      double w = b;
+      for (int k = 1; k < d.weight_power; ++k) w *= b;
+      sw += w;
+      for (std::size_t s = 0; s < n; ++s)
+        sx[s] += w * (d.grid_lo[s] + d.grid_step[s] * static_cast<double>(idx[s]));
+      for (std::size_t s = n; s-- > 0;) {
+        if (++idx[s] < d.grid_count[s]) break;
+        idx[s] = 0;
+      }
+    }
+    for (std::size_t s = 0; s < n; ++s) sx[s] /= sw;
+    st.x = sx;
+    st.w = sx;  // the sampled delay's state is its estimate
+    return true;
+  }
+
+  // The field at w: rhs(w, u, y) (rhs(w, c) with c held, or computed when `held` is null), plus
+  // the solve term; a failed solve clears `solved`.
+  Vec field(const op::VectorField& f, const Vec& w, const Vec& u, const Vec& y, const Vec* held,
+            bool& solved) {
+    if (!f.held.empty()) return fn_(f.rhs)(concat(w, held ? *held : fn_(f.held)(concat(u, y))));
+    Vec dw = fn_(f.rhs)(concat(concat(w, u), y));
+    if (f.solve && !add_correction(f, w, u, y, dw)) solved = false;
+    return dw;
+  }
+  const op::VectorField& find_field() const { return p_.find<op::Rk4>()->field; }
+  static std::string solve_failure(const op::VectorField& f) {
+    return "the gain solve failed (" + f.solve->singular_doc + ")";
+  }
+  // The symmetric block has a Cholesky factor (the runtime's kernel, as the generated step).
+  bool definite(const op::DefiniteGuard& g, const Vec& w) {
+    Vec work(g.block.dim * g.block.dim + g.block.dim);
+    if (c_double::obsynth_packed_positive_definite(w.data(), static_cast<int>(g.block.offset),
+                                                   static_cast<int>(g.block.dim), work.data()))
+      return true;
+    rejected_ = g.block.name + " is no longer positive definite";
+    return false;
   }
   // dw[target..] += M^-1 v by the generated code's factorisation (the runtime's kernels).
-  bool add_correction(const SolveCorrection& k, const Vec& w, const Vec& u, const Vec& y, Vec& dw) {
+  bool add_correction(const op::VectorField& f, const Vec& w, const Vec& u, const Vec& y, Vec& dw) {
+    const SolveCorrection& k = *f.solve;
     const std::size_t d = k.dim;
     Vec M(d * d);  // row-major
-    if (!k.matrix_function.empty()) {
+    if (f.solve_block) {
+      c_double::obsynth_unpack_symmetric(w.data(), static_cast<int>(f.solve_block->offset),
+                                         static_cast<int>(f.solve_block->dim), M.data());
+    } else {
       const Vec mv = fn_(k.matrix_function)(concat(w, u));  // column-major
       for (std::size_t r = 0; r < d; ++r)
         for (std::size_t c = 0; c < d; ++c) M[r * d + c] = mv[c * d + r];
-    } else {
-      for (const auto& b : s_.symmetric_blocks)
-        if (b.name == k.matrix_block)
-          c_double::obsynth_unpack_symmetric(w.data(), static_cast<int>(b.offset),
-                                             static_cast<int>(b.dim), M.data());
     }
     const Vec v = fn_(k.vector_function)(concat(concat(w, u), y));
     Vec x(d);
@@ -305,156 +481,19 @@ class SpecObserver {
     for (std::size_t i = 0; i < d; ++i) dw[k.target_offset + i] += x[i];
     return true;
   }
-
-  const ObserverSpec& s_;
-  SpecFunctions fn_;
-  const SimulationOptions& o_;
-  Vec w_, xh_;
-  Vec E_, Gamma_;  // row-major, for dt_
-  double dt_ = 0;
-  std::string rejected_;
-};
-
-// The jets observer (perfect): differentiators for y and u, then reconstruct and estimate.
-class JetsObserver {
- public:
-  JetsObserver(const ObserverSpec& s, const GiNaC::exmap& params, const SimulationOptions& o,
-               std::size_t inputs, std::size_t outputs)
-      : s_(s), fn_(s, params), o_(o) {
-    for (std::size_t q = 0; q < outputs; ++q)
-      y_.push_back(make_jet(s.y_jet_order, s.default_epsilon));
-    for (std::size_t j = 0; j < inputs; ++j)
-      u_.push_back(make_jet(s.u_jet_order, s.default_epsilon));
+  void update_estimate() {
+    std::visit(overloaded{[&](const est::Identity&) { xh_ = w_; },
+                          [&](const est::Function& e) { xh_ = fn_(e.function)(w_); },
+                          [&](const est::Newton& e) {
+                            xh_ = newton(fn_(e.map), fn_(e.inverse_jacobian), w_, xh_, e.iterations,
+                                         o_.newton_tolerance);
+                          }},
+               p_.estimate);
   }
-  void reset(const Vec& xh0, const Vec& y0) {
-    xh_ = xh0;
-    for (std::size_t q = 0; q < y_.size(); ++q) y_[q]->reset(y0[q]);
-    for (auto& d : u_) d->reset(0);
-  }
-  void update(double dt, const Vec& u, const Vec& y) {
-    for (std::size_t q = 0; q < y_.size(); ++q) y_[q]->update(dt, y[q]);
-    for (std::size_t j = 0; j < u_.size(); ++j) u_[j]->update(dt, u[j]);
-    // Arguments (yj, uj): yj output by output; uj column-major (order k outer, input j inner).
-    Vec in;
-    for (const auto& d : y_) {
-      const Vec jet = d->jet();
-      in.insert(in.end(), jet.begin(), jet.end());
-    }
-    const std::size_t orders = s_.u_jet_order + 1;
-    for (std::size_t k = 0; k < orders; ++k)
-      for (const auto& d : u_) in.push_back(d->jet()[k]);
-    const Vec r = fn_(s_.roles.reconstruct)(in);
-    xh_ = s_.estimate == EstimateKind::newton
-              ? newton(fn_(s_.roles.newton_map), fn_(s_.roles.newton_inverse_jacobian), r, xh_,
-                       s_.newton_iterations, o_.newton_tolerance)
-              : r;
-  }
-  const Vec& estimate() const { return xh_; }
-
- private:
-  const ObserverSpec& s_;
-  SpecFunctions fn_;
-  const SimulationOptions& o_;
-  std::vector<std::unique_ptr<Jet>> y_, u_;
-  Vec xh_;
-};
-
-// ---- UpdateKind::sampled_delay (spec.hpp SampledDelay): filter bank, delay line, kernel
-// inverse over the tables, in double, in the order the generated step uses.
-class SampledDelayObserver {
- public:
-  explicit SampledDelayObserver(const ObserverSpec& s)
-      : d_(*s.sampled_delay),
-        decay_(s.table(d_.decay_table)->values),
-        gain_(s.table(d_.gain_table)->values),
-        delay_(s.table(d_.delay_table)->values),
-        metric_(s.table(d_.metric_table)->values),
-        map_(s.table(d_.map_table)->values),
-        slope_(d_.slope_table.empty() ? map_ : s.table(d_.slope_table)->values) {}
-  void reset(const Vec& xh0) {
-    xh_ = xh0;
-    ring_.assign((d_.delay_steps + 1) * d_.filters, 0.0);
-    u_ring_.assign(d_.delay_steps + 1, 0.0);
-    head_ = 0;
-    filled_ = 0;
-  }
-  // False when dt is not the design's sample period.
-  bool step(double dt, const Vec& u, const Vec& y) {
-    if (!(std::fabs(dt - d_.sample_period) <= 1e-6 * d_.sample_period)) return false;
-    const std::size_t pz = d_.filters, slots = d_.delay_steps + 1;
-    const std::size_t next = (head_ + 1) % slots;
-    for (std::size_t j = 0; j < pz; ++j)
-      ring_[next * pz + j] = decay_[j] * ring_[head_ * pz + j] + gain_[j] * y[j % d_.outputs];
-    u_ring_[next] = d_.levels > 1 ? u[d_.input_index] : 0.0;
-    head_ = next;
-    if (filled_ < d_.delay_steps) ++filled_;
-    if (filled_ < d_.delay_steps) return true;
-    const std::size_t old = (head_ + 1) % slots;  // D steps ago
-    std::size_t level = 0;
-    double frac = 0;   // level_interpolate: the weight of table level + 1
-    double slope = 0;  // slope_table: du/dt fitted over the window
-    if (d_.levels > 1) {
-      double v = u[d_.input_index];
-      if (d_.level_window_mean) {
-        double acc = 0;
-        for (std::size_t k = 0; k < slots; ++k)
-          if (k != old) acc += u_ring_[k];
-        v = acc / static_cast<double>(d_.delay_steps);
-        if (!d_.slope_table.empty()) slope = window_slope(v, dt);
-      }
-      if (d_.level_interpolate) {
-        const double top = static_cast<double>(d_.levels - 1);
-        const double r = std::clamp((v - d_.level_lo) / d_.level_step, 0.0, top);
-        level = std::min(static_cast<std::size_t>(std::floor(r)), d_.levels - 2);
-        frac = r - static_cast<double>(level);
-      } else {
-        v = std::floor((v - d_.level_lo) / d_.level_step + (d_.level_nearest ? 0.5 : 0.0));
-        level = v <= 0                                    ? 0
-                : v >= static_cast<double>(d_.levels - 1) ? d_.levels - 1
-                                                          : static_cast<std::size_t>(v);
-      }
-    }
-    Vec raw(pz), eta(pz, 0.0);
-    for (std::size_t j = 0; j < pz; ++j)
-      raw[j] = ring_[head_ * pz + j] - delay_[j] * ring_[old * pz + j];
-    for (std::size_t j = 0; j < pz; ++j)
-      for (std::size_t k = 0; k < pz; ++k) eta[j] += metric_[j * pz + k] * raw[k];
-    const std::size_t n = d_.grid_count.size(), N = d_.points();
-    std::vector<std::size_t> idx(n, 0);
-    Vec sx(n, 0.0);
-    double sw = 0;
-    const double* q = map_.data() + level * N * pz;
-    // The next level's table (read only when interpolating, then level + 1 < levels).
-    const double* q1 = d_.level_interpolate && d_.levels > 1 ? q + N * pz : q;
-    const double* dq = slope_.data() + level * N * pz;  // read only with a slope table
-    const double* dq1 = d_.level_interpolate && d_.levels > 1 ? dq + N * pz : dq;
-    for (std::size_t i = 0; i < N; ++i, q += pz, q1 += pz, dq += pz, dq1 += pz) {
-      double d2 = 0;
-      for (std::size_t j = 0; j < pz; ++j) {
-        double e = q[j] + frac * (q1[j] - q[j]) - eta[j];
-        if (slope != 0) e += slope * (dq[j] + frac * (dq1[j] - dq[j]));
-        d2 += e * e;
-      }
-      const double b = 1 / (d_.epsilon + std::sqrt(d2));
-      double w = b;
-      for (int k = 1; k < d_.weight_power; ++k) w *= b;
-      sw += w;
-      for (std::size_t s = 0; s < n; ++s)
-        sx[s] += w * (d_.grid_lo[s] + d_.grid_step[s] * static_cast<double>(idx[s]));
-      for (std::size_t s = n; s-- > 0;) {
-        if (++idx[s] < d_.grid_count[s]) break;
-        idx[s] = 0;
-      }
-    }
-    for (std::size_t s = 0; s < n; ++s) xh_[s] = sx[s] / sw;
-    return true;
-  }
-  const Vec& estimate() const { return xh_; }
-
- private:
+  const Vec& table(const std::string& name) const { return s_.table(name)->values; }
   // Least-squares slope (du/dt) of the window's D input samples, whose mean is v (spec.hpp).
   double window_slope(double v, double dt) const {
-    const std::size_t D = d_.delay_steps, slots = D + 1;
+    const std::size_t D = s_.sampled_delay->delay_steps, slots = D + 1;
     const double abar = static_cast<double>(D - 1) / 2;
     double sxy = 0, sxx = 0;
     for (std::size_t a = 0; a < D; ++a) {  // a = 0: this step's sample
@@ -464,10 +503,19 @@ class SampledDelayObserver {
     }
     return sxx > 0 ? -sxy / (dt * sxx) : 0.0;
   }
-  const SampledDelay& d_;
-  const Vec &decay_, &gain_, &delay_, &metric_, &map_, &slope_;
-  Vec ring_, u_ring_, xh_;
-  std::size_t head_ = 0, filled_ = 0;
+
+  const ObserverSpec& s_;
+  const StepProgram p_;
+  SpecFunctions fn_;
+  const SimulationOptions& o_;
+  Vec w_, xh_;
+  Vec E_, Gamma_;  // row-major, for dt_ (Gamma B with an input map)
+  double dt_ = 0;
+  std::vector<std::unique_ptr<Jet>> y_, u_;  // the differentiators (JetUpdate)
+  Vec ring_, u_ring_;                        // the delay line (RingPush)
+  std::size_t head_ = 0, filled_ = 0, level_ = 0;
+  double frac_ = 0, slope_ = 0;
+  std::string rejected_;
 };
 
 struct Plant {
@@ -617,7 +665,7 @@ struct Recorder {
   }
 };
 
-void run_state_observer(const Plant& plant, SpecObserver& obs, const SimulationOptions& opt,
+void run_state_observer(const Plant& plant, ProgramObserver& obs, const SimulationOptions& opt,
                         std::size_t steps, Recorder& rec) {
   const std::size_t n = opt.x0.size();
   Vec x = opt.x0;
@@ -654,14 +702,15 @@ void run_state_observer(const Plant& plant, SpecObserver& obs, const SimulationO
 }
 
 // Discrete-time observers: the firmware step with u, y sampled at t_k (whatever --sampling).
-void run_sampled_delay_observer(const Plant& plant, SampledDelayObserver& obs,
+void run_sampled_delay_observer(const Plant& plant, ProgramObserver& obs,
                                 const SimulationOptions& opt, std::size_t steps, Recorder& rec) {
   Vec x = opt.x0;
   obs.reset(opt.xhat0);
   if (!rec.record(0, x, obs.estimate(), "observer")) return;
   for (std::size_t k = 0; k < steps; ++k) {
     const double t = static_cast<double>(k) * opt.dt;
-    if (!obs.step(opt.dt, plant.inputs({t}), plant.output(x))) {
+    obs.step(opt.dt, plant.inputs({t}), plant.output(x));
+    if (!obs.rejected().empty()) {
       rec.res.diverged = fmt::format(
           "simulate: the observer's fixed sample period differs from --dt {:g}", opt.dt);
       return;
@@ -671,7 +720,7 @@ void run_sampled_delay_observer(const Plant& plant, SampledDelayObserver& obs,
   }
 }
 
-void run_jets_observer(const Plant& plant, JetsObserver& obs, const SimulationOptions& opt,
+void run_jets_observer(const Plant& plant, ProgramObserver& obs, const SimulationOptions& opt,
                        std::size_t steps, Recorder& rec) {
   Vec x = opt.x0;
   obs.reset(opt.xhat0, plant.y(0, opt.xhat0));
@@ -683,7 +732,7 @@ void run_jets_observer(const Plant& plant, JetsObserver& obs, const SimulationOp
       rec.record(t1, x, obs.estimate(), "observer");
       return;
     }
-    obs.update(opt.dt, plant.inputs({t1}), plant.y(t1, x));
+    obs.step(opt.dt, plant.inputs({t1}), plant.y(t1, x));
     if (!rec.record(t1, x, obs.estimate(), "observer")) return;
   }
 }
@@ -755,8 +804,9 @@ void render_outputs(const Model& m, const SimulationOptions& opt, const std::str
 }  // namespace
 
 std::optional<SafePeriod> sampled_safe_period(const Analysis& a, const ObserverSpec& spec) {
-  if (spec.update != UpdateKind::ode || spec.correction || !spec.symmetric_blocks.empty())
-    return std::nullopt;
+  const StepProgram program = lower(spec);
+  const op::Rk4* rk4_op = program.find<op::Rk4>();
+  if (!rk4_op || rk4_op->field.guarded || !rk4_op->field.held.empty()) return std::nullopt;
   const Model& m = a.model;
   const std::size_t S = 64;
   static const unsigned primes[] = {2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47};
@@ -780,7 +830,7 @@ std::optional<SafePeriod> sampled_safe_period(const Analysis& a, const ObserverS
       u.push_back(b.lo.to_double() + (b.hi - b.lo).to_double() * halton_point(i, primes[k++ % 15]));
     }
     const Vec y = output(concat(x, u));
-    const Vec w = spec.init == InitKind::function ? fn(spec.roles.init)(x) : x;
+    const Vec w = program.init.empty() ? x : fn(program.init)(x);
     const auto dim = static_cast<Eigen::Index>(w.size());
     Eigen::MatrixXd J(dim, dim);
     for (Eigen::Index j = 0; j < dim; ++j) {
@@ -788,8 +838,8 @@ std::optional<SafePeriod> sampled_safe_period(const Analysis& a, const ObserverS
       Vec wp = w, wm = w;
       wp[static_cast<std::size_t>(j)] += step;
       wm[static_cast<std::size_t>(j)] -= step;
-      const Vec fp = fn(spec.roles.rhs)(concat(concat(wp, u), y));
-      const Vec fm = fn(spec.roles.rhs)(concat(concat(wm, u), y));
+      const Vec fp = fn(rk4_op->field.rhs)(concat(concat(wp, u), y));
+      const Vec fm = fn(rk4_op->field.rhs)(concat(concat(wm, u), y));
       for (Eigen::Index r = 0; r < dim; ++r)
         J(r, j) = (fp[static_cast<std::size_t>(r)] - fm[static_cast<std::size_t>(r)]) / (2 * step);
     }
@@ -815,16 +865,16 @@ SimulationResult run_closed_loop(const Analysis& a, const ObserverSpec& spec,
   res.method = spec.method;
   res.names = names_of(m.states);
   Recorder rec{res};
-  if (spec.update == UpdateKind::jets) {
-    JetsObserver obs(spec, params, opt, m.m(), m.p());
+  // The run's timing follows the program: differentiators take the sample at the end of the
+  // interval, a fixed sample period takes the samples at its start, anything else runs as the
+  // firmware step or (continuous sampling) through the vector field.
+  ProgramObserver obs(spec, params, opt, m.m(), m.p());
+  if (obs.program().has<op::JetUpdate>())
     run_jets_observer(plant, obs, opt, steps, rec);
-  } else if (spec.update == UpdateKind::sampled_delay) {
-    SampledDelayObserver obs(spec);
+  else if (obs.program().has<op::SampleGuard>())
     run_sampled_delay_observer(plant, obs, opt, steps, rec);
-  } else {
-    SpecObserver obs(spec, params, opt);
+  else
     run_state_observer(plant, obs, opt, steps, rec);
-  }
   return res;
 }
 

@@ -400,4 +400,12 @@ std::string render_template(const std::string& tmpl,
   return out;
 }
 
+std::string render_template_subset(const std::string& tmpl,
+                                   const std::map<std::string, std::string>& values) {
+  std::map<std::string, std::string> used;
+  for (const auto& [k, v] : values)
+    if (tmpl.find("{{" + k + "}}") != std::string::npos) used.emplace(k, v);
+  return render_template(tmpl, used);
+}
+
 }  // namespace obsynth

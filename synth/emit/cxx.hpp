@@ -71,5 +71,9 @@ EmittedCode emit_statements(const Dag& dag, const std::vector<Assignment>& outpu
 // key must be used; anything else is an internal error (a bug in a template).
 std::string render_template(const std::string& tmpl,
                             const std::map<std::string, std::string>& values);
+// render_template with only those of `values` whose placeholder the template has (one table of
+// values serves several templates).
+std::string render_template_subset(const std::string& tmpl,
+                                   const std::map<std::string, std::string>& values);
 
 }  // namespace obsynth

@@ -4,6 +4,7 @@
 
 #include <map>
 
+#include "emit/step_program.hpp"
 #include "foundation/diagnostics.hpp"
 
 #ifndef OBSYNTH_VERSION
@@ -105,52 +106,6 @@ static int discretise({{P}}_observer* o, Scalar dt) {
 }
 )";
 
-// The end of an exact step: commit w, then compute the estimate from it ...
-const char* kCommitThenEstimate =
-    R"(  if (!obsynth_all_finite(w, N)) return o->status = {{P}}_non_finite;
-  for (i = 0; i < N; ++i) o->w[i] = w[i];
-  return o->status = update_estimate(o);
-)";
-
-// ... or, with a closed-form estimate, as the C++ step does: the estimate first, then one test
-// of both (of x alone when estimate_shows_nonfinite_state), so that a non-finite value in
-// either keeps the state and the estimate.
-const char* kEstimateThenCommit = R"(  {{estimate}}(w{{PRM}}, x);
-  if ({{w_test}}!obsynth_all_finite(x, {{P}}_n)) return o->status = {{P}}_non_finite;
-  for (i = 0; i < N; ++i) o->w[i] = w[i];
-  for (i = 0; i < {{P}}_n; ++i) o->xh[i] = x[i];
-  return o->status = {{P}}_ok;
-)";
-
-const char* kStepExact = R"(
-{{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
-  Scalar c[N], w[N]{{x_decl}};
-  int i, j;
-  if (!(dt == o->dt) && !discretise(o, dt)) return o->status = {{P}}_non_finite;
-  {{step_constant}}(u, y{{PRM}}, c); /* constant over the step */
-  for (i = 0; i < N; ++i) {
-    Scalar acc = {{zero}}; /* the increment E w + Gamma c, added to w once */
-    for (j = 0; j < N; ++j) acc += o->E[i * N + j] * o->w[j] + o->Gamma[i * N + j] * c[j];
-    w[i] = o->w[i] + acc;
-  }
-{{commit}}}
-)";
-
-const char* kStepExactBasis = R"(
-{{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
-  Scalar b[K], w[N]{{x_decl}};
-  int i, j;
-  if (!(dt == o->dt) && !discretise(o, dt)) return o->status = {{P}}_non_finite;
-  {{step_basis}}(u, y{{PRM}}, b); /* constant over the step; c = B b */
-  for (i = 0; i < N; ++i) {
-    Scalar acc = {{zero}}; /* the increment E w + (Gamma B) b, added to w once */
-    for (j = 0; j < N; ++j) acc += o->E[i * N + j] * o->w[j];
-    for (j = 0; j < K; ++j) acc += o->Gamma[i * K + j] * b[j];
-    w[i] = o->w[i] + acc;
-  }
-{{commit}}}
-)";
-
 // The discretisation's extra text when c = B b: B, and Gamma B into o->Gamma.
 const char* kFoldInputMap = R"(  int i, j, s;
   for (i = 0; i < N; ++i)
@@ -161,12 +116,33 @@ const char* kFoldInputMap = R"(  int i, j, s;
     }
 )";
 
-const char* kStepRk4 = R"(
-/* One RK4 step of length dt with u and y held over the step. */
-{{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
-  Scalar k1[N], k2[N], k3[N], k4[N], t[N], w[N];
-  int i;
-{{prologue}}  {{rhs}}(o->w, {{rhs_in}}{{PRM}}, k1);
+// ---- the step program's ops (step_program.hpp), one fragment each -------------------------
+
+const char* kStepSignature =
+    R"({{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
+)";
+
+const char* kDiscretiseOp =
+    R"(  if (!(dt == o->dt) && !discretise(o, dt)) return o->status = {{P}}_non_finite;
+)";
+
+const char* kExactLinearStepOp = R"(  for (i = 0; i < N; ++i) {
+    Scalar acc = {{zero}}; /* the increment E w + Gamma c, added to w once */
+    for (j = 0; j < N; ++j) acc += o->E[i * N + j] * o->w[j] + o->Gamma[i * N + j] * c[j];
+    w[i] = o->w[i] + acc;
+  }
+)";
+
+const char* kExactLinearStepBasisOp = R"(  for (i = 0; i < N; ++i) {
+    Scalar acc = {{zero}}; /* the increment E w + (Gamma B) b, added to w once */
+    for (j = 0; j < N; ++j) acc += o->E[i * N + j] * o->w[j];
+    for (j = 0; j < K; ++j) acc += o->Gamma[i * K + j] * b[j];
+    w[i] = o->w[i] + acc;
+  }
+)";
+
+// RK4 from o->w into w (one step, the stages evaluate the field directly).
+const char* kRk4Op = R"(  {{rhs}}(o->w, {{rhs_in}}{{PRM}}, k1);
   for (i = 0; i < N; ++i) t[i] = o->w[i] + dt / {{two}} * k1[i];
   {{rhs}}(t, {{rhs_in}}{{PRM}}, k2);
   for (i = 0; i < N; ++i) t[i] = o->w[i] + dt / {{two}} * k2[i];
@@ -174,20 +150,10 @@ const char* kStepRk4 = R"(
   for (i = 0; i < N; ++i) t[i] = o->w[i] + dt * k3[i];
   {{rhs}}(t, {{rhs_in}}{{PRM}}, k4);
   for (i = 0; i < N; ++i) w[i] = o->w[i] + dt / {{six}} * (k1[i] + {{two}} * (k2[i] + k3[i]) + k4[i]);
-  if (!obsynth_all_finite(w, N)) return o->status = {{P}}_non_finite;
-  for (i = 0; i < N; ++i) o->w[i] = w[i];
-  return o->status = update_estimate(o);
-}
 )";
 
-// ODE observers with a gain solve and/or symmetric blocks that must stay positive definite.
-const char* kStepRk4Guarded = R"(
-/* One RK4 step of length dt with u and y held over the step; rejected (state kept,
- * {{P}}_singular) {{guard_doc}}. */
-{{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
-  Scalar k1[N], k2[N], k3[N], k4[N], t[N], w[N];
-  int i, ok = 1;
-{{substeps}}  for (i = 0; i < N; ++i) w[i] = o->w[i];
+// RK4 in sub-steps of length h through total_rhs, each stage's success and-ed into ok.
+const char* kRk4GuardedOp = R"({{substeps}}  for (i = 0; i < N; ++i) w[i] = o->w[i];
 {{loop}}  ok = total_rhs(w, u, y{{PRM}}, k1) && ok;
   for (i = 0; i < N; ++i) t[i] = w[i] + h / {{two}} * k1[i];
   ok = total_rhs(t, u, y{{PRM}}, k2) && ok;
@@ -196,12 +162,7 @@ const char* kStepRk4Guarded = R"(
   for (i = 0; i < N; ++i) t[i] = w[i] + h * k3[i];
   ok = total_rhs(t, u, y{{PRM}}, k4) && ok;
   for (i = 0; i < N; ++i) w[i] = w[i] + h / {{six}} * (k1[i] + {{two}} * (k2[i] + k3[i]) + k4[i]);
-{{loop_end}}  if (!ok) return o->status = {{P}}_singular;
-  if (!obsynth_all_finite(w, N)) return o->status = {{P}}_non_finite;
-{{block_checks}}  for (i = 0; i < N; ++i) o->w[i] = w[i];
-  return o->status = update_estimate(o);
-}
-)";
+{{loop_end}})";
 
 const char* kTotalRhs = R"(
 /* rhs(w, u, y){{correction_doc}}; 0 when the solve fails. */
@@ -238,14 +199,15 @@ void {{P}}_init({{P}}_observer* o) {
 }
 )";
 
-const char* kStepJets = R"(
-/* Advances the differentiators with the samples u, y and rebuilds the state from the jets. */
-{{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
-  /* yj: y_1, y_1', ..., then y_2, ...; uj: m x (K_u + 1), column-major */
+// The jets step's working arrays.
+const char* kJetsLocals =
+    R"(  /* yj: y_1, y_1', ..., then y_2, ...; uj: m x (K_u + 1), column-major */
   Scalar yj[{{P}}_p * {{ky1}}], uj[{{m1}} * {{ku1}}];
   Scalar work[{{work}}]; /* the differentiators' scratch (obsynth_jet_update) */
   int j, ok = 1;
-  for (j = 0; j < {{P}}_p; ++j)
+)";
+
+const char* kJetUpdateOp = R"(  for (j = 0; j < {{P}}_p; ++j)
     ok = obsynth_jet_update(o->y_eta[j], o->y_phi[j], &o->y_dt[j], &o->y_prev[j], {{ky}},
                             o->epsilon, dt, y[j], work) && ok;
   for (j = 0; j < {{P}}_m; ++j)
@@ -255,9 +217,6 @@ const char* kStepJets = R"(
   for (j = 0; j < {{P}}_p; ++j) obsynth_jet_read(o->y_eta[j], {{ky}}, o->epsilon, yj + j * {{ky1}}, 1);
   uj[0] = {{zero}};
   for (j = 0; j < {{P}}_m; ++j) obsynth_jet_read(o->u_eta[j], {{ku}}, o->epsilon, uj + j, {{m1}});
-  {{reconstruct}}(yj, uj{{PRM}}, o->w);
-  return o->status = update_estimate(o);
-}
 )";
 
 // No closed-form inverse: Newton on T(x) = w seeded from the previous estimate, with the
@@ -317,17 +276,22 @@ void {{P}}_init({{P}}_observer* o) {
   static const Scalar zero[{{P}}_n] = { {{zeros}} };
   (void){{P}}_reset(o, zero);
 }
+)";
 
-/* One sample: u and y measured now; dt must be the sample period {{dt}} (else
- * {{P}}_non_finite, state kept). Until the delay line has filled the estimate stays xh0. */
-{{P}}_status {{P}}_step({{P}}_observer* o, Scalar dt, const Scalar* u, const Scalar* y) {
-  Scalar raw[{{P}}_filters], eta[{{P}}_filters], sx[{{P}}_n], sw = {{zero}};
+// The sampled-delay step's working arrays.
+const char* kSampledDelayLocals =
+    R"(  Scalar raw[{{P}}_filters], eta[{{P}}_filters], sx[{{P}}_n], sw = {{zero}};
   int idx[{{P}}_n];
   int i, j, s, k, next, old;
   const Scalar* q;
-{{q_next_decl}}  if (!({{fabs}}(dt - {{dt}}) <= {{tol}} * {{dt}}) || !obsynth_all_finite(u, {{m}}) || !obsynth_all_finite(y, {{p}}))
+{{q_next_decl}})";
+
+const char* kSampleGuardOp =
+    R"(  if (!({{fabs}}(dt - {{dt}}) <= {{tol}} * {{dt}}) || !obsynth_all_finite(u, {{m}}) || !obsynth_all_finite(y, {{p}}))
     return o->status = {{P}}_non_finite;
-  next = o->head == {{P}}_delay_steps ? 0 : o->head + 1;
+)";
+
+const char* kRingPushOp = R"(  next = o->head == {{P}}_delay_steps ? 0 : o->head + 1;
   for (j = 0; j < {{P}}_filters; ++j)
     o->ring[next * {{P}}_filters + j] =
         {{decay}}[j] * o->ring[o->head * {{P}}_filters + j] + {{gain}}[j] * {{filter_input}};
@@ -336,7 +300,9 @@ void {{P}}_init({{P}}_observer* o) {
   if (o->filled < {{P}}_delay_steps) ++o->filled;
   if (o->filled < {{P}}_delay_steps) return o->status = {{P}}_ok;
   old = o->head == {{P}}_delay_steps ? 0 : o->head + 1; /* D samples ago */
-{{level}}  for (j = 0; j < {{P}}_filters; ++j)
+)";
+
+const char* kTableLookupOp = R"(  for (j = 0; j < {{P}}_filters; ++j)
     raw[j] = o->ring[o->head * {{P}}_filters + j] - {{delay}}[j] * o->ring[old * {{P}}_filters + j];
   for (j = 0; j < {{P}}_filters; ++j) { /* e = M eta */
     eta[j] = {{zero}};
@@ -365,10 +331,6 @@ void {{P}}_init({{P}}_observer* o) {
     }
   }
   for (s = 0; s < {{P}}_n; ++s) sx[s] /= sw;
-  if (!obsynth_all_finite(sx, {{P}}_n)) return o->status = {{P}}_non_finite;
-  for (s = 0; s < {{P}}_n; ++s) o->w[s] = o->xh[s] = sx[s];
-  return o->status = {{P}}_ok;
-}
 )";
 
 const char* kLevelSelectC = R"(  {
@@ -487,56 +449,55 @@ std::string replace_once(const std::string& text, const std::string& from, const
   return text.substr(0, at) + to + text.substr(at + from.size());
 }
 
-std::string estimate_body(const ObserverSpec& s, const std::string& prm, CBuilder& b,
-                          Precision precision) {
+std::string estimate_body(const StepProgram& p, const std::string& prm, CBuilder& b,
+                          Precision precision, std::size_t n) {
   const bool single = precision == Precision::single;
-  if (s.estimate == EstimateKind::newton)
-    return render_template(kEstimateNewton, {{"n", std::to_string(s.state_size)},
-                                             {"zero", b.lit(0)},
-                                             {"one", b.lit(1)},
-                                             {"fabs", single ? "fabsf" : "fabs"},
-                                             {"map", b.fn(s.roles.newton_map)},
-                                             {"jacobian", b.fn(s.roles.newton_inverse_jacobian)},
-                                             {"PRM", prm},
-                                             {"P", b.prefix()},
-                                             {"tolerance", single ? "1e-6f" : "1e-13"},
-                                             {"iterations", std::to_string(s.newton_iterations)}});
-  if (s.estimate == EstimateKind::identity)
-    return "  int i;\n  for (i = 0; i < N; ++i) o->xh[i] = o->w[i];\n"
-           "  return obsynth_all_finite(o->xh, N) ? " +
-           b.prefix() + "_ok : " + b.prefix() + "_non_finite;\n";
-  return fmt::format(
-      "  Scalar x[{0}_n];\n  int i;\n  {1}(o->w{2}, x);\n"
-      "  if (!obsynth_all_finite(x, {0}_n)) return {0}_non_finite;\n"
-      "  for (i = 0; i < {0}_n; ++i) o->xh[i] = x[i];\n  return {0}_ok;\n",
-      b.prefix(), b.fn(s.roles.estimate), prm);
-}
-
-bool guarded(const ObserverSpec& s) {
-  return s.update == UpdateKind::ode && (s.correction || !s.symmetric_blocks.empty());
+  return std::visit(
+      overloaded{[&](const est::Newton& e) {
+                   return render_template(kEstimateNewton,
+                                          {{"n", std::to_string(n)},
+                                           {"zero", b.lit(0)},
+                                           {"one", b.lit(1)},
+                                           {"fabs", single ? "fabsf" : "fabs"},
+                                           {"map", b.fn(e.map)},
+                                           {"jacobian", b.fn(e.inverse_jacobian)},
+                                           {"PRM", prm},
+                                           {"P", b.prefix()},
+                                           {"tolerance", single ? "1e-6f" : "1e-13"},
+                                           {"iterations", std::to_string(e.iterations)}});
+                 },
+                 [&](const est::Identity&) {
+                   return "  int i;\n  for (i = 0; i < N; ++i) o->xh[i] = o->w[i];\n"
+                          "  return obsynth_all_finite(o->xh, N) ? " +
+                          b.prefix() + "_ok : " + b.prefix() + "_non_finite;\n";
+                 },
+                 [&](const est::Function& e) {
+                   return fmt::format(
+                       "  Scalar x[{0}_n];\n  int i;\n  {1}(o->w{2}, x);\n"
+                       "  if (!obsynth_all_finite(x, {0}_n)) return {0}_non_finite;\n"
+                       "  for (i = 0; i < {0}_n; ++i) o->xh[i] = x[i];\n  return {0}_ok;\n",
+                       b.prefix(), b.fn(e.function), prm);
+                 }},
+      p.estimate);
 }
 
 // total_rhs: the rhs plus, with a solve correction, M^-1 v added to its target rows.
-std::string total_rhs_text(const ObserverSpec& s, bool params, CBuilder& b) {
+std::string total_rhs_text(const op::VectorField& f, bool params, CBuilder& b) {
   std::string correction = "  return 1;\n", doc;
-  if (s.correction) {
-    const SolveCorrection& k = *s.correction;
+  if (f.solve) {
+    const SolveCorrection& k = *f.solve;
     const std::string d = std::to_string(k.dim);
     std::string matrix;
-    if (!k.matrix_function.empty()) {
+    if (f.solve_block)
+      matrix = fmt::format("    obsynth_unpack_symmetric(w, {}, {}, M); /* {} */\n",
+                           f.solve_block->offset, f.solve_block->dim, f.solve_block->name);
+    else
       matrix = fmt::format(
           "    {{\n      Scalar Mc[{0} * {0}]; /* column-major */\n      int r, c;\n"
           "      {1}(w, u{2}, Mc);\n"
           "      for (r = 0; r < {0}; ++r)\n        for (c = 0; c < {0}; ++c) M[r * {0} + c] = "
           "Mc[c * {0} + r];\n    }}\n",
           d, b.fn(k.matrix_function), params ? ", prm" : "");
-    } else {
-      for (const auto& q : s.symmetric_blocks)
-        if (q.name == k.matrix_block)
-          matrix = fmt::format("    obsynth_unpack_symmetric(w, {}, {}, M); /* {} */\n", q.offset,
-                               q.dim, q.name);
-      OBSYNTH_ASSERT(!matrix.empty(), "solve correction names an unknown symmetric block");
-    }
     const bool chol = k.factor == SolveCorrection::Factor::cholesky;
     correction = render_template(kCorrection,
                                  {{"dim", d},
@@ -551,113 +512,24 @@ std::string total_rhs_text(const ObserverSpec& s, bool params, CBuilder& b) {
   return render_template(
       kTotalRhs, {{"correction_doc", doc},
                   {"prm_decl", params ? fmt::format(", const {}_params* prm", b.prefix()) : ""},
-                  {"rhs", b.fn(s.roles.rhs)},
+                  {"rhs", b.fn(f.rhs)},
                   {"prm", params ? ", prm" : ""},
                   {"correction", correction}});
 }
 
-// The solvers, total_rhs and the guarded RK4 step.
-std::string guarded_step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b,
-                              Precision precision) {
-  std::string out = total_rhs_text(s, !prm.empty(), b);
-  std::string checks, names;
-  for (const auto& q : s.symmetric_blocks) {
-    if (!q.keep_positive_definite) continue;
-    checks += fmt::format(
-        "  if (!obsynth_packed_positive_definite(w, {}, {}, pd_work)) return o->status = "
-        "{}_singular; /* {} */\n",
-        q.offset, q.dim, b.prefix(), q.name);
-    names += (names.empty() ? "" : ", ") + q.name;
-  }
-  std::size_t max_dim = 1;
-  for (const auto& q : s.symmetric_blocks) max_dim = std::max(max_dim, q.dim);
-  if (!checks.empty())
-    checks = fmt::format("  Scalar pd_work[{}]; /* L D L^T of the largest block */\n",
-                         max_dim * max_dim + max_dim) +
-             checks;
-  std::vector<std::string> why;
-  if (s.correction) why.push_back("when a gain solve fails in any stage");
-  if (!names.empty()) why.push_back(fmt::format("when {} is no longer positive definite", names));
-  const std::string guard_doc = fmt::format("{}", fmt::join(why, ", or "));
-  // Sub-steps no longer than max_substep (the design's largest safe RK4 step).
-  std::string substeps = "  const Scalar h = dt;\n", loop, loop_end;
-  if (s.max_substep > 0) {
-    substeps = fmt::format(
-        "  /* dt in equal RK4 sub-steps of at most {0} (the largest safe step) */\n"
-        "  const Scalar ratio = dt / {1};\n"
-        "  const int steps = !(ratio > {2}) ? 1 : ratio >= {3} ? 4096 : (int)ratio + "
-        "((Scalar)(int)ratio < ratio ? 1 : 0);\n"
-        "  const Scalar h = dt / (Scalar)steps;\n  int k;\n",
-        fmt::format("{:.6g}", s.max_substep.to_double()),
-        c_scalar_literal(s.max_substep, precision), b.lit(1), b.lit(4096));
-    loop = "  for (k = 0; k < steps; ++k) {\n";
-    loop_end = "  }\n";
-  }
-  return out + render_template(kStepRk4Guarded, {{"P", b.prefix()},
-                                                 {"substeps", substeps},
-                                                 {"loop", loop},
-                                                 {"loop_end", loop_end},
-                                                 {"guard_doc", guard_doc},
-                                                 {"PRM", prm},
-                                                 {"two", b.lit(2)},
-                                                 {"six", b.lit(6)},
-                                                 {"block_checks", checks}});
-}
-
-// The exact step tests state and estimate together when the estimate is a function of the
-// state (as the C++ step does); update_estimate is then not emitted (strict C flags reject an
-// unused static function).
-bool fused_exact_step(const ObserverSpec& s) {
-  return s.update == UpdateKind::linear_exact && !s.rk4_for_linear &&
-         s.estimate == EstimateKind::function;
-}
-
-std::string step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b) {
-  const bool exact = s.update == UpdateKind::linear_exact && !s.rk4_for_linear;
-  if (exact) {
-    const bool fused = fused_exact_step(s);
-    const std::string commit =
-        fused ? render_template(
-                    kEstimateThenCommit,
-                    {{"P", b.prefix()},
-                     {"estimate", b.fn(s.roles.estimate)},
-                     {"PRM", prm},
-                     {"w_test",
-                      estimate_shows_nonfinite_state(s) ? "" : "!obsynth_all_finite(w, N) || "}})
-              : render_template(kCommitThenEstimate, {{"P", b.prefix()}});
-    const std::string x_decl = fused ? fmt::format(", x[{}_n]", b.prefix()) : "";
-    if (!s.input_map.empty())
-      return render_template(kStepExactBasis, {{"P", b.prefix()},
-                                               {"step_basis", b.fn(s.roles.step_basis)},
-                                               {"PRM", prm},
-                                               {"zero", b.lit(0)},
-                                               {"x_decl", x_decl},
-                                               {"commit", commit}});
-    return render_template(kStepExact, {{"P", b.prefix()},
-                                        {"step_constant", b.fn(s.roles.step_constant)},
-                                        {"PRM", prm},
-                                        {"zero", b.lit(0)},
-                                        {"x_decl", x_decl},
-                                        {"commit", commit}});
-  }
-  const bool linear = s.update == UpdateKind::linear_exact;
-  return render_template(kStepRk4,
-                         {{"P", b.prefix()},
-                          {"prologue", linear ? fmt::format("  Scalar c[N];\n  {}(u, y{}, c);\n",
-                                                            b.fn(s.roles.step_constant), prm)
-                                              : ""},
-                          {"rhs", b.fn(s.roles.rhs)},
-                          {"rhs_in", linear ? "c" : "u, y"},
-                          {"PRM", prm},
-                          {"two", b.lit(2)},
-                          {"six", b.lit(6)}});
+// Whether the program has a Finish that returns the estimate program's status (then the
+// source defines update_estimate; strict C flags reject an unused static function).
+bool finishes_with_estimate(const StepProgram& p) {
+  for (const auto& o : p.step)
+    if (const auto* f = std::get_if<op::Finish>(&o); f && f->update_estimate) return true;
+  return false;
 }
 
 // Status values beyond ok / non_finite that this observer can return.
-std::string extra_statuses(const ObserverSpec& s, const std::string& P) {
+std::string extra_statuses(const StepProgram& p, const std::string& P) {
   std::string out;
-  if (guarded(s)) out += fmt::format(", {}_singular = 2", P);
-  if (s.estimate == EstimateKind::newton) out += fmt::format(", {}_not_converged = 3", P);
+  if (p.singular) out += fmt::format(", {}_singular = 2", P);
+  if (p.not_converged) out += fmt::format(", {}_not_converged = 3", P);
   return out;
 }
 
@@ -693,24 +565,195 @@ std::string jet_init_body(const ObserverSpec& s, CBuilder& b, Precision p) {
 }
 
 // obsynth_jet_update's scratch for the larger of the two differentiators: 3 d^2 + 2 d.
-std::size_t jet_work_size(const ObserverSpec& s) {
-  const std::size_t d = std::max(s.y_jet_order, s.u_jet_order) + 1;
+std::size_t jet_work_size(const op::JetUpdate& j) {
+  const std::size_t d = std::max(j.y_order, j.u_order) + 1;
   return 3 * d * d + 2 * d;
 }
 
-std::string jets_step_text(const ObserverSpec& s, const std::string& prm, CBuilder& b,
-                           std::size_t m) {
-  return render_template(kStepJets, {{"P", b.prefix()},
-                                     {"ky", std::to_string(s.y_jet_order)},
-                                     {"ku", std::to_string(s.u_jet_order)},
-                                     {"ky1", std::to_string(s.y_jet_order + 1)},
-                                     {"ku1", std::to_string(s.u_jet_order + 1)},
-                                     {"work", std::to_string(jet_work_size(s))},
-                                     {"m1", std::to_string(std::max<std::size_t>(m, 1))},
-                                     {"zero", b.lit(0)},
-                                     {"reconstruct", b.fn(s.roles.reconstruct)},
-                                     {"PRM", prm}});
-}
+// ---- the C printer of a step program ----------------------------------------------------
+
+// Prints P_step from the program: its comment and locals (what its ops need), then each op's
+// fragment in the program's order. The sampled-delay ops read `delay_values` (the tables'
+// names and the level selection's text, see sampled_delay_values).
+class CStepPrinter {
+ public:
+  CStepPrinter(const ObserverSpec& s, const StepProgram& p, CBuilder& b, const std::string& prm,
+               Precision precision, std::size_t inputs,
+               std::map<std::string, std::string> delay_values = {})
+      : s_(s),
+        p_(p),
+        b_(b),
+        prm_(prm),
+        precision_(precision),
+        inputs_(inputs),
+        delay_(std::move(delay_values)) {}
+
+  std::string print() {
+    std::string body;
+    for (const auto& o : p_.step) body += std::visit(*this, o);
+    std::string helpers;
+    if (const auto* r = p_.find<op::Rk4>(); r && r->field.guarded)
+      helpers = total_rhs_text(r->field, !prm_.empty(), b_);
+    return helpers + "\n" + doc() + render_template(kStepSignature, {{"P", P()}}) + locals() +
+           body + "}\n";
+  }
+
+  std::string operator()(const op::Discretise&) const {
+    return render_template(kDiscretiseOp, {{"P", P()}});
+  }
+  std::string operator()(const op::HoldInput& h) const {
+    if (!p_.has<op::ExactLinearStep>())
+      return fmt::format("  Scalar c[N];\n  {}(u, y{}, c);\n", b_.fn(h.function), prm_);
+    return fmt::format(h.basis ? "  {}(u, y{}, b); /* constant over the step; c = B b */\n"
+                               : "  {}(u, y{}, c); /* constant over the step */\n",
+                       b_.fn(h.function), prm_);
+  }
+  std::string operator()(const op::ExactLinearStep& e) const {
+    return render_template(e.basis ? kExactLinearStepBasisOp : kExactLinearStepOp,
+                           {{"zero", b_.lit(0)}});
+  }
+  std::string operator()(const op::Rk4& r) const {
+    if (!r.field.guarded)
+      return render_template(kRk4Op, {{"rhs", b_.fn(r.field.rhs)},
+                                      {"rhs_in", r.field.held.empty() ? "u, y" : "c"},
+                                      {"PRM", prm_},
+                                      {"two", b_.lit(2)},
+                                      {"six", b_.lit(6)}});
+    // Sub-steps no longer than max_substep (the design's largest safe RK4 step).
+    std::string substeps = "  const Scalar h = dt;\n", loop, loop_end;
+    if (r.max_substep > 0) {
+      substeps = fmt::format(
+          "  /* dt in equal RK4 sub-steps of at most {0} (the largest safe step) */\n"
+          "  const Scalar ratio = dt / {1};\n"
+          "  const int steps = !(ratio > {2}) ? 1 : ratio >= {3} ? 4096 : (int)ratio + "
+          "((Scalar)(int)ratio < ratio ? 1 : 0);\n"
+          "  const Scalar h = dt / (Scalar)steps;\n  int k;\n",
+          fmt::format("{:.6g}", r.max_substep.to_double()),
+          c_scalar_literal(r.max_substep, precision_), b_.lit(1), b_.lit(4096));
+      loop = "  for (k = 0; k < steps; ++k) {\n";
+      loop_end = "  }\n";
+    }
+    return render_template(kRk4GuardedOp, {{"substeps", substeps},
+                                           {"loop", loop},
+                                           {"loop_end", loop_end},
+                                           {"PRM", prm_},
+                                           {"two", b_.lit(2)},
+                                           {"six", b_.lit(6)}});
+  }
+  std::string operator()(const op::StageGuard&) const {
+    return fmt::format("  if (!ok) return o->status = {}_singular;\n", P());
+  }
+  std::string operator()(const op::FiniteGuard& g) const {
+    if (!g.estimate)
+      return fmt::format("  if (!obsynth_all_finite(w, N)) return o->status = {}_non_finite;\n",
+                         P());
+    return fmt::format(
+        "  if ({1}!obsynth_all_finite({2}, {0}_n)) return o->status = {0}_non_finite;\n", P(),
+        g.state ? "!obsynth_all_finite(w, N) || " : "", x_name());
+  }
+  std::string operator()(const op::DefiniteGuard& g) {
+    std::string out;
+    if (!pd_work_) {  // the scratch of obsynth_packed_positive_definite, once
+      std::size_t max_dim = 1;
+      for (const auto& q : s_.symmetric_blocks) max_dim = std::max(max_dim, q.dim);
+      out = fmt::format("  Scalar pd_work[{}]; /* L D L^T of the largest block */\n",
+                        max_dim * max_dim + max_dim);
+      pd_work_ = true;
+    }
+    return out + fmt::format(
+                     "  if (!obsynth_packed_positive_definite(w, {}, {}, pd_work)) return "
+                     "o->status = {}_singular; /* {} */\n",
+                     g.block.offset, g.block.dim, P(), g.block.name);
+  }
+  std::string operator()(const op::EstimateLocal& e) const {
+    return fmt::format("  {}(w{}, x);\n", b_.fn(e.function), prm_);
+  }
+  std::string operator()(const op::Commit& c) const {
+    if (p_.has<op::TableLookup>())  // the sampled delay's state is its estimate
+      return fmt::format("  for (s = 0; s < {}_n; ++s) o->w[s] = o->xh[s] = sx[s];\n", P());
+    std::string out = "  for (i = 0; i < N; ++i) o->w[i] = w[i];\n";
+    if (c.estimate) out += fmt::format("  for (i = 0; i < {}_n; ++i) o->xh[i] = x[i];\n", P());
+    return out;
+  }
+  std::string operator()(const op::Finish& f) const {
+    return f.update_estimate ? "  return o->status = update_estimate(o);\n"
+                             : fmt::format("  return o->status = {}_ok;\n", P());
+  }
+  std::string operator()(const op::JetUpdate& j) const {
+    return render_template_subset(kJetUpdateOp, jet_values(j));
+  }
+  std::string operator()(const op::Reconstruct& r) const {
+    return fmt::format("  {}(yj, uj{}, o->w);\n", b_.fn(r.function), prm_);
+  }
+  std::string operator()(const op::SampleGuard&) const {
+    return render_template_subset(kSampleGuardOp, delay_);
+  }
+  std::string operator()(const op::RingPush&) const {
+    return render_template_subset(kRingPushOp, delay_);
+  }
+  std::string operator()(const op::LevelSelect&) const { return delay_.at("level"); }
+  std::string operator()(const op::TableLookup&) const {
+    return render_template_subset(kTableLookupOp, delay_);
+  }
+
+ private:
+  std::string P() const { return b_.prefix(); }
+  // The new estimate's array: the sampled delay's kernel sum, else x.
+  std::string x_name() const { return p_.has<op::TableLookup>() ? "sx" : "x"; }
+  std::map<std::string, std::string> jet_values(const op::JetUpdate& j) const {
+    return {{"P", P()},
+            {"ky", std::to_string(j.y_order)},
+            {"ku", std::to_string(j.u_order)},
+            {"ky1", std::to_string(j.y_order + 1)},
+            {"ku1", std::to_string(j.u_order + 1)},
+            {"m1", std::to_string(std::max<std::size_t>(inputs_, 1))},
+            {"zero", b_.lit(0)}};
+  }
+  // The comment above P_step.
+  std::string doc() const {
+    if (p_.has<op::JetUpdate>())
+      return "/* Advances the differentiators with the samples u, y and rebuilds the state from "
+             "the jets. */\n";
+    if (p_.has<op::SampleGuard>())
+      return render_template_subset(
+          "/* One sample: u and y measured now; dt must be the sample period {{dt}} (else\n"
+          " * {{P}}_non_finite, state kept). Until the delay line has filled the estimate stays "
+          "xh0. */\n",
+          delay_);
+    const auto* r = p_.find<op::Rk4>();
+    if (!r) return "";
+    if (!r->field.guarded)
+      return "/* One RK4 step of length dt with u and y held over the step. */\n";
+    return fmt::format(
+        "/* One RK4 step of length dt with u and y held over the step; rejected (state kept,\n"
+        " * {}_singular) {}. */\n",
+        P(), rejection_doc(p_));
+  }
+  // The locals the ops use (C89 style: all at the top).
+  std::string locals() const {
+    if (const auto* j = p_.find<op::JetUpdate>()) {
+      auto v = jet_values(*j);
+      v["work"] = std::to_string(jet_work_size(*j));
+      return render_template_subset(kJetsLocals, v);
+    }
+    if (p_.has<op::SampleGuard>()) return render_template_subset(kSampledDelayLocals, delay_);
+    if (const auto* e = p_.find<op::ExactLinearStep>())
+      return fmt::format("  Scalar {}, w[N]{};\n  int i, j;\n", e->basis ? "b[K]" : "c[N]",
+                         p_.has<op::EstimateLocal>() ? fmt::format(", x[{}_n]", P()) : "");
+    const auto* r = p_.find<op::Rk4>();
+    return fmt::format("  Scalar k1[N], k2[N], k3[N], k4[N], t[N], w[N];\n  int i{};\n",
+                       r && r->field.guarded ? ", ok = 1" : "");
+  }
+
+  const ObserverSpec& s_;
+  const StepProgram& p_;
+  CBuilder& b_;
+  std::string prm_;
+  Precision precision_;
+  std::size_t inputs_;
+  std::map<std::string, std::string> delay_;
+  bool pd_work_ = false;
+};
 
 std::string closed_loop(const ObserverSpec& s, Precision p) {
   std::vector<std::string> v;
@@ -741,9 +784,7 @@ std::map<std::string, std::string> level_values(bool interpolate,
 }
 
 // The tables (static const: flash) and the sampled-delay lifecycle and step.
-std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& m, Precision p) {
-  const SampledDelay& d = *s.sampled_delay;
-  const bool single = p == Precision::single;
+std::string c_tables(const ObserverSpec& s, Precision p) {
   std::string out;
   for (const auto& t : s.tables) {
     std::string values;
@@ -760,14 +801,21 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
                                      {"size", std::to_string(t.size())},
                                      {"values", values}});
   }
+  return out;
+}
+
+// The sampled delay's template values (lifecycle and step ops), as its LevelSelect says.
+std::map<std::string, std::string> sampled_delay_values(const ObserverSpec& s,
+                                                        const op::LevelSelect& ls, CBuilder& b,
+                                                        const Model& m, Precision p) {
+  const SampledDelay& d = *s.sampled_delay;
+  const bool single = p == Precision::single;
   auto lits = [&](const std::vector<double>& v) {
     std::vector<std::string> o;
     for (double x : v) o.push_back(c_table_literal(x, p));
     return fmt::format("{}", fmt::join(o, ", "));
   };
-  const bool interpolate = d.level_interpolate && d.levels > 1;
-  // The slope correction (spec.hpp SampledDelay::slope_table): window mean and interpolation.
-  const bool slope = !d.slope_table.empty() && interpolate && d.level_window_mean;
+  const bool interpolate = ls.interpolate, slope = ls.slope;
   const std::string slope_fit =
       slope ? fmt::format(
                   "    {{ /* least-squares slope of the same samples, a = 0: this step's */\n"
@@ -785,7 +833,7 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
                   b.lit(0), b.prefix(), b.lit(2))
             : "";
   const std::string level =
-      d.levels > 1
+      ls.by_input
           ? render_template(
                 interpolate ? kLevelInterpolateC : kLevelSelectC,
                 level_values(interpolate,
@@ -808,95 +856,94 @@ std::string sampled_delay_text(const ObserverSpec& s, CBuilder& b, const Model& 
                               {"levels", std::to_string(d.levels)}}))
           : "  (void)u;\n";
   std::vector<std::string> zeros(m.n(), b.lit(0));
-  out += render_template(
-      kSampledDelayC,
-      {{"P", b.prefix()},
-       {"grid_lo", lits(d.grid_lo)},
-       {"grid_step", lits(d.grid_step)},
-       {"grid_count", fmt::format("{}", fmt::join(d.grid_count, ", "))},
-       {"zero", b.lit(0)},
-       {"one", b.lit(1)},
-       {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
-       {"dt", c_table_literal(d.sample_period, p)},
-       {"fabs", single ? "fabsf" : "fabs"},
-       {"sqrt", single ? "sqrtf" : "sqrt"},
-       {"tol", single ? "1e-6f" : "1e-6"},
-       {"m", std::to_string(std::max<std::size_t>(m.m(), 1))},
-       {"u_now", d.levels > 1 ? fmt::format("u[{}]", d.input_index) : b.lit(0)},
-       {"level", level},
-       {"q_next_decl", slope         ? "  const Scalar *q1, *dq, *dq1;\n"
-                       : interpolate ? "  const Scalar* q1;\n"
-                                     : ""},
-       {"q_next",
-        interpolate
-            ? fmt::format("  q1 = q + {0}_grid_points * {0}_filters; /* level + 1 */\n{1}",
-                          b.prefix(),
-                          slope ? fmt::format("  dq = {1} + (long)o->level * {0}_grid_points * "
-                                              "{0}_filters;\n"
-                                              "  dq1 = dq + {0}_grid_points * {0}_filters;\n",
-                                              b.prefix(), d.slope_table)
-                                : "")
-            : ""},
-       {"q_next_advance",
-        slope
-            ? fmt::format(", q1 += {0}_filters, dq += {0}_filters, dq1 += {0}_filters", b.prefix())
-        : interpolate ? fmt::format(", q1 += {}_filters", b.prefix())
-                      : ""},
-       {"q_entry", slope         ? "q[j] + o->frac * (q1[j] - q[j]) +\n"
-                                   "                       o->slope * (dq[j] + o->frac * (dq1[j] - dq[j]))"
-                   : interpolate ? "q[j] + o->frac * (q1[j] - q[j])"
-                                 : "q[j]"},
-       {"frac_reset", std::string(interpolate ? "  o->frac = " + b.lit(0) + ";\n" : "") +
-                          (slope ? "  o->slope = " + b.lit(0) + ";\n" : "")},
-       {"decay", d.decay_table},
-       {"gain", d.gain_table},
-       {"p", std::to_string(d.outputs)},
-       {"filter_input", d.outputs == 1 ? "y[0]" : fmt::format("y[j % {}]", d.outputs)},
-       {"delay", d.delay_table},
-       {"metric", d.metric_table},
-       {"map", d.map_table},
-       {"power", std::to_string(d.weight_power)},
-       {"epsilon", c_table_literal(d.epsilon, p)}});
-  return out;
+  return {
+      {"P", b.prefix()},
+      {"grid_lo", lits(d.grid_lo)},
+      {"grid_step", lits(d.grid_step)},
+      {"grid_count", fmt::format("{}", fmt::join(d.grid_count, ", "))},
+      {"zero", b.lit(0)},
+      {"one", b.lit(1)},
+      {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
+      {"dt", c_table_literal(d.sample_period, p)},
+      {"fabs", single ? "fabsf" : "fabs"},
+      {"sqrt", single ? "sqrtf" : "sqrt"},
+      {"tol", single ? "1e-6f" : "1e-6"},
+      {"m", std::to_string(std::max<std::size_t>(m.m(), 1))},
+      {"u_now", ls.by_input ? fmt::format("u[{}]", d.input_index) : b.lit(0)},
+      {"level", level},
+      {"q_next_decl", slope         ? "  const Scalar *q1, *dq, *dq1;\n"
+                      : interpolate ? "  const Scalar* q1;\n"
+                                    : ""},
+      {"q_next",
+       interpolate
+           ? fmt::format("  q1 = q + {0}_grid_points * {0}_filters; /* level + 1 */\n{1}",
+                         b.prefix(),
+                         slope ? fmt::format("  dq = {1} + (long)o->level * {0}_grid_points * "
+                                             "{0}_filters;\n"
+                                             "  dq1 = dq + {0}_grid_points * {0}_filters;\n",
+                                             b.prefix(), d.slope_table)
+                               : "")
+           : ""},
+      {"q_next_advance",
+       slope ? fmt::format(", q1 += {0}_filters, dq += {0}_filters, dq1 += {0}_filters", b.prefix())
+       : interpolate ? fmt::format(", q1 += {}_filters", b.prefix())
+                     : ""},
+      {"q_entry", slope         ? "q[j] + o->frac * (q1[j] - q[j]) +\n"
+                                  "                       o->slope * (dq[j] + o->frac * (dq1[j] - dq[j]))"
+                  : interpolate ? "q[j] + o->frac * (q1[j] - q[j])"
+                                : "q[j]"},
+      {"frac_reset", std::string(interpolate ? "  o->frac = " + b.lit(0) + ";\n" : "") +
+                         (slope ? "  o->slope = " + b.lit(0) + ";\n" : "")},
+      {"decay", d.decay_table},
+      {"gain", d.gain_table},
+      {"p", std::to_string(d.outputs)},
+      {"filter_input", d.outputs == 1 ? "y[0]" : fmt::format("y[j % {}]", d.outputs)},
+      {"delay", d.delay_table},
+      {"metric", d.metric_table},
+      {"map", d.map_table},
+      {"power", std::to_string(d.weight_power)},
+      {"epsilon", c_table_literal(d.epsilon, p)}};
 }
 
 // The observer struct's members beyond w: E and Gamma (exact discretisation), the parameters,
 // the jets' state and the delay line, as the spec needs them.
-std::string c_members(const ObserverSpec& s, const std::string& P, std::size_t inputs, bool exact,
-                      bool params) {
+std::string c_members(const ObserverSpec& s, const StepProgram& program, const std::string& P,
+                      std::size_t inputs, bool params) {
   std::string members;
-  if (exact && !s.input_map.empty())
+  const op::Discretise* exact = program.find<op::Discretise>();
+  if (exact && exact->basis)
     members += fmt::format(
         "  {0}_scalar E[{1}], Gamma[{2}]; /* e^(A_cl dt) - I and Gamma B, row-major */\n"
         "  {0}_scalar dt;                  /* dt of E and Gamma B (0: not yet computed) */\n",
-        P, s.state_size * s.state_size, s.state_size * s.input_map.front().size());
+        P, s.state_size * s.state_size, s.state_size * exact->basis);
   else if (exact)
     members += fmt::format(
         "  {0}_scalar E[{1}], Gamma[{1}]; /* e^(A_cl dt) - I and Gamma, row-major */\n"
         "  {0}_scalar dt;                  /* dt of E and Gamma (0: not yet computed) */\n",
         P, s.state_size * s.state_size);
   if (params) members += fmt::format("  {}_params prm;\n", P);
-  if (s.update == UpdateKind::jets) members += jet_members(s, P, inputs);
-  if (s.update == UpdateKind::sampled_delay) {
+  if (program.has<op::JetUpdate>()) members += jet_members(s, P, inputs);
+  if (const auto* ls = program.find<op::LevelSelect>()) {
     const SampledDelay& d = *s.sampled_delay;
     members += fmt::format(
         "  {0}_scalar ring[{1} * {2}]; /* delay line: z at the last D + 1 samples */\n"
         "  {0}_scalar u_ring[{1}];     /* the input selecting the level, same samples */\n"
         "  int head, filled, level;    /* newest slot, samples since reset, input level */\n",
         P, d.delay_steps + 1, d.filters);
-    if (d.level_interpolate && d.levels > 1)
+    if (ls->interpolate)
       members +=
           fmt::format("  {}_scalar frac; /* weight of table level + 1 (interpolated) */\n", P);
-    if (!d.slope_table.empty() && d.level_interpolate && d.levels > 1 && d.level_window_mean)
+    if (ls->slope)
       members += fmt::format("  {}_scalar slope; /* du/dt fitted over the window */\n", P);
   }
   return members;
 }
 
 // The header's text: the parameter struct's fields, the members and the prototypes filled in.
-std::string c_header_text(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt,
-                          const std::string& P, bool params, const std::string& fields,
-                          const std::string& members, const std::string& prototypes) {
+std::string c_header_text(const Analysis& a, const ObserverSpec& s, const StepProgram& program,
+                          const EmitOptions& opt, const std::string& P, bool params,
+                          const std::string& fields, const std::string& members,
+                          const std::string& prototypes) {
   const Model& m = a.model;
   std::string guard = "OBSYNTH_GEN_" + P + "_H";
   for (auto& ch : guard) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
@@ -914,44 +961,40 @@ std::string c_header_text(const Analysis& a, const ObserverSpec& s, const EmitOp
        {"m", std::to_string(m.m())},
        {"p", std::to_string(m.p())},
        {"w_size", std::to_string(s.state_size)},
-       {"singular", extra_statuses(s, P)},
+       {"singular", extra_statuses(program, P)},
        {"params_decl", params ? render_template(kParamsDecl, {{"fields", fields}, {"P", P}}) : ""},
        {"members", members},
        {"prototypes", prototypes}});
 }
 
-// reset, init and estimate, then the step (jets, guarded or plain), for every update kind but
-// the sampled delay.
-std::string c_lifecycle_and_step(const Model& m, const ObserverSpec& s, CBuilder& b,
-                                 const EmitOptions& opt, const std::string& prm, bool exact,
+// reset, init and estimate, then the step, for every update kind but the sampled delay.
+std::string c_lifecycle_and_step(const Model& m, const ObserverSpec& s, const StepProgram& program,
+                                 CBuilder& b, const EmitOptions& opt, const std::string& prm,
                                  bool params) {
-  const bool jets = s.update == UpdateKind::jets;
+  const bool jets = program.has<op::JetUpdate>();
   std::string src;
-  std::string reset_body = s.init == InitKind::function
-                               ? fmt::format("  {}(xh0{}, o->w);\n", b.fn(s.roles.init), prm)
+  std::string reset_body = !program.init.empty()
+                               ? fmt::format("  {}(xh0{}, o->w);\n", b.fn(program.init), prm)
                                : "  for (i = 0; i < N; ++i) o->w[i] = xh0[i];\n";
   if (jets) reset_body += jet_reset_body(s, b, prm);
   std::string init_body;
   if (params) init_body += fmt::format("  {}_params_init(&o->prm);\n", b.prefix());
   if (jets) init_body += jet_init_body(s, b, opt.precision);
-  if (exact) init_body += fmt::format("  o->dt = {};\n", b.lit(0));
+  if (program.has<op::Discretise>()) init_body += fmt::format("  o->dt = {};\n", b.lit(0));
   std::vector<std::string> zeros(m.n(), b.lit(0));
   const std::string update_estimate =
-      fused_exact_step(s)
+      !finishes_with_estimate(program)
           ? ""
           : render_template(
                 kUpdateEstimate,
-                {{"P", b.prefix()}, {"estimate_body", estimate_body(s, prm, b, opt.precision)}});
+                {{"P", b.prefix()},
+                 {"estimate_body", estimate_body(program, prm, b, opt.precision, s.state_size)}});
   src += render_template(kLifecycle, {{"P", b.prefix()},
                                       {"update_estimate", update_estimate},
                                       {"reset_body", reset_body},
                                       {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
                                       {"init_body", init_body}});
-  if (jets)
-    src += jets_step_text(s, prm, b, m.m());
-  else
-    src += guarded(s) ? guarded_step_text(s, prm, b, opt.precision) : step_text(s, prm, b);
-  return src;
+  return src + CStepPrinter(s, program, b, prm, opt.precision, m.m()).print();
 }
 
 // The usage example shown in the documentation.
@@ -978,7 +1021,8 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
   const Model& m = a.model;
   CBuilder b(a, s, opt);
   const std::string& P = b.prefix();
-  const bool exact = s.update == UpdateKind::linear_exact && !s.rk4_for_linear;
+  const StepProgram program = lower(s);
+  const op::Discretise* exact = program.find<op::Discretise>();
   const bool params = b.has_params();
   const std::string prm = params ? ", &o->prm" : "";
   EmittedHeader h;
@@ -999,8 +1043,8 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
     defaults += fmt::format("  prm->{} = {};\n", c_field_identifier(p.name),
                             c_scalar_literal(p.default_value, opt.precision));
   }
-  h.text = c_header_text(a, s, opt, P, params, fields, c_members(s, P, m.m(), exact, params),
-                         prototypes);
+  h.text = c_header_text(a, s, program, opt, P, params, fields,
+                         c_members(s, program, P, m.m(), params), prototypes);
   std::string src =
       render_template(kSourceHead, {{"version", OBSYNTH_VERSION},
                                     {"source", opt.source_name},
@@ -1008,8 +1052,8 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
                                     {"P", P},
                                     {"single", opt.precision == Precision::single ? "1" : "0"}});
   src += fmt::format("\n#define N {}\n", s.state_size);
-  const bool basis = exact && !s.input_map.empty();
-  if (basis) src += fmt::format("#define K {}\n", s.input_map.front().size());
+  const bool basis = exact && exact->basis > 0;
+  if (basis) src += fmt::format("#define K {}\n", exact->basis);
   src += definitions;
   if (params)
     src += fmt::format("\nvoid {0}_params_init({0}_params* prm) {{\n{1}}}\n", P, defaults);
@@ -1026,7 +1070,7 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
          {"fold", basis ? render_template(kFoldInputMap, {{"zero", b.lit(0)}}) : ""},
          {"gamma_size", basis ? "N * K" : "N * N"},
          {"zero", b.lit(0)}});
-  if (s.update == UpdateKind::sampled_delay) {
+  if (const auto* ls = program.find<op::LevelSelect>()) {
     const SampledDelay& d = *s.sampled_delay;
     // The header's enum gets the delay line's sizes (used by the step and for sizing).
     h.text =
@@ -1034,9 +1078,11 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
                      fmt::format("{0}_w = {1}, {0}_filters = {2}, {0}_delay_steps = {3}, "
                                  "{0}_grid_points = {4}, {0}_levels = {5} }};",
                                  P, s.state_size, d.filters, d.delay_steps, d.points(), d.levels));
-    src += sampled_delay_text(s, b, m, opt.precision);
+    const auto values = sampled_delay_values(s, *ls, b, m, opt.precision);
+    src += c_tables(s, opt.precision) + render_template_subset(kSampledDelayC, values) +
+           CStepPrinter(s, program, b, prm, opt.precision, m.m(), values).print();
   } else {
-    src += c_lifecycle_and_step(m, s, b, opt, prm, exact, params);
+    src += c_lifecycle_and_step(m, s, program, b, opt, prm, params);
   }
   h.source_text = src;
   h.operations = b.operations_;

@@ -4,6 +4,8 @@
 
 #include <set>
 
+#include "emit/step_program.hpp"
+#include "foundation/diagnostics.hpp"
 #include "symbolic/expr_print.hpp"
 
 #ifndef OBSYNTH_VERSION
@@ -126,43 +128,85 @@ const char* kStateClass = R"({{class_comment}}{{preamble}}
 };
 )";
 
-const char* kStepOde = R"(  /// One RK4 step of length dt with u and y held over the step.
-  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
-    const State w_prev = {{w}}_;
+// ---- the step program's ops (step_program.hpp), one fragment each -------------------------
+
+const char* kStepSignature =
+    R"(  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
+)";
+
+// The doc comments of the steps.
+const char* kRk4Doc = R"(  /// One RK4 step of length dt with u and y held over the step.
+)";
+
+const char* kRk4GuardedDoc =
+    R"(  /// One RK4 step of length dt with u and y held over the step. The step is rejected (state
+  /// kept, Status::singular) {{guard_doc}}.
+)";
+
+const char* kExactDoc =
+    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
+  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
+  /// Phi and Gamma recomputed only when dt changes.
+)";
+
+const char* kExactBasisDoc =
+    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
+  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
+  /// with c = B b for a constant B: w <- Phi w + (Gamma B) b, Phi and Gamma B recomputed only
+  /// when dt changes.
+)";
+
+// The exact steps when the estimate is a closed-form function of w (no Newton): w and
+// x = estimate(w) are computed into locals first and tested together (or x alone: the
+// FiniteGuard lower() puts there), so that a non-finite value keeps both the observer state and
+// the estimate (one branch-free test instead of two loops). The state is stored only after the
+// test: a copy of the old state kept for a restore went through the stack on GCC 12, and the
+// next step's load of the state then waited on two store-to-load forwards (seed 003 double
+// against the expert reference: 1.50x with the copy, 1.03x without).
+const char* kExactFusedDoc =
+    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
+  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
+  /// Phi and Gamma recomputed only when dt changes. On a non-finite {{w}} or estimate the step is
+  /// rejected (state and estimate kept, Status::non_finite).
+)";
+
+const char* kExactBasisFusedDoc =
+    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
+  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
+  /// with c = B b for a constant B: w <- Phi w + (Gamma B) b, Phi and Gamma B recomputed only
+  /// when dt changes. On a non-finite {{w}} or estimate the step is rejected (state and estimate
+  /// kept, Status::non_finite).
+)";
+
+// RK4 in place on the state (restored by the guards after it).
+const char* kRk4Op = R"(    const State w_prev = {{w}}_;
     obsynth::rk4_step<Scalar, n>(
         [{{capture}}&u, &y](const State& w, State& dw) noexcept { F::{{rhs}}(w, u, y{{P}}, dw); },
         dt, {{w}}_);
-    if (!obsynth::all_finite({{w}}_)) {
-      {{w}}_ = w_prev;
-      return status_ = obsynth::Status::non_finite;
-    }
-    return status_ = update_estimate();
-  }
+)";
+
+const char* kRk4HeldOp = R"(    const State w_prev = {{w}}_;
+    obsynth::rk4_step<Scalar, n>(
+        [{{capture}}&c](const State& w, State& dw) noexcept { F::{{rhs}}(w, c{{P}}, dw); }, dt,
+        {{w}}_);
 )";
 
 // ODE observers with a solve in the right-hand side and/or symmetric blocks in their state
-// that must stay positive definite: a failed solve or a lost definiteness rejects the step.
-const char* kStepOdeGuarded =
-    R"(  /// One RK4 step of length dt with u and y held over the step. The step is rejected (state
-  /// kept, Status::singular) {{guard_doc}}.
-  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
-    const ObserverState w_prev = {{w}}_;
+// that must stay positive definite: each stage reports its solve.
+const char* kRk4GuardedOp = R"(    const ObserverState w_prev = {{w}}_;
     bool solved = true;
 {{substeps}}    obsynth::rk4_step<Scalar, nw>(
         [{{capture}}&u, &y, &solved](const ObserverState& w, ObserverState& dw) noexcept {
           solved = total_rhs(w, u, y{{P}}, dw) && solved;
         },
         {{h}}, {{w}}_);
-    if (!solved) {
+)";
+
+// A guard after an in-place step: the state is restored.
+const char* kRestoringGuard = R"(    if ({{failed}}) {
       {{w}}_ = w_prev;
-      return status_ = obsynth::Status::singular;
+      return status_ = obsynth::Status::{{status}};
     }
-    if (!obsynth::all_finite({{w}}_)) {
-      {{w}}_ = w_prev;
-      return status_ = obsynth::Status::non_finite;
-    }
-{{block_checks}}    return status_ = update_estimate();
-  }
 )";
 
 const char* kBlockCheck =
@@ -187,99 +231,6 @@ const char* kCorrection = R"(    typename F::GainMatrix M;
     if (!obsynth::{{solver}}<Scalar, {{dim}}>(M, v, s)) return false;
     dw.template segment<{{dim}}>({{offset}}) += s;
     return true;
-)";
-
-const char* kStepLinearRk4 = R"(  /// One RK4 step of length dt with u and y held over the step.
-  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
-    State c;
-    F::{{step_constant}}(u, y{{P}}, c);  // constant over the step
-    const State w_prev = {{w}}_;
-    obsynth::rk4_step<Scalar, n>(
-        [{{capture}}&c](const State& w, State& dw) noexcept { F::{{rhs}}(w, c{{P}}, dw); }, dt,
-        {{w}}_);
-    if (!obsynth::all_finite({{w}}_)) {
-      {{w}}_ = w_prev;
-      return status_ = obsynth::Status::non_finite;
-    }
-    return status_ = update_estimate();
-  }
-)";
-
-const char* kStepLinearExact =
-    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
-  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
-  /// Phi and Gamma recomputed only when dt changes.
-  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
-    if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
-    State c;
-    F::{{step_constant}}(u, y{{P}}, c);  // constant over the step
-    const State w = exact_.apply({{w}}_, c);
-    if (!obsynth::all_finite(w)) return status_ = obsynth::Status::non_finite;
-    {{w}}_ = w;
-    return status_ = update_estimate();
-  }
-)";
-
-const char* kStepLinearExactBasis =
-    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
-  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
-  /// with c = B b for a constant B: w <- Phi w + (Gamma B) b, Phi and Gamma B recomputed only
-  /// when dt changes.
-  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
-    if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
-    typename F::Basis b;
-    F::{{step_basis}}(u, y{{P}}, b);  // constant over the step
-    const State w = exact_.apply({{w}}_, b);
-    if (!obsynth::all_finite(w)) return status_ = obsynth::Status::non_finite;
-    {{w}}_ = w;
-    return status_ = update_estimate();
-  }
-)";
-
-// The exact steps when the estimate is a closed-form function of w (no Newton): w and
-// x = estimate(w) are computed into locals first and tested together (or x alone, see
-// finite_test_of_fused_step), so that a non-finite value keeps both the observer state and the
-// estimate (one branch-free test instead of two loops). The state is stored only after the
-// test: a copy of the old state kept for a restore went through the stack on GCC 12, and the
-// next step's load of the state then waited on two store-to-load forwards (seed 003 double
-// against the expert reference: 1.50x with the copy, 1.03x without).
-const char* kStepLinearExactFused =
-    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
-  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
-  /// Phi and Gamma recomputed only when dt changes. On a non-finite {{w}} or estimate the step is
-  /// rejected (state and estimate kept, Status::non_finite).
-  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
-    if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
-    State c;
-    F::{{step_constant}}(u, y{{P}}, c);  // constant over the step
-    const State w = exact_.apply({{w}}_, c);
-    State x;
-    F::{{estimate}}(w{{P}}, x);
-    if (!obsynth::all_finite({{finite}})) return status_ = obsynth::Status::non_finite;
-    {{w}}_ = w;
-    xh_ = x;
-    return status_ = obsynth::Status::ok;
-  }
-)";
-
-const char* kStepLinearExactBasisFused =
-    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
-  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
-  /// with c = B b for a constant B: w <- Phi w + (Gamma B) b, Phi and Gamma B recomputed only
-  /// when dt changes. On a non-finite {{w}} or estimate the step is rejected (state and estimate
-  /// kept, Status::non_finite).
-  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
-    if (!exact_.ready(dt) && !discretise(dt)) return status_ = obsynth::Status::non_finite;
-    typename F::Basis b;
-    F::{{step_basis}}(u, y{{P}}, b);  // constant over the step
-    const State w = exact_.apply({{w}}_, b);
-    State x;
-    F::{{estimate}}(w{{P}}, x);
-    if (!obsynth::all_finite({{finite}})) return status_ = obsynth::Status::non_finite;
-    {{w}}_ = w;
-    xh_ = x;
-    return status_ = obsynth::Status::ok;
-  }
 )";
 
 const char* kDiscretiseBasis = R"(
@@ -435,16 +386,47 @@ const char* kSampledDelayClass = R"({{class_comment}}{{preamble}}  using Tables 
 {{frac_reset}}    status_ = obsynth::all_finite(xh_) ? obsynth::Status::ok : obsynth::Status::non_finite;
   }
 
-  /// One sample: u and y measured now, dt == sample_period (else Status::non_finite, state
+{{step}}
+  const State& estimate() const noexcept { return xh_; }
+  obsynth::Status status() const noexcept { return status_; }
+  /// The input level (index of the inverse table) of the last step{{level_doc}}.
+  int level() const noexcept { return level_; }
+{{frac_accessor}}
+ private:
+  static Scalar grid_lo(int s) noexcept {
+    constexpr {{table_scalar}} v[n] = { {{grid_lo}} };
+    return Scalar(v[s]);
+  }
+  static Scalar grid_step(int s) noexcept {
+    constexpr {{table_scalar}} v[n] = { {{grid_step}} };
+    return Scalar(v[s]);
+  }
+  static int grid_count(int s) noexcept {
+    constexpr int v[n] = { {{grid_count}} };
+    return v[s];
+  }
+  Scalar ring_[delay_steps + 1][filters];  ///< the delay line: z at the last D + 1 samples
+  Scalar u_ring_[delay_steps + 1];         ///< the input selecting the level, same samples
+  int head_ = 0, filled_ = 0, level_ = 0;
+{{frac_member}}  State xh_;
+{{members}}  obsynth::Status status_ = obsynth::Status::ok;
+};
+)";
+
+// The sampled delay's ops (its step: SampleGuard, RingPush, LevelSelect, TableLookup, then the
+// generic FiniteGuard, Commit and Finish).
+const char* kSampledDelayDoc =
+    R"(  /// One sample: u and y measured now, dt == sample_period (else Status::non_finite, state
   /// kept).
-  obsynth::Status step(Scalar dt, const Input& u, const Output& y) noexcept {
-    using std::abs;
-    using std::floor;
-    using std::sqrt;
-    if (!(abs(dt - sample_period) <= Scalar(1e-6) * sample_period) || !obsynth::all_finite(u) ||
+)";
+
+const char* kSampleGuardOp =
+    R"(    if (!(abs(dt - sample_period) <= Scalar(1e-6) * sample_period) || !obsynth::all_finite(u) ||
         !obsynth::all_finite(y))
       return status_ = obsynth::Status::non_finite;
-    const int next = head_ == delay_steps ? 0 : head_ + 1;
+)";
+
+const char* kRingPushOp = R"(    const int next = head_ == delay_steps ? 0 : head_ + 1;
     for (int j = 0; j < filters; ++j)
       ring_[next][j] = Scalar(Tables::{{decay}}[j]) * ring_[head_][j] + Scalar(Tables::{{gain}}[j]) * {{filter_input}};
     u_ring_[next] = {{u_now}};
@@ -452,7 +434,9 @@ const char* kSampledDelayClass = R"({{class_comment}}{{preamble}}  using Tables 
     if (filled_ < delay_steps) ++filled_;
     if (filled_ < delay_steps) return status_ = obsynth::Status::ok;
     const int old = head_ == delay_steps ? 0 : head_ + 1;  // D samples ago
-{{level}}    Scalar raw[filters], eta[filters];
+)";
+
+const char* kTableLookupOp = R"(    Scalar raw[filters], eta[filters];
     for (int j = 0; j < filters; ++j)
       raw[j] = ring_[head_][j] - Scalar(Tables::{{delay}}[j]) * ring_[old][j];
     for (int j = 0; j < filters; ++j) {  // e = M eta
@@ -481,35 +465,6 @@ const char* kSampledDelayClass = R"({{class_comment}}{{preamble}}  using Tables 
       }
     }
     const State x = sx / sw;
-    if (!obsynth::all_finite(x)) return status_ = obsynth::Status::non_finite;
-    xh_ = x;
-    return status_ = obsynth::Status::ok;
-  }
-
-  const State& estimate() const noexcept { return xh_; }
-  obsynth::Status status() const noexcept { return status_; }
-  /// The input level (index of the inverse table) of the last step{{level_doc}}.
-  int level() const noexcept { return level_; }
-{{frac_accessor}}
- private:
-  static Scalar grid_lo(int s) noexcept {
-    constexpr {{table_scalar}} v[n] = { {{grid_lo}} };
-    return Scalar(v[s]);
-  }
-  static Scalar grid_step(int s) noexcept {
-    constexpr {{table_scalar}} v[n] = { {{grid_step}} };
-    return Scalar(v[s]);
-  }
-  static int grid_count(int s) noexcept {
-    constexpr int v[n] = { {{grid_count}} };
-    return v[s];
-  }
-  Scalar ring_[delay_steps + 1][filters];  ///< the delay line: z at the last D + 1 samples
-  Scalar u_ring_[delay_steps + 1];         ///< the input selecting the level, same samples
-  int head_ = 0, filled_ = 0, level_ = 0;
-{{frac_member}}  State xh_;
-{{members}}  obsynth::Status status_ = obsynth::Status::ok;
-};
 )";
 
 const char* kLevelSelect = R"(    {
@@ -670,27 +625,27 @@ std::string describe_model(const Model& m) {
   return s;
 }
 
-// ODE observers whose step can be rejected by a failed solve or a lost definiteness.
-bool guarded(const ObserverSpec& s) {
-  return s.correction.has_value() || !s.symmetric_blocks.empty();
+// The guarded RK4 step of the program (a failed solve or a lost definiteness rejects it), or null.
+const op::Rk4* guarded_rk4(const StepProgram& p) {
+  const op::Rk4* r = p.find<op::Rk4>();
+  return r && r->field.guarded ? r : nullptr;
 }
 
-std::string includes_for(const ObserverSpec& s) {
+std::string includes_for(const StepProgram& p) {
   std::set<std::string> inc = {"eigen", "numeric", "observer", "status"};
-  if (s.update == UpdateKind::ode || (s.update == UpdateKind::linear_exact && s.rk4_for_linear))
-    inc.insert("integrators");
-  if (s.update == UpdateKind::linear_exact && !s.rk4_for_linear) inc.insert("discretise");
-  if (s.update == UpdateKind::jets) inc.insert("differentiator");
-  if (s.estimate == EstimateKind::newton) inc.insert("newton");
-  if (guarded(s)) inc.insert("linear_solve");
+  if (p.has<op::Rk4>()) inc.insert("integrators");
+  if (p.has<op::Discretise>()) inc.insert("discretise");
+  if (p.has<op::JetUpdate>()) inc.insert("differentiator");
+  if (p.newton()) inc.insert("newton");
+  if (guarded_rk4(p)) inc.insert("linear_solve");
   std::string out;
   for (const auto& h : inc) out += fmt::format("#include \"obsynth/{}.hpp\"\n", h);
   return out;
 }
 
 // The observer state is not just an n-vector (a matrix block, or another size).
-bool own_state_type(const ObserverSpec& s) {
-  return s.update == UpdateKind::ode && guarded(s);
+bool own_state_type(const StepProgram& p) {
+  return guarded_rk4(p) != nullptr;
 }
 
 std::string tolerance_literal(Precision p) {
@@ -703,8 +658,9 @@ struct ClassContext {
   std::string P, capture, params_api, params_member;
 };
 
-ClassContext class_context(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt,
-                           const std::string& class_name, const std::string& functions_name) {
+ClassContext class_context(const Analysis& a, const ObserverSpec& s, const StepProgram& program,
+                           const EmitOptions& opt, const std::string& class_name,
+                           const std::string& functions_name) {
   ClassContext c;
   const bool params = !s.params.empty();
   c.common = {
@@ -716,11 +672,11 @@ ClassContext class_context(const Analysis& a, const ObserverSpec& s, const EmitO
       {"functions_name", functions_name},
       {"params_type", params ? "  using Params = ModelParams<Scalar>;\n" : ""},
       {"observer_state_type",
-       own_state_type(s) ? fmt::format("  static constexpr int nw = {};  ///< observer state "
-                                       "size\n  using ObserverState = typename "
-                                       "F::ObserverState;\n",
-                                       s.state_size)
-                         : ""}};
+       own_state_type(program) ? fmt::format("  static constexpr int nw = {};  ///< observer state "
+                                             "size\n  using ObserverState = typename "
+                                             "F::ObserverState;\n",
+                                             s.state_size)
+                               : ""}};
   c.P = params ? ", prm_" : "";
   c.capture = params ? "this" : "";
   c.params_api = params ? kParamsApi : "";
@@ -732,24 +688,29 @@ std::string render_preamble(const ClassContext& c) {
   return render_template(kClassPreamble, c.common);
 }
 
-std::string estimate_body(const ObserverSpec& s, const EmitOptions& opt, const ClassContext& c) {
-  switch (s.estimate) {
-    case EstimateKind::identity:
-      return "    return obsynth::all_finite(xh_) ? obsynth::Status::ok : "
-             "obsynth::Status::non_finite;\n";
-    case EstimateKind::function:
-      return render_template(kEstimateFunction,
-                             {{"estimate", s.roles.estimate}, {"w", s.state_name}, {"P", c.P}});
-    case EstimateKind::newton:
-      return render_template(kEstimateNewton, {{"capture", c.capture},
-                                               {"map", s.roles.newton_map},
-                                               {"jacobian", s.roles.newton_inverse_jacobian},
-                                               {"P", c.P},
-                                               {"w", s.state_name},
-                                               {"iterations", std::to_string(s.newton_iterations)},
-                                               {"tolerance", tolerance_literal(opt.precision)}});
-  }
-  return "";
+std::string estimate_body(const ObserverSpec& s, const StepProgram& p, const EmitOptions& opt,
+                          const ClassContext& c) {
+  return std::visit(
+      overloaded{[&](const est::Identity&) -> std::string {
+                   return "    return obsynth::all_finite(xh_) ? obsynth::Status::ok : "
+                          "obsynth::Status::non_finite;\n";
+                 },
+                 [&](const est::Function& e) {
+                   return render_template(
+                       kEstimateFunction,
+                       {{"estimate", e.function}, {"w", s.state_name}, {"P", c.P}});
+                 },
+                 [&](const est::Newton& e) {
+                   return render_template(kEstimateNewton,
+                                          {{"capture", c.capture},
+                                           {"map", e.map},
+                                           {"jacobian", e.inverse_jacobian},
+                                           {"P", c.P},
+                                           {"w", s.state_name},
+                                           {"iterations", std::to_string(e.iterations)},
+                                           {"tolerance", tolerance_literal(opt.precision)}});
+                 }},
+      p.estimate);
 }
 
 std::string closed_loop_literals(const ObserverSpec& s, Precision p) {
@@ -766,62 +727,18 @@ std::string input_map_literals(const ObserverSpec& s, Precision p) {
   return fmt::format("{}", fmt::join(v, ", "));
 }
 
-std::string guarded_step(const ObserverSpec& s, const ClassContext& c, Precision precision) {
-  std::string checks, names;
-  for (const auto& b : s.symmetric_blocks) {
-    if (!b.keep_positive_definite) continue;
-    checks += render_template(kBlockCheck, {{"offset", std::to_string(b.offset)},
-                                            {"dim", std::to_string(b.dim)},
-                                            {"w", s.state_name},
-                                            {"name", b.name}});
-    names += (names.empty() ? "" : ", ") + b.name;
-  }
-  std::vector<std::string> why;
-  if (s.correction) why.push_back("when a gain solve fails in any stage");
-  if (!names.empty()) why.push_back(fmt::format("when {} is no longer positive definite", names));
-  const std::string guard_doc = fmt::format("{}", fmt::join(why, ", or "));
-  // Sub-steps no longer than max_substep (the design's largest safe RK4 step).
-  const std::string substeps =
-      s.max_substep > 0
-          ? fmt::format(
-                "    // dt in equal RK4 sub-steps of at most {0} (the largest safe step)\n"
-                "    const Scalar ratio = dt / {1};\n"
-                "    const int steps = !(ratio > Scalar(1)) ? 1\n"
-                "                      : ratio >= Scalar(4096) ? 4096\n"
-                "                      : static_cast<int>(ratio) + "
-                "(Scalar(static_cast<int>(ratio)) "
-                "< ratio ? 1 : 0);\n"
-                "    const Scalar h = dt / static_cast<Scalar>(steps);\n"
-                "    for (int k = 0; k < steps; ++k)\n",
-                fmt::format("{:.6g}", s.max_substep.to_double()),
-                scalar_literal(s.max_substep, precision))
-          : std::string();
-  return render_template(kStepOdeGuarded, {{"w", s.state_name},
-                                           {"substeps", substeps},
-                                           {"h", s.max_substep > 0 ? "h" : "dt"},
-                                           {"P", c.P},
-                                           {"capture", c.capture.empty() ? "" : "this, "},
-                                           {"guard_doc", guard_doc},
-                                           {"block_checks", checks}});
-}
-
 // The private total_rhs(w, u, y) = rhs + [0; M^-1 v; 0] of guarded ODE observers.
-std::string total_rhs_function(const ObserverSpec& s, const ClassContext& c) {
+std::string total_rhs_function(const op::VectorField& f, const ClassContext& c) {
   const bool params = !c.P.empty();
   std::string correction = "    return true;\n", doc;
-  if (s.correction) {
-    const SolveCorrection& k = *s.correction;
+  if (f.solve) {
+    const SolveCorrection& k = *f.solve;
     std::string matrix;
-    if (!k.matrix_function.empty()) {
+    if (f.solve_block)
+      matrix = fmt::format("    obsynth::unpack_symmetric<{}, {}>(w, M);  // {}\n",
+                           f.solve_block->offset, f.solve_block->dim, f.solve_block->name);
+    else
       matrix = fmt::format("    F::{}(w, u{}, M);\n", k.matrix_function, params ? ", prm" : "");
-    } else {
-      const SymmetricBlock* b = nullptr;
-      for (const auto& q : s.symmetric_blocks)
-        if (q.name == k.matrix_block) b = &q;
-      OBSYNTH_ASSERT(b != nullptr, "solve correction names an unknown symmetric block");
-      matrix = fmt::format("    obsynth::unpack_symmetric<{}, {}>(w, M);  // {}\n", b->offset,
-                           b->dim, b->name);
-    }
     const bool chol = k.factor == SolveCorrection::Factor::cholesky;
     correction = render_template(kCorrection, {{"matrix", matrix},
                                                {"vector", k.vector_function},
@@ -834,52 +751,156 @@ std::string total_rhs_function(const ObserverSpec& s, const ClassContext& c) {
   }
   return render_template(kTotalRhs, {{"correction_doc", doc},
                                      {"prm_decl", params ? ", const Params& prm" : ""},
-                                     {"rhs", s.roles.rhs},
+                                     {"rhs", f.rhs},
                                      {"prm", params ? ", prm" : ""},
                                      {"correction", correction}});
 }
 
-// What the fused exact step tests for finiteness: the new state w and the estimate x, or x
-// alone when a non-finite w always shows in x (a polynomial T^-1 that reads every component):
-// one test fewer on the step's hot path (seed 003 against the expert reference: 1.03 -> 1.00).
-std::string finite_test_of_fused_step(const ObserverSpec& s) {
-  return estimate_shows_nonfinite_state(s) ? "x" : "w, x";
-}
+// ---- the C++ printer of a step program ----------------------------------------------------
 
-std::string step_text(const ObserverSpec& s, const ClassContext& c, Precision precision) {
-  const std::map<std::string, std::string> v = {{"w", s.state_name},
-                                                {"P", c.P},
-                                                {"capture", c.capture.empty() ? "" : "this, "},
-                                                {"rhs", s.roles.rhs},
-                                                {"step_constant", s.roles.step_constant},
-                                                {"step_basis", s.roles.step_basis},
-                                                {"estimate", s.roles.estimate},
-                                                {"finite", finite_test_of_fused_step(s)}};
-  auto pick = [&](const char* t, std::initializer_list<const char*> keys) {
-    std::map<std::string, std::string> used;
-    for (const char* k : keys) used[k] = v.at(k);
-    return render_template(t, used);
-  };
-  if (s.update == UpdateKind::ode && guarded(s)) return guarded_step(s, c, precision);
-  if (s.update == UpdateKind::ode) return pick(kStepOde, {"w", "P", "capture", "rhs"});
-  if (s.rk4_for_linear) return pick(kStepLinearRk4, {"w", "P", "capture", "rhs", "step_constant"});
-  const bool fused = s.estimate == EstimateKind::function;
-  if (!s.input_map.empty())
-    return fused ? pick(kStepLinearExactBasisFused, {"w", "P", "step_basis", "estimate", "finite"})
-                 : pick(kStepLinearExactBasis, {"w", "P", "step_basis"});
-  return fused ? pick(kStepLinearExactFused, {"w", "P", "step_constant", "estimate", "finite"})
-               : pick(kStepLinearExact, {"w", "P", "step_constant"});
-}
+// Prints step() from the program: its comment (what its ops say), then each op's fragment in
+// the program's order. RK4 works in place on the state (guards after it restore the state);
+// the exact step computes into locals that the commit stores.
+class CxxStepPrinter {
+ public:
+  // delay_values: the sampled delay's template values (tables, level selection).
+  CxxStepPrinter(const ObserverSpec& s, const StepProgram& p, const ClassContext& c,
+                 Precision precision, std::map<std::string, std::string> delay_values = {})
+      : s_(s), p_(p), c_(c), precision_(precision), delay_(std::move(delay_values)) {}
 
-std::string derivative_body(const ObserverSpec& s, const ClassContext& c) {
-  if (s.update == UpdateKind::ode && guarded(s))
+  std::string print() {
+    std::string body;
+    for (const auto& o : p_.step) body += std::visit(*this, o);
+    const std::string locals =
+        p_.has<op::SampleGuard>()
+            ? "    using std::abs;\n    using std::floor;\n    using std::sqrt;\n"
+            : "";
+    return doc() + kStepSignature + locals + body + "  }\n";
+  }
+
+  std::string operator()(const op::Discretise&) const {
+    return "    if (!exact_.ready(dt) && !discretise(dt)) return status_ = "
+           "obsynth::Status::non_finite;\n";
+  }
+  std::string operator()(const op::HoldInput& h) const {
+    return fmt::format(h.basis
+                           ? "    typename F::Basis b;\n    F::{}(u, y{}, b);  // constant over "
+                             "the step\n"
+                           : "    State c;\n    F::{}(u, y{}, c);  // constant over the step\n",
+                       h.function, c_.P);
+  }
+  std::string operator()(const op::ExactLinearStep& e) const {
+    return fmt::format("    const State w = exact_.apply({}_, {});\n", s_.state_name,
+                       e.basis ? "b" : "c");
+  }
+  std::string operator()(const op::Rk4& r) {
+    in_place_ = true;
+    const std::map<std::string, std::string> v = {{"w", s_.state_name},
+                                                  {"P", c_.P},
+                                                  {"capture", c_.capture.empty() ? "" : "this, "},
+                                                  {"rhs", r.field.rhs}};
+    if (!r.field.guarded) return render_template(r.field.held.empty() ? kRk4Op : kRk4HeldOp, v);
+    // Sub-steps no longer than max_substep (the design's largest safe RK4 step).
+    const std::string substeps =
+        r.max_substep > 0
+            ? fmt::format(
+                  "    // dt in equal RK4 sub-steps of at most {0} (the largest safe step)\n"
+                  "    const Scalar ratio = dt / {1};\n"
+                  "    const int steps = !(ratio > Scalar(1)) ? 1\n"
+                  "                      : ratio >= Scalar(4096) ? 4096\n"
+                  "                      : static_cast<int>(ratio) + "
+                  "(Scalar(static_cast<int>(ratio)) "
+                  "< ratio ? 1 : 0);\n"
+                  "    const Scalar h = dt / static_cast<Scalar>(steps);\n"
+                  "    for (int k = 0; k < steps; ++k)\n",
+                  fmt::format("{:.6g}", r.max_substep.to_double()),
+                  scalar_literal(r.max_substep, precision_))
+            : std::string();
+    return render_template(kRk4GuardedOp, {{"w", s_.state_name},
+                                           {"substeps", substeps},
+                                           {"h", r.max_substep > 0 ? "h" : "dt"},
+                                           {"P", c_.P},
+                                           {"capture", c_.capture.empty() ? "" : "this, "}});
+  }
+  std::string operator()(const op::StageGuard&) const {
+    return render_template(kRestoringGuard,
+                           {{"failed", "!solved"}, {"w", s_.state_name}, {"status", "singular"}});
+  }
+  std::string operator()(const op::FiniteGuard& g) const {
+    if (in_place_)
+      return render_template(kRestoringGuard,
+                             {{"failed", fmt::format("!obsynth::all_finite({}_)", s_.state_name)},
+                              {"w", s_.state_name},
+                              {"status", "non_finite"}});
+    // One test of the locals: w, x, or both (x alone when a non-finite w always shows in x: one
+    // test fewer on the hot path, seed 003 against the expert reference: 1.03 -> 1.00).
+    const std::string what = g.state && g.estimate ? "w, x" : g.estimate ? "x" : "w";
+    return fmt::format(
+        "    if (!obsynth::all_finite({})) return status_ = obsynth::Status::non_finite;\n", what);
+  }
+  std::string operator()(const op::DefiniteGuard& g) const {
+    return render_template(kBlockCheck, {{"offset", std::to_string(g.block.offset)},
+                                         {"dim", std::to_string(g.block.dim)},
+                                         {"w", s_.state_name},
+                                         {"name", g.block.name}});
+  }
+  std::string operator()(const op::EstimateLocal& e) const {
+    return fmt::format("    State x;\n    F::{}(w{}, x);\n", e.function, c_.P);
+  }
+  std::string operator()(const op::Commit& c) const {
+    if (in_place_) return "";
+    if (p_.has<op::TableLookup>()) return "    xh_ = x;\n";  // the state is the estimate
+    return fmt::format("    {}_ = w;\n{}", s_.state_name, c.estimate ? "    xh_ = x;\n" : "");
+  }
+  std::string operator()(const op::Finish& f) const {
+    return f.update_estimate ? "    return status_ = update_estimate();\n"
+                             : "    return status_ = obsynth::Status::ok;\n";
+  }
+  std::string operator()(const op::SampleGuard&) const { return kSampleGuardOp; }
+  std::string operator()(const op::RingPush&) const {
+    return render_template_subset(kRingPushOp, delay_);
+  }
+  std::string operator()(const op::LevelSelect&) const { return delay_.at("level"); }
+  std::string operator()(const op::TableLookup&) const {
+    return render_template_subset(kTableLookupOp, delay_);
+  }
+  // The jets print their class whole (jets_class, from the program's ops); they never reach
+  // this printer.
+  std::string operator()(const op::JetUpdate&) const { return outside(); }
+  std::string operator()(const op::Reconstruct&) const { return outside(); }
+
+ private:
+  static std::string outside() {
+    OBSYNTH_ASSERT(false, "emit_cxx: a jets op in the step printer");
+    return "";
+  }
+  std::string doc() const {
+    if (p_.has<op::SampleGuard>()) return kSampledDelayDoc;
+    if (guarded_rk4(p_)) return render_template(kRk4GuardedDoc, {{"guard_doc", rejection_doc(p_)}});
+    if (p_.has<op::Rk4>()) return kRk4Doc;
+    const bool basis = p_.find<op::ExactLinearStep>()->basis;
+    if (!p_.has<op::EstimateLocal>()) return basis ? kExactBasisDoc : kExactDoc;
+    return render_template(basis ? kExactBasisFusedDoc : kExactFusedDoc, {{"w", s_.state_name}});
+  }
+
+  const ObserverSpec& s_;
+  const StepProgram& p_;
+  const ClassContext& c_;
+  Precision precision_;
+  std::map<std::string, std::string> delay_;
+  bool in_place_ = false;
+};
+
+// derivative(): the program's vector field.
+std::string derivative_body(const StepProgram& p, const ClassContext& c) {
+  const op::VectorField& f = *p.derivative;
+  if (f.guarded)
     return fmt::format(
         "    return total_rhs(w, u, y{}, dw) ? obsynth::Status::ok : obsynth::Status::singular;\n",
         c.P);
-  if (s.update == UpdateKind::ode)
-    return fmt::format("    F::{}(w, u, y{}, dw);\n", s.roles.rhs, c.P);
-  return fmt::format("    State c;\n    F::{}(u, y{}, c);\n    F::{}(w, c{}, dw);\n",
-                     s.roles.step_constant, c.P, s.roles.rhs, c.P);
+  if (f.held.empty()) return fmt::format("    F::{}(w, u, y{}, dw);\n", f.rhs, c.P);
+  return fmt::format("    State c;\n    F::{}(u, y{}, c);\n    F::{}(w, c{}, dw);\n", f.held, c.P,
+                     f.rhs, c.P);
 }
 
 std::string class_comment(const ObserverSpec& s) {
@@ -888,12 +909,12 @@ std::string class_comment(const ObserverSpec& s) {
   return out;
 }
 
-std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt,
-                        const ClassContext& c) {
+std::string state_class(const Analysis& a, const ObserverSpec& s, const StepProgram& program,
+                        const EmitOptions& opt, const ClassContext& c) {
   const bool own_state = s.state_name != "xh";
   std::string reset = "    xh_ = xh0;\n";
-  if (s.init == InitKind::function) {
-    reset += fmt::format("    F::{}(xh0{}, {}_);\n", s.roles.init, c.P, s.state_name);
+  if (!program.init.empty()) {
+    reset += fmt::format("    F::{}(xh0{}, {}_);\n", program.init, c.P, s.state_name);
     reset += fmt::format(
         "    status_ = obsynth::all_finite({}_) ? obsynth::Status::ok : "
         "obsynth::Status::non_finite;\n",
@@ -904,9 +925,9 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOpti
         "    status_ = obsynth::all_finite(xh_) ? obsynth::Status::ok : "
         "obsynth::Status::non_finite;\n";
   }
-  const bool exact = s.update == UpdateKind::linear_exact && !s.rk4_for_linear;
+  const op::Discretise* exact = program.find<op::Discretise>();
   std::string members;
-  const std::string wstate = own_state_type(s) ? "ObserverState" : "State";
+  const std::string wstate = own_state_type(program) ? "ObserverState" : "State";
   // Exact linear step: the observer state goes after the estimate, directly before exact_
   // (which the step only reads). GCC may load the state's last entry with a vector load that
   // reaches past the state's end (SLP vectorisation: float n = 3 loads zh_(2) with movq).
@@ -922,16 +943,16 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOpti
   // on an Intel Xeon). There the order is state, exact_, estimate: the two stores are apart.
   const std::string own_member =
       own_state ? fmt::format("  {} {}_;\n", wstate, s.state_name) : std::string();
-  const bool fused = exact && s.estimate == EstimateKind::function;
+  const bool fused = exact && program.has<op::EstimateLocal>();
   if (!exact || fused) members += own_member;
   if (!fused) members += "  State xh_;\n";
   if (exact && !fused) members += own_member;
-  const bool basis = exact && !s.input_map.empty();
+  const bool basis = exact && exact->basis > 0;
   if (basis)
     members += fmt::format(
         "  obsynth::ExactLinearStep<Scalar, n, {}> exact_;  ///< Phi(dt), Gamma(dt) B of the last "
         "dt\n",
-        s.input_map.front().size());
+        exact->basis);
   else if (exact)
     members +=
         "  obsynth::ExactLinearStep<Scalar, n> exact_;  ///< Phi(dt), Gamma(dt) of the last dt\n";
@@ -941,12 +962,12 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOpti
   if (basis)
     private_functions =
         render_template(kDiscretiseBasis, {{"closed_loop", closed_loop_literals(s, opt.precision)},
-                                           {"k", std::to_string(s.input_map.front().size())},
+                                           {"k", std::to_string(exact->basis)},
                                            {"input_map", input_map_literals(s, opt.precision)}});
   else if (exact)
     private_functions =
         render_template(kDiscretise, {{"closed_loop", closed_loop_literals(s, opt.precision)}});
-  if (s.update == UpdateKind::ode && guarded(s)) private_functions += total_rhs_function(s, c);
+  if (const op::Rk4* r = guarded_rk4(program)) private_functions += total_rhs_function(r->field, c);
   auto v = c.common;
   v.erase("scalar");
   v.erase("n");
@@ -958,63 +979,63 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const EmitOpti
   v["preamble"] = render_preamble(c);
   v["class_comment"] = class_comment(s);
   v["params_api"] = c.params_api;
-  v["init_doc"] = s.init == InitKind::function
-                      ? fmt::format(" ({} = {}(xh0))", s.state_name, s.roles.init)
-                      : "";
+  v["init_doc"] =
+      !program.init.empty() ? fmt::format(" ({} = {}(xh0))", s.state_name, program.init) : "";
   v["reset_body"] = reset;
-  v["step"] = step_text(s, c, opt.precision);
-  v["derivative_body"] = derivative_body(s, c);
-  v["derivative_type"] = s.update == UpdateKind::ode && guarded(s) ? "obsynth::Status" : "void";
+  v["step"] = CxxStepPrinter(s, program, c, opt.precision).print();
+  v["derivative_body"] = derivative_body(program, c);
+  v["derivative_type"] = program.derivative->guarded ? "obsynth::Status" : "void";
   v["WState"] = wstate;
   // A state whose symmetric blocks are not positive definite is kept but reported singular
   // (step() would reject every step from it).
   std::string set_state_checks;
-  if (s.update == UpdateKind::ode)
-    for (const auto& b : s.symmetric_blocks)
-      if (b.keep_positive_definite)
-        set_state_checks += fmt::format(
-            "    if (!obsynth::packed_positive_definite<{}, {}>({}_)) {{  // {}\n"
-            "      return status_ = obsynth::Status::singular;\n    }}\n",
-            b.offset, b.dim, s.state_name, b.name);
+  for (const auto& o : program.step)
+    if (const auto* g = std::get_if<op::DefiniteGuard>(&o))
+      set_state_checks += fmt::format(
+          "    if (!obsynth::packed_positive_definite<{}, {}>({}_)) {{  // {}\n"
+          "      return status_ = obsynth::Status::singular;\n    }}\n",
+          g->block.offset, g->block.dim, s.state_name, g->block.name);
   v["set_state_checks"] = set_state_checks;
   v["state_doc"] = s.state_doc;
   v["w"] = s.state_name;
-  v["estimate_body"] = estimate_body(s, opt, c);
+  v["estimate_body"] = estimate_body(s, program, opt, c);
   v["private_functions"] = private_functions;
   v["members"] = members;
   (void)a;
   return render_template(kStateClass, v);
 }
 
-std::string jets_class(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt,
-                       const ClassContext& c) {
+std::string jets_class(const Analysis& a, const ObserverSpec& s, const StepProgram& program,
+                       const EmitOptions& opt, const ClassContext& c) {
   const Model& m = a.model;
   std::string u_orders;
   for (std::size_t j = 0; j < m.m(); ++j)
     u_orders +=
         fmt::format("{} (up to {}^({}))", j ? "," : "", m.inputs[j].get_name(), s.u_orders_used[j]);
+  // The program's Reconstruct, then its estimate (the state itself, or Newton on its image).
+  const op::JetUpdate& jets = *program.find<op::JetUpdate>();
+  const std::string& fn = program.find<op::Reconstruct>()->function;
   std::string reconstruct;
-  if (s.estimate == EstimateKind::newton)
+  if (const auto* e = std::get_if<est::Newton>(&program.estimate))
     reconstruct =
-        render_template(kReconstructNewton, {{"reconstruct", s.roles.reconstruct},
+        render_template(kReconstructNewton, {{"reconstruct", fn},
                                              {"P", c.P},
                                              {"capture", c.capture},
-                                             {"map", s.roles.newton_map},
-                                             {"jacobian", s.roles.newton_inverse_jacobian},
-                                             {"iterations", std::to_string(s.newton_iterations)},
+                                             {"map", e->map},
+                                             {"jacobian", e->inverse_jacobian},
+                                             {"iterations", std::to_string(e->iterations)},
                                              {"tolerance", tolerance_literal(opt.precision)}});
   else
-    reconstruct =
-        render_template(kReconstructClosed, {{"reconstruct", s.roles.reconstruct}, {"P", c.P}});
+    reconstruct = render_template(kReconstructClosed, {{"reconstruct", fn}, {"P", c.P}});
   return render_template(
       kPerfectClass,
       {{"preamble", render_preamble(c)},
        {"class_name", c.common.at("class_name")},
        {"y_order", std::to_string(s.y_order_used)},
        {"u_orders", u_orders.empty() ? std::string() : fmt::format(" ({})", u_orders)},
-       {"y_jet_order", std::to_string(s.y_jet_order)},
-       {"y_jet_size", std::to_string(s.y_jet_order + 1)},
-       {"u_jet_order", std::to_string(s.u_jet_order)},
+       {"y_jet_order", std::to_string(jets.y_order)},
+       {"y_jet_size", std::to_string(jets.y_order + 1)},
+       {"u_jet_order", std::to_string(jets.u_order)},
        {"params_api", c.params_api},
        {"P", c.P},
        {"reconstruct", reconstruct},
@@ -1028,16 +1049,16 @@ std::string jets_class(const Analysis& a, const ObserverSpec& s, const EmitOptio
 }
 
 // Types of the observer state and of the gain solve (guarded ODE observers).
-std::string guarded_types(const ObserverSpec& s) {
-  if (!own_state_type(s)) return "";
+std::string guarded_types(const ObserverSpec& s, const StepProgram& p) {
+  if (!own_state_type(p)) return "";
   std::string out = fmt::format(
       "  using ObserverState = Eigen::Matrix<Scalar, {}, 1>;  ///< the observer's own state\n",
       s.state_size);
-  if (s.correction)
+  if (const auto& solve = guarded_rk4(p)->field.solve)
     out += fmt::format(
         "  using GainMatrix = Eigen::Matrix<Scalar, {0}, {0}>;  ///< M of the gain solve\n"
         "  using GainVector = Eigen::Matrix<Scalar, {0}, 1>;\n",
-        s.correction->dim);
+        solve->dim);
   return out;
 }
 
@@ -1048,8 +1069,8 @@ std::string basis_type(const ObserverSpec& s) {
                      s.input_map.front().size());
 }
 
-std::string jet_types(const ObserverSpec& s) {
-  if (s.update != UpdateKind::jets) return "";
+std::string jet_types(const ObserverSpec& s, const StepProgram& p) {
+  if (!p.has<op::JetUpdate>()) return "";
   return fmt::format(
       "  using YJet = Eigen::Matrix<Scalar, p * {}, 1>;  ///< y_1, y_1', ..., then y_2, ...\n"
       "  using UJet = Eigen::Matrix<Scalar, m, {}>;  ///< row j: u_j, u_j', ...\n",
@@ -1124,19 +1145,18 @@ std::map<std::string, std::string> level_values(bool interpolate,
   return v;
 }
 
-std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const EmitOptions& opt,
+std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s,
+                                const StepProgram& program, const EmitOptions& opt,
                                 const ClassContext& c, const std::string& tables_name) {
   const SampledDelay& d = *s.sampled_delay;
+  const op::LevelSelect& ls = *program.find<op::LevelSelect>();
   const Precision p = opt.precision;
   auto lits = [&](const std::vector<double>& v) {
     std::vector<std::string> out;
     for (double x : v) out.push_back(table_literal(x, p));
     return fmt::format("{}", fmt::join(out, ", "));
   };
-  const bool interpolate = d.level_interpolate && d.levels > 1;
-  // The slope correction (spec.hpp SampledDelay::slope_table) needs the window mean and the
-  // interpolation, which the design gives it.
-  const bool slope = !d.slope_table.empty() && interpolate && d.level_window_mean;
+  const bool interpolate = ls.interpolate, slope = ls.slope;
   const std::string slope_fit =
       slope
           ? "      Scalar sxy = Scalar(0), sxx = Scalar(0);  // least-squares slope, same samples\n"
@@ -1149,85 +1169,85 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s, const 
             "      slope_ = sxx > Scalar(0) ? -sxy / (dt * sxx) : Scalar(0);\n"
           : "";
   const std::string level =
-      d.levels > 1
-          ? render_template(
-                interpolate ? kLevelInterpolate : kLevelSelect,
-                level_values(
-                    interpolate,
-                    {{"input", std::to_string(d.input_index)},
-                     {"window_mean",
-                      d.level_window_mean
-                          ? "      Scalar acc = Scalar(0);  // mean of the last D samples\n"
-                            "      for (int k = 0; k <= delay_steps; ++k)\n"
-                            "        if (k != old) acc += u_ring_[k];\n"
-                            "      v = acc / Scalar(delay_steps);\n" +
-                                slope_fit
-                          : ""},
-                     {"nearest", d.level_nearest ? " + Scalar(0.5)" : ""},
-                     {"level_lo", scalar_literal(GiNaC::numeric(d.level_lo), p)},
-                     {"level_step", scalar_literal(GiNaC::numeric(d.level_step), p)}}))
-          : "    static_cast<void>(u);\n";
+      ls.by_input ? render_template(
+                        interpolate ? kLevelInterpolate : kLevelSelect,
+                        level_values(
+                            interpolate,
+                            {{"input", std::to_string(d.input_index)},
+                             {"window_mean",
+                              d.level_window_mean
+                                  ? "      Scalar acc = Scalar(0);  // mean of the last D samples\n"
+                                    "      for (int k = 0; k <= delay_steps; ++k)\n"
+                                    "        if (k != old) acc += u_ring_[k];\n"
+                                    "      v = acc / Scalar(delay_steps);\n" +
+                                        slope_fit
+                                  : ""},
+                             {"nearest", d.level_nearest ? " + Scalar(0.5)" : ""},
+                             {"level_lo", scalar_literal(GiNaC::numeric(d.level_lo), p)},
+                             {"level_step", scalar_literal(GiNaC::numeric(d.level_step), p)}}))
+                  : "    static_cast<void>(u);\n";
   (void)a;
-  return render_template(
-      kSampledDelayClass,
-      {{"class_comment", class_comment(s)},
-       {"preamble", render_preamble(c)},
-       {"tables_name", tables_name},
-       {"filters", std::to_string(d.filters)},
-       {"delay_steps", std::to_string(d.delay_steps)},
-       {"points", std::to_string(d.points())},
-       {"levels", std::to_string(d.levels)},
-       {"dt", scalar_literal(GiNaC::numeric(d.sample_period), p)},
-       {"class_name", c.common.at("class_name")},
-       {"u_now", d.levels > 1 ? fmt::format("u({})", d.input_index) : std::string("Scalar(0)")},
-       {"level", level},
-       {"q_next",
-        interpolate
-            ? fmt::format("    const {0}* q1 = q + grid_points * filters;  // level_ + 1\n{1}",
-                          precision_name(p),
-                          slope ? fmt::format("    const {0}* dq = Tables::{1} + static_cast<long>"
-                                              "(level_) * grid_points * filters;\n"
-                                              "    const {0}* dq1 = dq + grid_points * filters;\n",
-                                              precision_name(p), d.slope_table)
-                                : "")
-            : ""},
-       {"q_next_advance", slope         ? ", q1 += filters, dq += filters, dq1 += filters"
-                          : interpolate ? ", q1 += filters"
-                                        : ""},
-       {"q_entry",
-        slope         ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j])) +\n"
-                        "                       slope_ * (Scalar(dq[j]) + frac_ * (Scalar(dq1[j]) - "
-                        "Scalar(dq[j])))"
-        : interpolate ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j]))"
-                      : "Scalar(q[j])"},
-       {"level_doc", interpolate ? " (the lower table; frac() weights the next)" : ""},
-       {"frac_member",
-        std::string(interpolate ? "  Scalar frac_ = Scalar(0);  ///< weight of table level_ + 1\n"
-                                : "") +
-            (slope ? "  Scalar slope_ = Scalar(0);  ///< du/dt fitted over the window\n" : "")},
-       {"frac_accessor",
-        std::string(interpolate ? "  /// The weight of table level() + 1 in the last step's "
-                                  "inverse, in [0, 1].\n"
-                                  "  Scalar frac() const noexcept { return frac_; }\n"
-                                : "") +
-            (slope ? "  /// The input's slope over the window (least squares) in the last step.\n"
-                     "  Scalar input_slope() const noexcept { return slope_; }\n"
-                   : "")},
-       {"frac_reset", std::string(interpolate ? "    frac_ = Scalar(0);\n" : "") +
-                          (slope ? "    slope_ = Scalar(0);\n" : "")},
-       {"decay", d.decay_table},
-       {"gain", d.gain_table},
-       {"filter_input", d.outputs == 1 ? "y(0)" : fmt::format("y(j % {})", d.outputs)},
-       {"delay", d.delay_table},
-       {"metric", d.metric_table},
-       {"map", d.map_table},
-       {"power", std::to_string(d.weight_power)},
-       {"table_scalar", precision_name(p)},
-       {"epsilon", scalar_literal(GiNaC::numeric(d.epsilon), p)},
-       {"grid_lo", lits(d.grid_lo)},
-       {"grid_step", lits(d.grid_step)},
-       {"grid_count", fmt::format("{}", fmt::join(d.grid_count, ", "))},
-       {"members", c.params_member}});
+  std::map<std::string, std::string> v = {
+      {"class_comment", class_comment(s)},
+      {"preamble", render_preamble(c)},
+      {"tables_name", tables_name},
+      {"filters", std::to_string(d.filters)},
+      {"delay_steps", std::to_string(d.delay_steps)},
+      {"points", std::to_string(d.points())},
+      {"levels", std::to_string(d.levels)},
+      {"dt", scalar_literal(GiNaC::numeric(d.sample_period), p)},
+      {"class_name", c.common.at("class_name")},
+      {"u_now", ls.by_input ? fmt::format("u({})", d.input_index) : std::string("Scalar(0)")},
+      {"level", level},
+      {"q_next",
+       interpolate
+           ? fmt::format("    const {0}* q1 = q + grid_points * filters;  // level_ + 1\n{1}",
+                         precision_name(p),
+                         slope ? fmt::format("    const {0}* dq = Tables::{1} + static_cast<long>"
+                                             "(level_) * grid_points * filters;\n"
+                                             "    const {0}* dq1 = dq + grid_points * filters;\n",
+                                             precision_name(p), d.slope_table)
+                               : "")
+           : ""},
+      {"q_next_advance", slope         ? ", q1 += filters, dq += filters, dq1 += filters"
+                         : interpolate ? ", q1 += filters"
+                                       : ""},
+      {"q_entry",
+       slope         ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j])) +\n"
+                       "                       slope_ * (Scalar(dq[j]) + frac_ * (Scalar(dq1[j]) - "
+                       "Scalar(dq[j])))"
+       : interpolate ? "Scalar(q[j]) + frac_ * (Scalar(q1[j]) - Scalar(q[j]))"
+                     : "Scalar(q[j])"},
+      {"level_doc", interpolate ? " (the lower table; frac() weights the next)" : ""},
+      {"frac_member",
+       std::string(interpolate ? "  Scalar frac_ = Scalar(0);  ///< weight of table level_ + 1\n"
+                               : "") +
+           (slope ? "  Scalar slope_ = Scalar(0);  ///< du/dt fitted over the window\n" : "")},
+      {"frac_accessor",
+       std::string(interpolate ? "  /// The weight of table level() + 1 in the last step's "
+                                 "inverse, in [0, 1].\n"
+                                 "  Scalar frac() const noexcept { return frac_; }\n"
+                               : "") +
+           (slope ? "  /// The input's slope over the window (least squares) in the last step.\n"
+                    "  Scalar input_slope() const noexcept { return slope_; }\n"
+                  : "")},
+      {"frac_reset", std::string(interpolate ? "    frac_ = Scalar(0);\n" : "") +
+                         (slope ? "    slope_ = Scalar(0);\n" : "")},
+      {"decay", d.decay_table},
+      {"gain", d.gain_table},
+      {"filter_input", d.outputs == 1 ? "y(0)" : fmt::format("y(j % {})", d.outputs)},
+      {"delay", d.delay_table},
+      {"metric", d.metric_table},
+      {"map", d.map_table},
+      {"power", std::to_string(d.weight_power)},
+      {"table_scalar", precision_name(p)},
+      {"epsilon", scalar_literal(GiNaC::numeric(d.epsilon), p)},
+      {"grid_lo", lits(d.grid_lo)},
+      {"grid_step", lits(d.grid_step)},
+      {"grid_count", fmt::format("{}", fmt::join(d.grid_count, ", "))},
+      {"members", c.params_member}};
+  v["step"] = CxxStepPrinter(s, program, c, p, v).print();
+  return render_template_subset(kSampledDelayClass, v);
 }
 
 }  // namespace
@@ -1240,7 +1260,8 @@ EmittedHeader emit_cxx_header(const Analysis& a, const ObserverSpec& s, const Em
   h.class_name = pascal_case(h.namespace_name) + s.class_suffix;
   h.filename = h.namespace_name + "_" + s.method + ".hpp";
   const std::string functions_name = s.class_suffix + "Functions";
-  std::string functions = jet_types(s) + guarded_types(s) + basis_type(s);
+  const StepProgram program = lower(s);
+  std::string functions = jet_types(s, program) + guarded_types(s, program) + basis_type(s);
   for (const auto& f : s.functions) functions += b.function(f);
   std::string description = describe_model(m);
   for (const auto& line : s.description) description += "// " + line + "\n";
@@ -1251,7 +1272,7 @@ EmittedHeader emit_cxx_header(const Analysis& a, const ObserverSpec& s, const Em
       kBanner, {{"version", OBSYNTH_VERSION},
                 {"source", opt.source_name},
                 {"description", description},
-                {"includes", includes_for(s)},
+                {"includes", includes_for(program)},
                 {"namespace", h.namespace_name},
                 {"guard", guard},
                 {"n", std::to_string(m.n())},
@@ -1262,13 +1283,15 @@ EmittedHeader emit_cxx_header(const Analysis& a, const ObserverSpec& s, const Em
                 {"functions_name", functions_name},
                 {"params_alias", b.has_params() ? "  using Params = ModelParams<Scalar>;\n" : ""},
                 {"functions", functions}});
-  const ClassContext c = class_context(a, s, opt, h.class_name, functions_name);
+  const ClassContext c = class_context(a, s, program, opt, h.class_name, functions_name);
   const std::string tables_name = s.class_suffix + "Tables";
   h.text += tables_text(s, opt, tables_name);
-  if (s.update == UpdateKind::sampled_delay)
-    h.text += sampled_delay_class(a, s, opt, c, tables_name);
+  if (program.has<op::SampleGuard>())
+    h.text += sampled_delay_class(a, s, program, opt, c, tables_name);
+  else if (program.has<op::JetUpdate>())
+    h.text += jets_class(a, s, program, opt, c);
   else
-    h.text += s.update == UpdateKind::jets ? jets_class(a, s, opt, c) : state_class(a, s, opt, c);
+    h.text += state_class(a, s, program, opt, c);
   h.text += render_template(kFooter, {{"namespace", h.namespace_name}});
   h.operations = b.operations_;
   h.usage_example = usage_example(h, s, opt);
