@@ -8,7 +8,7 @@
 //   g = [u*x2, 0]
 //   h = [x1]
 // Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)
-// Q0 = [[4, 0], [0, 4]] (default); N = [[2, 0], [0, 2]] (default); R = [[2]] (default)
+// Q0 = [[4, 0], [0, 4]] (default); N = [[2, 0], [0, 257/100]] (default); R = [[2]] (default)
 // Integrator: RK4 of (m, Q) jointly with u, y held over a step, in sub-steps no longer than the largest safe step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
@@ -102,7 +102,7 @@ struct RiccatiFunctions {
     out(1) = -(t1 * t2);
     out(2) = -(Q_1_1 * t0) + Scalar(4) + (Q_1_2 * u_) * Scalar(2);
     out(3) = -(Q_1_2 * t0) + Q_2_2 * u_;
-    out(4) = -(Q_1_2 * t2) + Scalar(4);
+    out(4) = -(Q_1_2 * t2) + Scalar(6.6048999999999998);
   }
 
   /// The estimate m: the first n entries of w.

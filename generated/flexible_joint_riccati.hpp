@@ -8,7 +8,7 @@
 //   g = [0, 0, 0, u]
 //   h = [x1]
 // Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)
-// Q0 = [[9, 0, 0, 0], [0, 9, 0, 0], [0, 0, 9, 0], [0, 0, 0, 9]] (default); N = [[277/50, 0, 0, 0], [0, 277/50, 0, 0], [0, 0, 277/50, 0], [0, 0, 0, 277/50]] (default); R = [[81/50]] (default)
+// Q0 = [[9, 0, 0, 0], [0, 9, 0, 0], [0, 0, 9, 0], [0, 0, 0, 9]] (default); N = [[277/50, 0, 0, 0], [0, 51/5, 0, 0], [0, 0, 189/10, 0], [0, 0, 0, 349/10]] (default); R = [[81/50]] (default)
 // Integrator: RK4 of (m, Q) jointly with u, y held over a step, in sub-steps no longer than the largest safe step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
@@ -138,12 +138,12 @@ struct RiccatiFunctions {
     out(5) = Q_1_3 + Q_2_2 - Q_1_1 * t5 - Q_1_2 * t1;
     out(6) = -(Q_1_3 * t1) + Q_2_3 + Q_1_4;
     out(7) = Q_1_1 + Q_2_4 - Q_1_3 - Q_1_4 * t1;
-    out(8) = -((Q_1_2 * t5 - Q_2_3) * Scalar(2)) + Scalar(30.691600000000001) - Q_1_2 * t2;
+    out(8) = -((Q_1_2 * t5 - Q_2_3) * Scalar(2)) - Q_1_2 * t2 + Scalar(104.04000000000001);
     out(9) = Q_2_4 - Q_1_3 * t2 + Q_3_3 - Q_1_3 * t5;
     out(10) = Q_3_4 - t2 * Q_1_4 - Q_2_3 + Q_1_2 - Q_1_4 * t5;
-    out(11) = Scalar(30.691600000000001) + Q_3_4 * Scalar(2) - Q_1_3 * t3;
+    out(11) = Scalar(357.20999999999998) + Q_3_4 * Scalar(2) - Q_1_3 * t3;
     out(12) = -Q_3_3 + Q_1_3 + Q_4_4 - Q_1_4 * t3;
-    out(13) = Scalar(30.691600000000001) - Q_1_4 * t4 + (-Q_3_4 + Q_1_4) * Scalar(2);
+    out(13) = Scalar(1218.01) - Q_1_4 * t4 + (-Q_3_4 + Q_1_4) * Scalar(2);
   }
 
   /// The estimate m: the first n entries of w.

@@ -8,7 +8,7 @@
 //   g = [u, 0]
 //   h = [sin(x1)]
 // Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)
-// Q0 = [[9, 0], [0, 9]] (default); N = [[106/25, 0], [0, 106/25]] (default); R = [[707/1000]] (default)
+// Q0 = [[9, 0], [0, 9]] (default); N = [[106/25, 0], [0, 29/5]] (default); R = [[707/1000]] (default)
 // Integrator: RK4 of (m, Q) jointly with u, y held over a step, in sub-steps no longer than the largest safe step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
@@ -106,7 +106,7 @@ struct RiccatiFunctions {
     out(1) = x1 * Scalar(0.5) + t0 * t5 - Scalar(1.5) * x2;
     out(2) = Scalar(17.977599999999999) - t3 * t2 - (Q_1_1 * Scalar(1.5) - Q_1_2 * Scalar(0.5)) * Scalar(2);
     out(3) = Q_1_1 * Scalar(0.5) - Q_1_2 * Scalar(3) - t3 * t4 + Scalar(0.5) * Q_2_2;
-    out(4) = Scalar(17.977599999999999) - (Scalar(1.5) * Q_2_2 - Q_1_2 * Scalar(0.5)) * Scalar(2) - t5 * t4;
+    out(4) = -((Scalar(1.5) * Q_2_2 - Q_1_2 * Scalar(0.5)) * Scalar(2)) - t5 * t4 + Scalar(33.640000000000001);
   }
 
   /// The estimate m: the first n entries of w.

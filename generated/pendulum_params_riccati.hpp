@@ -8,7 +8,7 @@
 //   g = [0, u/J]
 //   h = [x1]
 // Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)
-// Q0 = [[256/25, 0], [0, 16]] (default); N = [[147/25, 0], [0, 147/20]] (default); R = [[87/50]] (default)
+// Q0 = [[256/25, 0], [0, 16]] (default); N = [[587/100, 0], [0, 121/10]] (default); R = [[87/50]] (default)
 // Integrator: RK4 of (m, Q) jointly with u, y held over a step, in sub-steps no longer than the largest safe step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
@@ -120,9 +120,9 @@ struct RiccatiFunctions {
     const Scalar t3 = std::cos(x1);
     out(0) = -(t0 * t1) + x2;
     out(1) = -(b * x2 / J) - t2 * t1 + u_ / J - mgl * std::sin(x1) / J;
-    out(2) = -(Q_1_1 * t0) + Scalar(34.574399999999997) + Q_1_2 * Scalar(2);
+    out(2) = -(Q_1_1 * t0) + Scalar(34.456899999999997) + Q_1_2 * Scalar(2);
     out(3) = -(Q_1_1 * mgl * t3 / J) + Q_2_2 - b * Q_1_2 / J - Q_1_2 * t0;
-    out(4) = -(Q_1_2 * t2) + Scalar(54.022500000000001) - Scalar(2) * (Q_1_2 * mgl * t3 / J + b * Q_2_2 / J);
+    out(4) = -(Q_1_2 * t2) + Scalar(146.41) - Scalar(2) * (Q_1_2 * mgl * t3 / J + b * Q_2_2 / J);
   }
 
   /// The estimate m: the first n entries of w.

@@ -8,7 +8,7 @@
 //   g = [0, u]
 //   h = [x1]
 // Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)
-// Q0 = [[9, 0], [0, 9]] (default); N = [[171/20, 0], [0, 171/20]] (default); R = [[21/20]] (default)
+// Q0 = [[9, 0], [0, 9]] (default); N = [[171/20, 0], [0, 122/5]] (default); R = [[21/20]] (default)
 // Integrator: RK4 of (m, Q) jointly with u, y held over a step, in sub-steps no longer than the largest safe step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
@@ -104,7 +104,7 @@ struct RiccatiFunctions {
     out(1) = u_ - x1 + x2 - t2 * t0 - (x2 * x2 * x2) * Scalar(0.33333333333333331);
     out(2) = Scalar(73.102500000000006) - Q_1_1 * t1 + Q_1_2 * Scalar(2);
     out(3) = -Q_1_1 - t3 * Q_1_2 + Q_2_2 - Q_1_2 * t1;
-    out(4) = -(Q_1_2 * t2) - (Q_1_2 + t3 * Q_2_2) * Scalar(2) + Scalar(73.102500000000006);
+    out(4) = -(Q_1_2 * t2) - (Q_1_2 + t3 * Q_2_2) * Scalar(2) + Scalar(595.36000000000001);
   }
 
   /// The estimate m: the first n entries of w.

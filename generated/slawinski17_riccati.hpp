@@ -8,7 +8,7 @@
 //   g = [(x1+1)*u, u]
 //   h = [x1]
 // Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)
-// Q0 = [[4, 0], [0, 4]] (default); N = [[89/25, 0], [0, 89/25]] (default); R = [[113/100]] (default)
+// Q0 = [[4, 0], [0, 4]] (default); N = [[89/25, 0], [0, 158/25]] (default); R = [[113/100]] (default)
 // Integrator: RK4 of (m, Q) jointly with u, y held over a step, in sub-steps no longer than the largest safe step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
@@ -103,7 +103,7 @@ struct RiccatiFunctions {
     out(1) = u_ - x1 * x2 - t2 * t1;
     out(2) = -(Q_1_1 * t0) + Scalar(12.6736) + (Q_1_1 * u_ - Q_1_2) * Scalar(2);
     out(3) = -(Q_1_1 * x2) - Q_2_2 - Q_1_2 * t0 + Q_1_2 * u_ - x1 * Q_1_2;
-    out(4) = -(Q_1_2 * t2) + Scalar(12.6736) - Scalar(2) * (x1 * Q_2_2 + Q_1_2 * x2);
+    out(4) = -(Q_1_2 * t2) + Scalar(39.942399999999999) - Scalar(2) * (x1 * Q_2_2 + Q_1_2 * x2);
   }
 
   /// The estimate m: the first n entries of w.

@@ -8,7 +8,7 @@
 //   g = [0, 0, 0, (x1^2+1)*u]
 //   h = [x1]
 // Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)
-// Q0 = [[4, 0, 0, 0], [0, 4, 0, 0], [0, 0, 4, 0], [0, 0, 0, 4]] (default); N = [[133/25, 0, 0, 0], [0, 133/25, 0, 0], [0, 0, 133/25, 0], [0, 0, 0, 133/25]] (default); R = [[94/125]] (default)
+// Q0 = [[4, 0, 0, 0], [0, 4, 0, 0], [0, 0, 4, 0], [0, 0, 0, 4]] (default); N = [[133/25, 0, 0, 0], [0, 141/10, 0, 0], [0, 0, 188/5, 0], [0, 0, 0, 100]] (default); R = [[94/125]] (default)
 // Integrator: RK4 of (m, Q) jointly with u, y held over a step, in sub-steps no longer than the largest safe step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
@@ -140,12 +140,12 @@ struct RiccatiFunctions {
     out(5) = Q_1_3 - Q_1_2 * t1 + Q_2_2;
     out(6) = x1 * Q_1_3 - Q_1_3 * t1 - Q_1_1 * t5 + Q_1_2 * x2 + Q_2_3 + Q_1_4;
     out(7) = Q_2_4 + Q_1_2 * x3 + Q_1_1 * t6 + Q_1_3 * x2 - Q_1_4 * t1;
-    out(8) = -(t2 * Q_1_2) + Scalar(28.302399999999999) + Q_2_3 * Scalar(2);
+    out(8) = -(t2 * Q_1_2) + Scalar(198.81) + Q_2_3 * Scalar(2);
     out(9) = Q_2_2 * x2 + Q_2_4 + Q_3_3 - t5 * Q_1_2 - t2 * Q_1_3 + x1 * Q_2_3;
     out(10) = t7 + Q_2_2 * x3 + Q_3_4 - t2 * Q_1_4 + Q_1_2 * t6;
-    out(11) = -(Q_1_3 * t3) + Scalar(2) * (x1 * Q_3_3 + t7 + Q_3_4 - t5 * Q_1_3) + Scalar(28.302399999999999);
+    out(11) = -(Q_1_3 * t3) + Scalar(2) * (x1 * Q_3_3 + t7 + Q_3_4 - t5 * Q_1_3) + Scalar(1413.76);
     out(12) = x1 * Q_3_4 + Q_1_3 * t6 - t3 * Q_1_4 + x3 * Q_2_3 + Q_4_4 + Q_2_4 * x2 - t5 * Q_1_4 + x2 * Q_3_3;
-    out(13) = (Q_2_4 * x3 + x2 * Q_3_4 + t6 * Q_1_4) * Scalar(2) + Scalar(28.302399999999999) - t4 * Q_1_4;
+    out(13) = (Q_2_4 * x3 + x2 * Q_3_4 + t6 * Q_1_4) * Scalar(2) - t4 * Q_1_4 + Scalar(10000);
   }
 
   /// The estimate m: the first n entries of w.

@@ -8,7 +8,7 @@
 //   g = [0, u]
 //   h = [x1]
 // Observer: James-Baras Riccati observer (seed 000, eq. 2.1-2.2)
-// Q0 = [[9, 0], [0, 16]] (default); N = [[27/2, 0], [0, 181/10]] (default); R = [[83/125]] (default)
+// Q0 = [[9, 0], [0, 16]] (default); N = [[27/2, 0], [0, 707/10]] (default); R = [[83/125]] (default)
 // Integrator: RK4 of (m, Q) jointly with u, y held over a step, in sub-steps no longer than the largest safe step; a step that leaves Q without a Cholesky factor is rejected (Status::singular)
 // Precision of literals: double
 // Contract: fixed-size Eigen, no heap, no exceptions, no RTTI, noexcept, numeric failure
@@ -105,7 +105,7 @@ struct RiccatiFunctions {
     out(1) = u_ - x1 - t1 * t2 - t3 * x2;
     out(2) = -(Q_1_1 * t0) + Scalar(182.25) + Q_1_2 * Scalar(2);
     out(3) = -(Q_1_2 * t0) + Q_2_2 - Q_1_1 * t4 - t3 * Q_1_2;
-    out(4) = Scalar(327.61000000000001) - Q_1_2 * t2 - (t3 * Q_2_2 + Q_1_2 * t4) * Scalar(2);
+    out(4) = Scalar(4998.4899999999998) - Q_1_2 * t2 - (t3 * Q_2_2 + Q_1_2 * t4) * Scalar(2);
   }
 
   /// The estimate m: the first n entries of w.

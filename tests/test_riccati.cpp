@@ -410,6 +410,94 @@ TEST(Riccati, ModelScaledDefaultsConvergeOnAttitudeFromTwentyPercent) {
   EXPECT_LT(final_error(r), 1e-4);
 }
 
+// A chain y = x1, x1' = x2, x2' = b / 100, b' = 0 on the unit box: by hand S = (1, 1, 1), Y = 1,
+// D_x f = [[0, 1, 0], [0, 0, 1/100], [0, 0, 0]] with ||.||_2 = 1 = omega, and the columns of
+// [C; C A; C A^2] = [[1, 0, 0], [0, 1, 0], [0, 0, 1/100]] give the visibilities (1, 1, 1/100):
+// b's noise is raised by 1 / sqrt(1/100) = 10. Oracle of the effect: the simulated error. With
+// N = I the bias error decays at about visibility x omega = 0.01 1/s (still more than 15 % of its
+// box after 50 s); with the default at about sqrt(visibility) x omega = 0.1 1/s.
+TEST(Riccati, DefaultNoiseRaisesAStateSeenThroughAWeakCoupling) {
+  const char* text = R"(model weak_chain
+states x1 x2 b
+f = [ x2, b/100, 0 ]
+h = [ x1 ]
+domain x1 in [-1, 1], x2 in [-1, 1], b in [-1, 1]
+)";
+  const Analysis a = analyse(parse_model(text, "weak_chain.sym"));
+  const ObserverSpec s = riccati(a);
+  EXPECT_NE(report_value(s, "model scales").find("omega = 1 = max of"), std::string::npos)
+      << report_value(s, "model scales");
+  EXPECT_NE(report_value(s, "model scales").find("visibility = [1, 1, 0.01]"), std::string::npos)
+      << report_value(s, "model scales");
+  EXPECT_EQ(report_value(s, "N").rfind("[[1, 0, 0], [0, 1, 0], [0, 0, 10]] (default", 0), 0u)
+      << report_value(s, "N");
+  EXPECT_EQ(report_value(s, "R").rfind("[[1]] (default", 0), 0u) << report_value(s, "R");
+  const auto b_error_at = [&](const DesignOptions& d, double t) {
+    SimulationOptions o;
+    o.method = "riccati";
+    o.design = d;
+    o.x0 = {0, 0, 0.5};
+    o.xhat0 = {0.4, -0.4, 0.1};  // 20 % of every box width
+    o.t_end = t;
+    o.dt = 0.01;
+    const SimulationResult r = simulate(a, o);
+    EXPECT_TRUE(r.diverged.empty()) << r.diverged;
+    return std::abs(r.x.back()[2] - r.xh.back()[2]);
+  };
+  DesignOptions unit_noise;
+  unit_noise.values["N"] = "1";
+  EXPECT_GT(b_error_at(unit_noise, 50), 0.3);  // 15 % of b's box width
+  EXPECT_LT(b_error_at({}, 50), 2e-3);         // 0.1 %
+}
+
+// Fermenter (tests/models/multi_output): omega is the model's largest rate in box units,
+// sampled. By hand at X = 15, S = 0.05, P = 0, Dil = 0.2 (dS'/dS = -mumax Ks X / ((Ks + S)^2
+// Yxs) - Dil = -99.4 1/h dominates) ||S^-1 D_x(f+g) S||_2 = 113.1 1/h; the Arb enclosure of the
+// same norm had given 2620, which made the filter 23 times faster than the model and its first
+// step at the case's dt = 0.01 h unstable. Oracle of the effect: the simulated error at that dt.
+TEST(Riccati, FermenterRateIsTheModelsOwnAndConvergesAtItsSamplePeriod) {
+  const Analysis a = analyse(
+      load_model(std::string(OBSYNTH_SOURCE_DIR) + "/tests/models/multi_output/fermenter.sym"));
+  const ObserverSpec s = riccati(a);
+  EXPECT_NE(report_value(s, "model scales").find("omega = 113 = max of"), std::string::npos)
+      << report_value(s, "model scales");
+  const std::vector<double> width = {14, 59.95, 80};
+  for (Sampling sampling : {Sampling::continuous, Sampling::zoh}) {
+    SimulationOptions o;
+    o.method = "riccati";
+    o.u_text = "0.1 + 0.02*sin(0.1*t)";
+    o.x0 = {8, 5, 36};
+    o.xhat0 = {10.8, 16.99, 52};  // 20 % of every box width (S upwards: it would leave the box)
+    o.t_end = 50;
+    o.dt = 0.01;
+    o.sampling = sampling;
+    const SimulationResult r = simulate(a, o);
+    ASSERT_TRUE(r.diverged.empty()) << r.diverged;
+    for (std::size_t i = 0; i < 3; ++i)
+      EXPECT_LT(std::abs(r.x.back()[i] - r.xh.back()[i]) / width[i], 0.02) << r.names[i];
+  }
+}
+
+// Pendulum with unknown damping c (tests/models/engineering): c is seen only through the rate's
+// c w term, so with one noise for all states its error decayed at about 0.1 1/s and was still
+// 5 % of its box after 20 s (issue 17). Oracle: the simulated error of the default-path case.
+TEST(Riccati, DefaultsEstimateAPendulumsDampingWithinTheCaseHorizon) {
+  const Analysis a = analyse(load_model(std::string(OBSYNTH_SOURCE_DIR) +
+                                        "/tests/models/engineering/pendulum_damping.sym"));
+  SimulationOptions o;
+  o.method = "riccati";
+  o.u_text = "0.3*sin(3*t)";
+  o.x0 = {0.5, 0, 0.8};
+  o.xhat0 = {1.3, -3.2, 1.2};  // 20 % of every box width
+  o.t_end = 20;
+  o.dt = 1e-3;
+  const SimulationResult r = simulate(a, o);
+  ASSERT_TRUE(r.diverged.empty()) << r.diverged;
+  const std::vector<double> width = {4, 16, 2};
+  for (std::size_t i = 0; i < 3; ++i)
+    EXPECT_LT(std::abs(r.x.back()[i] - r.xh.back()[i]) / width[i], 0.002) << r.names[i];
+}
+
 // The physical-units CSTR with the estimate started hot (T = 390 K; at 400 K D_x f ~ [[-23.8,
 // -0.9], [4770, 185]]): `--sampling zoh` with dt = 0.01 min stopped at t = 0 with "Q is no longer
 // positive definite" (one RK4 step spanned dt ||A|| ~ 20). The firmware step now splits dt into

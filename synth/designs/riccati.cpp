@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -126,12 +127,22 @@ numeric rational_3(double v) {
                 : r / GiNaC::pow(numeric(10), numeric(-e));
 }
 
+// M at a box point, in double, and the deterministic box samples (defined below).
+Eigen::MatrixXd matrix_at(const GiNaC::matrix& M, const certify::Box& box,
+                          const std::vector<double>& pt);
+std::vector<std::vector<double>> box_samples(const certify::Box& box);
+
 // The scales of the model, with the text saying where each came from.
 struct ModelScales {
   std::vector<numeric> S;  // state half-widths of the domain box (exact)
   std::vector<numeric> Y;  // output scales: sup over the box of |h_k - h_k(centre)| (sampled)
-  numeric omega;           // rate (1/time unit): sup over the box of ||S^-1 D_x(f+g) S||_2
-  std::string omega_text, Y_text;
+  numeric omega;           // rate (1/time unit): max over box samples of ||S^-1 D_x(f+g) S||_2
+  // Visibility of each state the outputs do not depend on directly, in the scaled linearisation
+  // (sampled, root mean square over the box samples): the largest |entry| of its column in
+  // [C A; ...; C A^(n-1)], A = S^-1 D_x(f+g) S / omega, C = Y^-1 Dh S, i.e. the product of the
+  // scaled couplings along its path to an output. 1 for a state h depends on.
+  std::vector<double> visibility;
+  std::string omega_text, Y_text, visibility_text;
 };
 
 ModelScales model_scales(const Model& m) {
@@ -154,24 +165,64 @@ ModelScales model_scales(const Model& m) {
     ytext.push_back(to_string(sc.Y.back()));
   }
   sc.Y_text = fmt::format("[{}]", fmt::join(ytext, ", "));
-  const std::size_t n = m.n();
+  const std::size_t n = m.n(), p = m.p();
+  // The scaled Jacobians S^-1 D_x(f+g) S and Y^-1 Dh S at the box samples. omega is a tuning
+  // scale, not a certificate: the largest sampled norm (an interval enclosure of a norm with
+  // rational entries can overestimate it by an order of magnitude, and the filter's bandwidth
+  // then leaves the model's time scale).
   GiNaC::matrix Jscaled(static_cast<unsigned>(n), static_cast<unsigned>(n));
+  GiNaC::matrix Cscaled(static_cast<unsigned>(p), static_cast<unsigned>(n));
   const ExVec F = m.field();
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t j = 0; j < n; ++j)
       Jscaled(static_cast<unsigned>(i), static_cast<unsigned>(j)) =
           F[i].diff(m.states[j]) * sc.S[j] / sc.S[i];
-  certify::EnclosureBudget budget;
-  budget.max_boxes = 256;
-  budget.relative_gap = 0.25;
-  const certify::Bound w = certify::matrix_norm_bound(Jscaled, box, budget);
-  const bool usable = w.value > 0 && std::isfinite(w.value);
-  sc.omega = usable ? rational_3(w.value) : numeric(1);
-  sc.omega_text = usable
-                      ? fmt::format("{} = sup over the box of ||S^-1 D_x(f+g) S||_2 ({}; {})",
-                                    to_string(sc.omega), certify::bound_kind_name(w.kind), w.method)
-                      : fmt::format("1 (||S^-1 D_x(f+g) S|| is {} on the box: no time scale)",
-                                    std::isfinite(w.value) ? "0" : "unbounded");
+  for (std::size_t k = 0; k < p; ++k)
+    for (std::size_t j = 0; j < n; ++j)
+      Cscaled(static_cast<unsigned>(k), static_cast<unsigned>(j)) =
+          m.h[k].diff(m.states[j]) * sc.S[j] / sc.Y[k];
+  std::vector<std::pair<Eigen::MatrixXd, Eigen::MatrixXd>> at;
+  double w = 0;
+  for (const auto& pt : box_samples(box)) {
+    Eigen::MatrixXd J = matrix_at(Jscaled, box, pt), C = matrix_at(Cscaled, box, pt);
+    if (!J.allFinite() || !C.allFinite()) continue;
+    w = std::max(w, Eigen::JacobiSVD<Eigen::MatrixXd>(J).singularValues()(0));
+    at.emplace_back(std::move(J), std::move(C));
+  }
+  const bool usable = w > 0 && std::isfinite(w);
+  sc.omega = usable ? rational_3(w) : numeric(1);
+  sc.omega_text =
+      usable ? fmt::format("{} = max of ||S^-1 D_x(f+g) S||_2 over {} box points (sampled)",
+                           to_string(sc.omega), at.size())
+             : fmt::format("1 (||S^-1 D_x(f+g) S|| is {} at the sampled box points: no time scale)",
+                           at.empty() ? "not finite" : "0");
+  // Visibility: root mean square over the samples of max_{k >= 1} |(C A^k)_{., j}|, A = J /
+  // omega, for the states h does not depend on.
+  std::vector<bool> measured(n, false);
+  for (std::size_t j = 0; j < n; ++j)
+    for (std::size_t k = 0; k < p; ++k)
+      if (!m.h[k].diff(m.states[j]).is_zero()) measured[j] = true;
+  const double om = sc.omega.to_double();
+  std::vector<double> sum2(n, 0.0);
+  for (const auto& [J, C] : at) {
+    const Eigen::MatrixXd A = J / om;
+    Eigen::MatrixXd row = C * A;
+    std::vector<double> v(n, 0.0);
+    for (std::size_t k = 1; k < n; ++k) {
+      for (std::size_t j = 0; j < n; ++j)
+        v[j] = std::max(v[j], row.col(static_cast<Eigen::Index>(j)).cwiseAbs().maxCoeff());
+      row = row * A;
+    }
+    for (std::size_t j = 0; j < n; ++j) sum2[j] += v[j] * v[j];
+  }
+  std::vector<std::string> vtext;
+  for (std::size_t j = 0; j < n; ++j) {
+    const double v =
+        measured[j] || at.empty() ? 1.0 : std::sqrt(sum2[j] / static_cast<double>(at.size()));
+    sc.visibility.push_back(std::isfinite(v) ? v : 1.0);
+    vtext.push_back(fmt::format("{:.3g}", sc.visibility.back()));
+  }
+  sc.visibility_text = fmt::format("[{}]", fmt::join(vtext, ", "));
   return sc;
 }
 
@@ -181,13 +232,31 @@ GiNaC::matrix diagonal(const std::vector<numeric>& d) {
   return M;
 }
 
+// How much more process noise a state gets than one half-width per model time unit:
+// 1 / sqrt(visibility), at least 1, at most kMaxNoiseBoost (1 for a state no sample sees: more
+// noise on it would only inflate Q). A state seen only through weak couplings (a load torque
+// through the speed, a damping through the rate, a rudder bias) gets in the filter's error
+// dynamics a pole of about visibility x omega when its noise equals its neighbours' (the
+// Kalman-Bucy gain along a chain goes with the ratio of the noises): far slower than the model.
+// Raising its noise by b moves that pole to about b visibility omega, and its estimate peaks
+// more. b = 1 / visibility would give every observability coordinate z_k = C A^k x unit noise
+// (poles of the order of omega), but on ship_heading the rudder bias estimate then peaked 22 box
+// widths away; b = 1 / sqrt(visibility), the geometric mean of the two, gives the pole
+// sqrt(visibility) omega and kept that estimate within its box.
+constexpr double kMaxNoiseBoost = 1e3;
+
+double noise_boost(double visibility) {
+  if (!(visibility > 0)) return 1.0;
+  return std::clamp(1 / std::sqrt(visibility), 1.0, kMaxNoiseBoost);
+}
+
 // The model-scaled defaults of Q0, N, R (exact rationals, 3 significant digits).
 void scaled_defaults(const ModelScales& sc, RiccatiParameters& prm) {
   const double sw = std::sqrt(sc.omega.to_double());
   std::vector<numeric> q0, nd, rd;
-  for (const auto& s : sc.S) {
-    q0.push_back(s * s);
-    nd.push_back(rational_3(sw * s.to_double()));
+  for (std::size_t j = 0; j < sc.S.size(); ++j) {
+    q0.push_back(sc.S[j] * sc.S[j]);
+    nd.push_back(rational_3(sw * sc.S[j].to_double() * noise_boost(sc.visibility[j])));
   }
   for (const auto& y : sc.Y) rd.push_back(rational_3(y.to_double() / sw));
   if (!prm.Q0_given) prm.Q0 = diagonal(q0);
@@ -728,19 +797,29 @@ void report_riccati(ObserverSpec& s, const Analysis& a, const RiccatiTuning& t, 
       {"Dh", rows_text(output_jacobian(m))},
       {"model scales",
        fmt::format("S = {} (state half-widths of the domain box); Y = {} (outputs: sup over the "
-                   "box of |h - h(centre)|, sampled); omega = {}",
-                   Stext, t.scales.Y_text, t.scales.omega_text)},
+                   "box of |h - h(centre)|, sampled); omega = {}; visibility = {} (1 for a state "
+                   "the outputs "
+                   "depend on; else the largest |entry| of its column in [C A; ...; C A^(n-1)], "
+                   "A = S^-1 D_x(f+g) S / omega, C = Y^-1 Dh S, root mean square over the box "
+                   "points; sampled)",
+                   Stext, t.scales.Y_text, t.scales.omega_text, t.scales.visibility_text)},
       {"Q0",
        matrix_text(prm.Q0) + source_text(prm.Q0_given, "Q0", "S^2, the box half-widths squared")},
       {"N", matrix_text(prm.N) + source_text(prm.N_given, "N",
-                                             "sqrt(omega) S, process noise of one box half-width "
-                                             "per model time unit 1/omega")},
+                                             "sqrt(omega) S / sqrt(visibility) (1 / "
+                                             "sqrt(visibility) in [1, 1e3]): process noise of "
+                                             "one box half-width per "
+                                             "model time unit 1/omega, raised for a state seen "
+                                             "only through weak couplings, whose error would "
+                                             "otherwise decay at visibility x omega only (now "
+                                             "about sqrt(visibility) x omega)")},
       {"R", matrix_text(prm.R) + source_text(prm.R_given, "R",
                                              "Y / sqrt(omega), the output scale over the model "
                                              "time unit")},
       {"tuning",
-       "with the defaults the filter is Q0 = N = R = I in x / S, y / Y, omega t: its bandwidth is "
-       "of the order of omega whatever the units"},
+       "with the defaults the filter is Q0 = R = I, N = diag(1 / sqrt(visibility)) in x / S, y / "
+       "Y, "
+       "omega t: its bandwidth is of the order of omega whatever the units"},
       {"Lambda (3.3)",
        t.Lambda_given ? t.Lambda_text
                       : fmt::format("{}: the best of {} candidates (0, -kappa H'; {} refuted at a "
@@ -843,7 +922,7 @@ Design riccati_design() {
        "or 1 (multiple of I)",
        "S^2 (box half-widths squared)"},
       {"N", "riccati: N of Q' = ... + N N^T, n x n: n values (diagonal), n*n or 1",
-       "sqrt(omega) S"},
+       "sqrt(omega) S / sqrt(visibility)"},
       {"R",
        "riccati: R (a standard deviation: gain Q Dh^T R^-2), p x p symmetric positive definite: "
        "p values (diagonal), p*p or 1",
