@@ -215,6 +215,13 @@ class ProgramObserver {
     }
   }
   const StepProgram& program() const { return p_; }
+  // The RK4 sub-steps the firmware step takes over dt (1 without an Rk4 op or a limit): the
+  // continuous-time run takes as many, so that a --dt past the observer's safe step still
+  // integrates it inside RK4's stability region, as the generated step does.
+  std::size_t substeps_over(double dt) const {
+    const auto* r = p_.find<op::Rk4>();
+    return r ? substeps(dt, r->max_substep) : 1;
+  }
 
   // y0: the output at xh0, where the differentiators start (JetUpdate).
   void reset(const Vec& xh0, const Vec& y0 = {}) {
@@ -674,19 +681,24 @@ void run_state_observer(const Plant& plant, ProgramObserver& obs, const Simulati
   for (std::size_t k = 0; k < steps; ++k) {
     const double t = static_cast<double>(k) * opt.dt;
     if (opt.sampling == Sampling::continuous) {
-      // One ODE: [x; w]' = [f + g(x, u(t)); derivative(w, u(t), h(x))].
-      Vec xw = concat(x, obs.state());
-      rk4(
-          [&](double tt, const Vec& v) {
-            const Vec xv(v.begin(), v.begin() + static_cast<long>(n));
-            const Vec wv(v.begin() + static_cast<long>(n), v.end());
-            const Vec u = plant.inputs({tt});
-            return concat(plant.field(concat(xv, u)),
-                          obs.derivative(wv, u, plant.output(concat(xv, u))));
-          },
-          t, opt.dt, xw);
-      x.assign(xw.begin(), xw.begin() + static_cast<long>(n));
-      obs.set_state(Vec(xw.begin() + static_cast<long>(n), xw.end()));
+      // One ODE: [x; w]' = [f + g(x, u(t)); derivative(w, u(t), h(x))], in the sub-steps the
+      // observer's own step would take over dt.
+      const std::size_t parts = obs.substeps_over(opt.dt);
+      const double h = opt.dt / static_cast<double>(parts);
+      for (std::size_t i = 0; i < parts && obs.rejected().empty(); ++i) {
+        Vec xw = concat(x, obs.state());
+        rk4(
+            [&](double tt, const Vec& v) {
+              const Vec xv(v.begin(), v.begin() + static_cast<long>(n));
+              const Vec wv(v.begin() + static_cast<long>(n), v.end());
+              const Vec u = plant.inputs({tt});
+              return concat(plant.field(concat(xv, u)),
+                            obs.derivative(wv, u, plant.output(concat(xv, u))));
+            },
+            t + static_cast<double>(i) * h, h, xw);
+        x.assign(xw.begin(), xw.begin() + static_cast<long>(n));
+        obs.set_state(Vec(xw.begin() + static_cast<long>(n), xw.end()));
+      }
     } else {
       obs.step(opt.dt, plant.inputs({t}), plant.y(t, x));
       rk4([&](double tt, const Vec& xv) { return plant.f(tt, xv); }, t, opt.dt, x);
