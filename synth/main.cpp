@@ -248,7 +248,7 @@ struct CheckCommand {
 };
 
 struct SimulateCommand {
-  std::string model, method = "canonical", u = "0", x0, xhat0, out, sampling = "continuous";
+  std::string model, method = "auto", u = "0", x0, xhat0, out, sampling = "continuous";
   double t_end = 10, dt = 1e-3;
   std::vector<std::string> params, plant_params;
   DesignOptions design;
