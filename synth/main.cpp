@@ -205,6 +205,9 @@ void add_design_options(CLI::App* app, DesignOptions& o) {
   for (const auto& info : all_design_options()) {
     auto* opt = app->add_option("--" + info.name, o.values[info.name], info.help);
     if (!info.default_text.empty()) opt->default_str(info.default_text);
+    // --<design>.<option>: accepted, listed by --list-methods --format json, not in --help
+    // (one line per design and option would bury the bare ones).
+    if (info.name.find('.') != std::string::npos) opt->group("");
   }
 }
 
@@ -574,6 +577,9 @@ int main(int argc, char** argv) {
   CLI::App app{"obsynth: nonlinear observer synthesis from symbolic models"};
   app.set_version_flag("--version", std::string("obsynth ") + OBSYNTH_VERSION);
   app.require_subcommand(0, 1);
+  app.footer(
+      "Every design option is also accepted as --<design>.<option> (e.g. --canonical.poles), for "
+      "that design alone.");
   CheckCommand check;
   SimulateCommand sim;
   MainJob job;
