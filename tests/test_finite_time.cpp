@@ -227,10 +227,13 @@ std::string run(const std::string& cmd) {
   return out;
 }
 
+// Drivers of a two-state finite-time observer, fed the simulator's CSV (t, x1, x2, ...): the
+// model's names come as macros (cxx_defines / c_defines below). The last step, at twice the
+// sample period, must be refused.
 const char* kCxxDriver = R"(#include <cstdio>
 #include <cmath>
 #include HEADER
-using Obs = obsynth_gen::garcia14::Garcia14FiniteTime<SCALAR>;
+using Obs = obsynth_gen::NS::CLASS<SCALAR>;
 int main(int argc, char** argv) {
   (void)argc;
   static Obs obs;  // the delay line is fixed storage inside the object
@@ -242,9 +245,9 @@ int main(int argc, char** argv) {
     Obs::State x;
     x << SCALAR(x1), SCALAR(x2);
     Obs::Output y;
-    obsynth_gen::garcia14::FiniteTimeFunctions<SCALAR>::h(x, y);
+    obsynth_gen::NS::FiniteTimeFunctions<SCALAR>::h(x, y);
     Obs::Input u;
-    u(0) = SCALAR(20 - 2 * std::sqrt((t - 5) * (t - 5)));
+    u(0) = SCALAR(U0(t));
     if (obs.step(SCALAR(0.01), u, y) != obsynth::Status::ok) return 3;
     std::printf("%.17g,%.17g\n", double(obs.estimate()(0)), double(obs.estimate()(1)));
   }
@@ -255,26 +258,40 @@ int main(int argc, char** argv) {
 const char* kCDriver = R"(#include <stdio.h>
 #include <math.h>
 #include HEADER
-static garcia14_finite_time_observer obs;
+#define CAT2(a, b) a##b
+#define CAT(a, b) CAT2(a, b)
+#define F(x) CAT(PREFIX, x)
+static F(observer) obs;
 int main(int argc, char** argv) {
   char line[512];
   double t, x1, x2, a, b;
   FILE* f = fopen(argv[1], "r");
   (void)argc;
-  garcia14_finite_time_init(&obs);
+  F(init)(&obs);
   if (!fgets(line, sizeof line, f)) return 2;
   while (fscanf(f, "%lf,%lf,%lf,%lf,%lf", &t, &x1, &x2, &a, &b) == 5) {
-    garcia14_finite_time_scalar x[2], y[1], u[1];
-    x[0] = (garcia14_finite_time_scalar)x1;
-    x[1] = (garcia14_finite_time_scalar)x2;
-    garcia14_finite_time_h(x, y);
-    u[0] = (garcia14_finite_time_scalar)(20 - 2 * sqrt((t - 5) * (t - 5)));
-    if (garcia14_finite_time_step(&obs, (garcia14_finite_time_scalar)0.01, u, y) != garcia14_finite_time_ok) return 3;
+    F(scalar) x[2], y[OUTPUTS], u[1];
+    x[0] = (F(scalar))x1;
+    x[1] = (F(scalar))x2;
+    F(h)(x, y);
+    u[0] = (F(scalar))(U0(t));
+    if (F(step)(&obs, (F(scalar))0.01, u, y) != F(ok)) return 3;
     printf("%.17g,%.17g\n", (double)obs.xh[0], (double)obs.xh[1]);
   }
   return 0;
 }
 )";
+
+// The driver macros for a model: namespace and class (C++), function prefix and outputs (C),
+// and the input u(t) both plants take.
+std::string cxx_defines(const std::string& ns, const std::string& cls, const std::string& u) {
+  return "#define NS " + ns + "\n#define CLASS " + cls + "\n#define U0(t) (" + u + ")\n";
+}
+std::string c_defines(const std::string& prefix, int outputs, const std::string& u) {
+  return "#define PREFIX " + prefix + "\n#define OUTPUTS " + std::to_string(outputs) +
+         "\n#define U0(t) (" + u + ")\n";
+}
+const char* kGarciaInput = "20 - 2 * sqrt((t - 5) * (t - 5))";
 
 std::vector<std::array<double, 2>> read_pairs(const std::string& text) {
   std::vector<std::array<double, 2>> v;
@@ -335,7 +352,9 @@ void generated_matches_simulator(const std::string& rule, bool all_cases) {
     if (!k.c) {
       const EmittedHeader h = emit_cxx_header(a, spec, eo);
       std::ofstream(sub / h.filename) << h.text;
-      std::ofstream(sub / "driver.cpp") << kCxxDriver;
+      std::ofstream(sub / "driver.cpp")
+          << cxx_defines("garcia14", "Garcia14FiniteTime", "20 - 2 * std::sqrt((t - 5) * (t - 5))")
+          << kCxxDriver;
       // Every observer class compiles in float and double whatever the literal precision.
       for (const char* scalar : {"float", "double"}) {
         const std::string out = run(fmt::format(
@@ -350,7 +369,8 @@ void generated_matches_simulator(const std::string& rule, bool all_cases) {
       const EmittedHeader h = emit_c_pair(a, spec, eo);
       std::ofstream(sub / h.filename) << h.text;
       std::ofstream(sub / h.source_filename) << h.source_text;
-      std::ofstream(sub / "driver.c") << kCDriver;
+      std::ofstream(sub / "driver.c")
+          << c_defines("garcia14_finite_time_", 1, kGarciaInput) << kCDriver;
       const std::string out = run(fmt::format(
           "cc -std=c99 {} -I{} -I{}/runtime -DHEADER='\"{}\"' {} {} -lm -o {}", flags, sub.string(),
           OBSYNTH_SOURCE_DIR, h.filename, (sub / h.source_filename).string(),
@@ -571,55 +591,6 @@ h = [ sin(x1), x1 + x2 ]
 domain x1 in [-1, 1], x2 in [-1, 1], u in [-1, 1]
 )";
 
-const char* kTwoOutputCxxDriver = R"(#include <cstdio>
-#include <cmath>
-#include HEADER
-using Obs = obsynth_gen::ft2::Ft2FiniteTime<double>;
-int main(int argc, char** argv) {
-  (void)argc;
-  static Obs obs;
-  std::FILE* f = std::fopen(argv[1], "r");
-  char line[512];
-  if (!std::fgets(line, sizeof line, f)) return 2;
-  double t, x1, x2, a, b;
-  while (std::fscanf(f, "%lf,%lf,%lf,%lf,%lf", &t, &x1, &x2, &a, &b) == 5) {
-    Obs::State x;
-    x << x1, x2;
-    Obs::Output y;
-    obsynth_gen::ft2::FiniteTimeFunctions<double>::h(x, y);
-    Obs::Input u;
-    u(0) = 0.5 * std::sin(t);
-    if (obs.step(0.01, u, y) != obsynth::Status::ok) return 3;
-    std::printf("%.17g,%.17g\n", obs.estimate()(0), obs.estimate()(1));
-  }
-  return 0;
-}
-)";
-
-const char* kTwoOutputCDriver = R"(#include <stdio.h>
-#include <math.h>
-#include HEADER
-static ft2_finite_time_observer obs;
-int main(int argc, char** argv) {
-  char line[512];
-  double t, x1, x2, a, b;
-  FILE* f = fopen(argv[1], "r");
-  (void)argc;
-  ft2_finite_time_init(&obs);
-  if (!fgets(line, sizeof line, f)) return 2;
-  while (fscanf(f, "%lf,%lf,%lf,%lf,%lf", &t, &x1, &x2, &a, &b) == 5) {
-    double x[2], y[2], u[1];
-    x[0] = x1;
-    x[1] = x2;
-    ft2_finite_time_h(x, y);
-    u[0] = 0.5 * sin(t);
-    if (ft2_finite_time_step(&obs, 0.01, u, y) != ft2_finite_time_ok) return 3;
-    printf("%.17g,%.17g\n", obs.xh[0], obs.xh[1]);
-  }
-  return 0;
-}
-)";
-
 TEST(FiniteTime, TwoOutputsConvergeAndGeneratedCodeMatchesSimulator) {
   const Analysis a = analyse(parse_model(kTwoOutputModel, "ft2.sym"));
   DesignOptions d;
@@ -659,17 +630,19 @@ TEST(FiniteTime, TwoOutputsConvergeAndGeneratedCodeMatchesSimulator) {
     if (!c) {
       const EmittedHeader h = emit_cxx_header(a, spec, eo);
       std::ofstream(dir / h.filename) << h.text;
-      std::ofstream(dir / "driver.cpp") << kTwoOutputCxxDriver;
+      std::ofstream(dir / "driver.cpp")
+          << cxx_defines("ft2", "Ft2FiniteTime", "0.5 * std::sin(t)") << kCxxDriver;
       out = run(
           fmt::format("c++ -std=c++17 {} -fno-exceptions -fno-rtti -DEIGEN_NO_MALLOC -I{}/runtime "
-                      "-I/usr/include/eigen3 -DHEADER='\"{}\"' {} -o {}",
+                      "-I/usr/include/eigen3 -DHEADER='\"{}\"' -DSCALAR=double {} -o {}",
                       flags, OBSYNTH_SOURCE_DIR, (dir / h.filename).string(),
                       (dir / "driver.cpp").string(), (dir / "drv_cxx").string()));
     } else {
       const EmittedHeader h = emit_c_pair(a, spec, eo);
       std::ofstream(dir / h.filename) << h.text;
       std::ofstream(dir / h.source_filename) << h.source_text;
-      std::ofstream(dir / "driver.c") << kTwoOutputCDriver;
+      std::ofstream(dir / "driver.c")
+          << c_defines("ft2_finite_time_", 2, "0.5 * sin(t)") << kCDriver;
       out = run(fmt::format("cc -std=c99 {} -I{} -I{}/runtime -DHEADER='\"{}\"' {} {} -lm -o {}",
                             flags, dir.string(), OBSYNTH_SOURCE_DIR, h.filename,
                             (dir / h.source_filename).string(), (dir / "driver.c").string(),
