@@ -8,6 +8,7 @@
 #include <set>
 
 #include "analysis/analysis.hpp"
+#include "analysis/triangular_form.hpp"
 #include "app/report.hpp"
 #include "designs/canonical.hpp"
 #include "designs/registry.hpp"
@@ -646,6 +647,39 @@ TEST(MultiOutputModels, FailingConditionsAreTheHandDerivations) {
     EXPECT_TRUE(same(b->residual, ExVec{2 * EoR / (T * T) * GiNaC::exp(EoR / T) / (J * k0), 0, 0},
                      oracle_box(m)));
   }
+}
+
+// The quadruple tank in the block coordinates z = (h1, L_f h1, h2, L_f h2) (its header):
+// L_f h1 = -beta1 sqrt(h1) + beta3 sqrt(h3), so sqrt(h3) = (z2 + beta1 sqrt(z1)) / beta3 and
+// h3 = ((z2 + beta1 sqrt(z1)) / beta3)^2 on the branch sqrt(h3) >= 0 (likewise h4), with
+// beta1 = beta3 = 71 sqrt(1962) / 28000 and beta2 = beta4 = 57 sqrt(1962) / 32000. Checked by
+// hand and by substitution: x_of_z(z_of_x(x)) = x, and d/dt z_of_x = A z + phi at z_of_x(x).
+TEST(QuadrupleTank, BlockCoordinatesInvertThroughTheSquareRoots) {
+  using GiNaC::numeric;
+  const Model m = load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/quadruple_tank.sym");
+  const Analysis a = analyse(m);
+  std::string why;
+  const auto t = block_triangular_form(m, a.observability.indices, &why);
+  ASSERT_TRUE(t.has_value()) << why;
+  const auto& z = t->z;
+  const ex sg = GiNaC::sqrt(ex(1962));
+  const ex b13 = numeric(71, 28000) * sg, b24 = numeric(57, 32000) * sg;
+  const OracleBox box = oracle_box(m);
+  EXPECT_TRUE(same(t->x_of_z[2], GiNaC::pow((z[1] + b13 * GiNaC::sqrt(z[0])) / b13, 2)));
+  EXPECT_TRUE(same(t->x_of_z[3], GiNaC::pow((z[3] + b24 * GiNaC::sqrt(z[2])) / b24, 2)));
+  GiNaC::exmap at_x;
+  for (std::size_t i = 0; i < z.size(); ++i) at_x[z[i]] = t->z_of_x[i];
+  ExVec round_trip, field_z, lie;
+  const ExVec F = m.field();
+  for (std::size_t i = 0; i < z.size(); ++i) {
+    round_trip.push_back(t->x_of_z[i].subs(at_x));
+    ex e = t->phi[i];
+    for (std::size_t j = 0; j < z.size(); ++j) e += t->A[i][j] * z[j];
+    field_z.push_back(e.subs(at_x));
+    lie.push_back(derivative_along(t->z_of_x[i], F, m.states));
+  }
+  EXPECT_TRUE(same(round_trip, ExVec(m.states.begin(), m.states.end()), box));
+  EXPECT_TRUE(same(field_z, lie, box));
 }
 
 // The perfect observer for two outputs: its reconstruction, fed the exact jets of a trajectory

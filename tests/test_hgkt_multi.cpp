@@ -294,10 +294,12 @@ TEST(MultiKalmanTheta, ConvergesForPersistentInput) {
   const Analysis a = analyse(m);
   const Verdict v = design_verdict(*find_design("kalman-theta"), a, false);
   EXPECT_TRUE(v.applies) << v.text();
-  // Seed 002's Theorem is for one output: no guarantee claimed for the block extension.
+  // a_1 = u (hand: x1' = u x2): no guarantee for an unknown input; the block form carries
+  // seed 002's proof over (said).
   EXPECT_EQ(v.guarantee, Guarantee::none);
-  EXPECT_NE(v.guarantee_text.find("p > 1: seed 002 states and proves its Theorem for one output"),
-            std::string::npos)
+  EXPECT_NE(v.guarantee_text.find("needs a strongly persistent input"), std::string::npos)
+      << v.guarantee_text;
+  EXPECT_NE(v.guarantee_text.find("the proof carries over to this block form"), std::string::npos)
       << v.guarantee_text;
   const ObserverSpec s = find_design("kalman-theta")->build(a, {});
   EXPECT_NE(row(s, "form").find("C = [e_1, e_3]^T"), std::string::npos) << row(s, "form");
@@ -305,6 +307,18 @@ TEST(MultiKalmanTheta, ConvergesForPersistentInput) {
   ASSERT_TRUE(r.diverged.empty()) << r.diverged;
   for (std::size_t i = 0; i < 4; ++i)
     EXPECT_LT(std::abs(r.x.back()[i] - r.xh.back()[i]), 1e-4) << "x" << i + 1;
+}
+
+// kTwoBlocks in x (hand, see its derivation): a = (1, 0, 1), constant, so every input is
+// strongly persistent; phi has no denominator. Seed 002's ladder gives `partial` (theta*
+// implicit), as for one output.
+TEST(MultiKalmanTheta, ConstantBlockChainsGetThePartialGuarantee) {
+  const Model m = parse(kTwoBlocks, "hg_two_blocks");
+  const Verdict v = design_verdict(*find_design("kalman-theta"), analyse(m), false);
+  ASSERT_TRUE(v.applies) << v.text();
+  EXPECT_EQ(v.guarantee, Guarantee::partial) << v.guarantee_text;
+  EXPECT_NE(v.guarantee_text.find("the proof carries over to this block form"), std::string::npos)
+      << v.guarantee_text;
 }
 
 TEST(MultiKalmanTheta, NotBlockTriangularNamesTheDependence) {

@@ -20,6 +20,7 @@
 #include "app/synthesize.hpp"
 #include "designs/registry.hpp"
 #include "front/parse.hpp"
+#include "support/expect.hpp"
 #include "symbolic/expr_print.hpp"
 
 #ifndef OBSYNTH_SOURCE_DIR
@@ -341,6 +342,34 @@ TEST(UnderInputs, TriangularFormRefusals) {
   EXPECT_NE(why.find("one output"), std::string::npos);
 }
 
+// Two tanks in cascade, the lower level measured: L_f h2 = sqrt(h1) - sqrt(h2)/2, so in
+// z = (h2, L_f h2) the upper level is h1 = (z2 + sqrt(z1)/2)^2 on the branch sqrt(h1) >= 0
+// (by hand). Not affine in h1, so not in the form in x; the Lie coordinates invert through the
+// square root. Checked by substitution: x_of_z(z_of_x(x)) = x and d/dt z_of_x = A z + phi.
+TEST(TriangularForm, LieCoordinatesInvertThroughASquareRoot) {
+  const Model m = parse_model(
+      "model cascade\nstates h1 h2\ninputs u\nf = [-sqrt(h1), sqrt(h1) - sqrt(h2)/2]\n"
+      "g = [u, 0]\nh = [h2]\ndomain h1 in [1, 4], h2 in [1, 4], u in [0, 1]\n",
+      "cascade.sym");
+  std::string why;
+  const auto t = triangular_form(m, &why);
+  ASSERT_TRUE(t.has_value()) << why;
+  EXPECT_EQ(t->coordinates, TriangularForm::Coordinates::lie_derivatives);
+  const auto& z = t->z;
+  const obsynth::testing::OracleBox box = obsynth::testing::oracle_box(m);
+  EXPECT_TRUE(obsynth::testing::same(t->x_of_z[0], GiNaC::pow(z[1] + GiNaC::sqrt(z[0]) / 2, 2)));
+  GiNaC::exmap at_x{{z[0], t->z_of_x[0]}, {z[1], t->z_of_x[1]}};
+  const ExVec F = m.field();
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_TRUE(obsynth::testing::same(t->x_of_z[i].subs(at_x), m.states[i], box)) << i;
+    ex e = t->phi[i];
+    for (std::size_t j = 0; j < 2; ++j) e += t->A[i][j] * z[j];
+    EXPECT_TRUE(obsynth::testing::same(
+        e.subs(at_x), obsynth::testing::derivative_along(t->z_of_x[i], F, m.states), box))
+        << i;
+  }
+}
+
 TEST(ZerosInBox, ProvedAndSampled) {
   GiNaC::symbol u("u"), v("v");
   SampleBoxes b;
@@ -351,9 +380,30 @@ TEST(ZerosInBox, ProvedAndSampled) {
   EXPECT_EQ(zeros_in_box(u * u + numeric(1, 100), b).kind, BoxZeros::never);      // Sturm
   EXPECT_EQ(zeros_in_box(u * u - numeric(1, 100), b).kind, BoxZeros::somewhere);  // Sturm
   EXPECT_EQ(zeros_in_box(GiNaC::exp(u) * (u - 5), b).kind, BoxZeros::never);
-  EXPECT_EQ(zeros_in_box(GiNaC::log(v), b).kind, BoxZeros::somewhere);    // v = 1, sign change
-  EXPECT_EQ(zeros_in_box(GiNaC::log(v) + 2, b).kind, BoxZeros::unknown);  // sampled only
+  EXPECT_EQ(zeros_in_box(GiNaC::log(v), b).kind, BoxZeros::somewhere);  // v = 1, sign change
+  // log v >= -log 2 > -2 on [1/2, 3]: proved by Arb balls (v > 0 first, then 1/(log v + 2)).
+  EXPECT_EQ(zeros_in_box(GiNaC::log(v) + 2, b).kind, BoxZeros::never);
+  EXPECT_EQ(zeros_in_box(GiNaC::atanh(u / 2) + 1, b).kind, BoxZeros::unknown);  // sampled only
   EXPECT_EQ(zeros_in_box(u * v - 1, b).kind, BoxZeros::somewhere);  // sign change (u = 1/2, v = 2)
+}
+
+// Factors with transcendental functions, proved nonzero by Arb balls (1/f bounded on the box)
+// only where that holds by hand, never where f is not real on part of the box.
+TEST(ZerosInBox, BallsProveTranscendentalFactorsNonzero) {
+  GiNaC::symbol q("q"), v("v"), u("u");
+  SampleBoxes b;
+  b.by_name["q"] = {numeric(-4), numeric(4)};
+  b.by_name["v"] = {numeric(1, 2), numeric(3)};
+  b.by_name["u"] = {numeric(-1), numeric(1)};
+  const GiNaC::ex c = GiNaC::cos(q);
+  // The two-link arm's mass-matrix determinant factor: 17 - 9 cos^2 >= 8.
+  EXPECT_EQ(zeros_in_box(17 - 9 * c * c, b).kind, BoxZeros::never);
+  // 1 - 2 cos^2 vanishes at q = pi/4: a sign change between samples.
+  EXPECT_EQ(zeros_in_box(1 - 2 * c * c, b).kind, BoxZeros::somewhere);
+  // sqrt(v) >= sqrt(1/2) > 1/2 on [1/2, 3].
+  EXPECT_EQ(zeros_in_box(GiNaC::sqrt(v) - numeric(1, 2), b).kind, BoxZeros::never);
+  // sqrt(u) + 1 is not real for u < 0: balls must not call it nonzero there.
+  EXPECT_NE(zeros_in_box(GiNaC::sqrt(u) + 1, b).kind, BoxZeros::never);
 }
 
 // ---- models as users write them ---------------------------------------------------------------
@@ -421,20 +471,20 @@ TEST(FrontInputs, NominalLine) {
   EXPECT_NE(m.nominal_note.find("'nominal' line"), std::string::npos);
 }
 
-testing::AssertionResult FailsAt(const std::string& text, int line, int col,
-                                 std::initializer_list<std::string_view> words) {
+::testing::AssertionResult FailsAt(const std::string& text, int line, int col,
+                                   std::initializer_list<std::string_view> words) {
   try {
     parse_model(text, "t.sym");
-    return testing::AssertionFailure() << "parsed";
+    return ::testing::AssertionFailure() << "parsed";
   } catch (const UserError& e) {
     const Diagnostic& d = e.diagnostics().front();
     if (d.loc.file != "t.sym" || d.loc.line != line || d.loc.col != col)
-      return testing::AssertionFailure()
+      return ::testing::AssertionFailure()
              << "at " << d.loc.line << ":" << d.loc.col << ": " << d.message;
     for (auto w : words)
       if (d.message.find(w) == std::string::npos)
-        return testing::AssertionFailure() << "lacks '" << w << "': " << d.message;
-    return testing::AssertionSuccess();
+        return ::testing::AssertionFailure() << "lacks '" << w << "': " << d.message;
+    return ::testing::AssertionSuccess();
   }
 }
 

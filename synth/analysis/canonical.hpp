@@ -54,6 +54,10 @@ struct EliminationStep {
   std::size_t state;
   std::size_t equation;
   GiNaC::ex value;
+  // When the step inverted a square root (triangular forms only): root_atom = sqrt(a x + b) in
+  // x, root = its value w; value = (w^2 - b) / a holds on the branch w >= 0. 0 otherwise.
+  GiNaC::ex root_atom = 0;
+  GiNaC::ex root = 0;
 };
 
 struct CanonicalForm {

@@ -35,16 +35,28 @@ std::optional<ex> invert_atom(const ex& atom, const GiNaC::symbol& xk, const ex&
   return (inner - b) / a;
 }
 
+// The square root sqrt(a xk + b) (a free of xk, nonzero) as an invertible atom: w = sqrt(arg)
+// gives xk = (w^2 - b) / a on the branch w >= 0.
+bool is_affine_root(const ex& t, const GiNaC::symbol& xk) {
+  if (!GiNaC::is_a<GiNaC::power>(t) || !t.op(1).is_equal(ex(1) / 2)) return false;
+  const ex arg = GiNaC::expand(t.op(0));
+  const ex a = arg.diff(xk);
+  return !a.is_zero() && !a.has(xk);
+}
+
 }  // namespace
 
-std::optional<ex> solve_for(const ex& eq, const GiNaC::symbol& xk) {
+std::optional<ex> solve_for(const ex& eq, const GiNaC::symbol& xk, bool roots, ex* root_atom,
+                            ex* root) {
+  if (root_atom) *root_atom = 0;
+  if (root) *root = 0;
   const ex e = GiNaC::expand(eq);
   const ex a = e.diff(xk);
   if (!a.is_zero() && !a.has(xk)) return GiNaC::normal(-e.subs(xk == 0) / a);
   // Linear in a single atom phi(xk)?
   std::vector<ex> atoms;
   std::function<void(const ex&)> find = [&](const ex& t) {
-    if (GiNaC::is_a<GiNaC::function>(t) && t.has(xk)) {
+    if ((GiNaC::is_a<GiNaC::function>(t) || (roots && is_affine_root(t, xk))) && t.has(xk)) {
       for (const auto& q : atoms)
         if (q.is_equal(t)) return;
       atoms.push_back(t);
@@ -59,11 +71,18 @@ std::optional<ex> solve_for(const ex& eq, const GiNaC::symbol& xk) {
   if (ew.has(xk)) return std::nullopt;
   const ex aw = ew.diff(w);
   if (aw.is_zero() || aw.has(w)) return std::nullopt;
-  return invert_atom(atoms[0], xk, GiNaC::normal(-ew.subs(w == 0) / aw));
+  const ex value = GiNaC::normal(-ew.subs(w == 0) / aw);
+  if (GiNaC::is_a<GiNaC::power>(atoms[0])) {  // sqrt(a xk + b) = value
+    const ex arg = GiNaC::expand(atoms[0].op(0));
+    if (root_atom) *root_atom = atoms[0];
+    if (root) *root = value;
+    return GiNaC::normal((GiNaC::pow(value, 2) - arg.subs(xk == 0)) / arg.diff(xk));
+  }
+  return invert_atom(atoms[0], xk, value);
 }
 
 std::optional<std::vector<EliminationStep>> triangular_elimination(const ExVec& T, const Symbols& x,
-                                                                   const Symbols& z) {
+                                                                   const Symbols& z, bool roots) {
   const std::size_t n = x.size();
   std::vector<bool> used(n, false), solved(n, false);
   std::vector<EliminationStep> steps;
@@ -75,8 +94,9 @@ std::optional<std::vector<EliminationStep>> triangular_elimination(const ExVec& 
       for (std::size_t k = 0; k < n; ++k)
         if (!solved[k] && T[i].has(x[k])) unknown.push_back(k);
       if (unknown.size() != 1) continue;
-      if (const auto v = solve_for(T[i] - z[i], x[unknown[0]]))
-        pick = EliminationStep{unknown[0], i, *v};
+      ex root_atom, root;
+      if (const auto v = solve_for(T[i] - z[i], x[unknown[0]], roots, &root_atom, &root))
+        pick = EliminationStep{unknown[0], i, *v, root_atom, root};
     }
     if (!pick) return std::nullopt;
     used[pick->equation] = solved[pick->state] = true;

@@ -5,6 +5,8 @@
 #include <algorithm>
 
 #include "analysis/inverse.hpp"
+#include "certify/enclosure.hpp"
+#include "certify/tape.hpp"
 #include "front/fresh_names.hpp"
 #include "symbolic/expr_print.hpp"
 #include "symbolic/symbolic.hpp"
@@ -81,6 +83,53 @@ int sturm_count(const ex& p, const GiNaC::symbol& s, const numeric& lo, const nu
   return variations(lo) - variations(hi);
 }
 
+bool nonzero_by_balls(const ex& f, const SampleBoxes& boxes);
+
+// Whether f is real on the whole box: every root or rational power has a base, and every log
+// an argument, proved positive there (nonzero by balls and positive at the box's centre, as
+// the box is connected). atanh is not handled. Ball arithmetic's natural-domain enclosures
+// skip the points where f is not real, so this comes first.
+bool real_on_box(const ex& f, const SampleBoxes& boxes) {
+  const auto positive = [&](const ex& b) {
+    if (!nonzero_by_balls(b, boxes)) return false;
+    GiNaC::exmap centre;
+    for (const auto& s : symbols_in(b)) {
+      const Interval iv = boxes.box(s);
+      centre[s] = (iv.lo + iv.hi) / 2;
+    }
+    GiNaC::numeric v;
+    return evaluate_real(b, centre, 30, v) && v.is_positive();
+  };
+  if (GiNaC::is_a<GiNaC::power>(f) && !f.op(1).info(GiNaC::info_flags::integer) &&
+      !positive(f.op(0)))
+    return false;
+  if (GiNaC::is_a<GiNaC::function>(f)) {
+    const std::string n = GiNaC::ex_to<GiNaC::function>(f).get_name();
+    if (n == "atanh" || (n == "log" && !positive(f.op(0)))) return false;
+  }
+  for (std::size_t k = 0; k < f.nops(); ++k)
+    if (!real_on_box(f.op(k), boxes)) return false;
+  return true;
+}
+
+// Proves f != 0 on the box when f is real there and Arb balls bound 1/f on all of it (branch
+// and bound: every leaf box's enclosure of f excludes zero). A failure proves nothing.
+bool nonzero_by_balls(const ex& f, const SampleBoxes& boxes) {
+  if (GiNaC::is_a<numeric>(f)) return !f.is_zero();
+  if (!real_on_box(f, boxes)) return false;
+  certify::Box box;
+  for (const auto& s : symbols_in(f)) {
+    const Interval b = boxes.box(s);
+    box.vars.push_back(s);
+    box.ranges.push_back(
+        {certify::detail::rational_lower(b.lo), certify::detail::rational_upper(b.hi)});
+  }
+  certify::EnclosureBudget budget;
+  budget.max_boxes = 1024;
+  budget.relative_gap = 1;  // any finite bound is a proof
+  return certify::sup_abs(1 / f, box, budget).kind == certify::BoundKind::rigorous;
+}
+
 // One factor (not a product): never / somewhere / unknown, proved where it says so.
 BoxZeros factor_zeros(const ex& f, const SampleBoxes& boxes) {
   if (GiNaC::is_a<numeric>(f))
@@ -112,6 +161,7 @@ BoxZeros factor_zeros(const ex& f, const SampleBoxes& boxes) {
             fmt::format("{} has {} real root{} with {} in [{}, {}] (Sturm sequence)", to_string(f),
                         roots, roots == 1 ? "" : "s", name, to_string(b.lo), to_string(b.hi))};
   }
+  if (nonzero_by_balls(f, boxes)) return {BoxZeros::never, ""};
   // Sampled: an exact zero or a sign change proves a zero; nothing proves there is none.
   const ZeroTestOptions zopt;
   const auto points = sample_points(vars, boxes, 32, zopt.seed);
@@ -256,6 +306,37 @@ std::optional<TriangularForm> in_states(const Model& m, const ExVec& F, std::siz
   return t;
 }
 
+// The states in z from an elimination sequence. A state solved through a square root,
+// sqrt(a x + b) = w, is (P^2 - b) / a with P a positive symbol while substituting, so that the
+// roots of it fold back to P (GiNaC simplifies sqrt(P^2) to P for positive P); in_z then puts
+// the root's value w for P. This keeps the branch w >= 0 (the image of the states) instead of
+// leaving |w| = sqrt(w^2) in phi.
+struct SolvedStates {
+  GiNaC::exmap states;  // state -> value in z and the P
+  GiNaC::exmap roots;   // P -> w, in z and earlier P
+  ex in_z(ex e) const {
+    for (std::size_t k = 0; k <= roots.size() && !roots.empty(); ++k) e = e.subs(roots);
+    return e;
+  }
+};
+
+SolvedStates substitution_of(const Symbols& x, const std::vector<EliminationStep>& steps) {
+  SolvedStates s;
+  for (const auto& st : steps) {
+    const GiNaC::symbol& xs = x[st.state];
+    if (st.root.is_zero()) {
+      s.states[xs] = st.value.subs(s.states);
+      continue;
+    }
+    const GiNaC::possymbol P("root_" + xs.get_name());
+    const ex arg = GiNaC::expand(st.root_atom.op(0));
+    const ex a = arg.diff(xs);
+    s.states[xs] = ((P * P - GiNaC::expand(arg - a * xs)) / a).subs(s.states);
+    s.roots[P] = st.root.subs(s.states);
+  }
+  return s;
+}
+
 // z = (h, L_f h, ..., L_f^{n-1} h): a_i = 1, phi_i = L_g z_i (i < n), phi_n = L_{f+g} z_n.
 std::optional<TriangularForm> in_lie_coordinates(const Model& m, const ExVec& F,
                                                  const ExVec* drift_lie, std::string& why) {
@@ -271,27 +352,26 @@ std::optional<TriangularForm> in_lie_coordinates(const Model& m, const ExVec& F,
       t.z_of_x.push_back(simplify(lie_derivative(t.z_of_x.back(), m.f, x)));
   }
   t.z = fresh_symbols(m, "z", n);
-  const auto steps = triangular_elimination(t.z_of_x, x, t.z);
+  const auto steps = triangular_elimination(t.z_of_x, x, t.z, true);
   if (!steps) {
     why =
         "no explicit inverse of z = (h, L_f h, ...) by elimination (it may not be a "
         "coordinate system)";
     return std::nullopt;
   }
-  GiNaC::exmap solved;
-  for (const auto& st : *steps) solved[x[st.state]] = st.value.subs(solved);
+  const SolvedStates solved = substitution_of(x, *steps);
   t.x_of_z.assign(n, ex(0));
   for (std::size_t j = 0; j < n; ++j) {
-    auto it = solved.find(x[j]);
-    if (it == solved.end()) {
+    const auto it = solved.states.find(x[j]);
+    if (it == solved.states.end()) {
       why = fmt::format("the elimination does not give {}", x[j].get_name());
       return std::nullopt;
     }
-    t.x_of_z[j] = it->second;
+    t.x_of_z[j] = solved.in_z(it->second);
   }
   for (std::size_t i = 0; i < n; ++i) {
     const ex phix = simplify(lie_derivative(t.z_of_x[i], i + 1 < n ? m.g : F, x));
-    const ex phiz = simplify(phix.subs(solved));
+    const ex phiz = simplify(solved.in_z(phix.subs(solved.states)));
     for (std::size_t j = i + 1; j < n; ++j)
       if (phiz.has(t.z[j])) {
         why = fmt::format("phi_{} = {} depends on z{} (not triangular)", i + 1, to_string(phiz),
@@ -375,28 +455,27 @@ std::optional<TriangularForm> block_triangular_form(const Model& m,
     }
   }
   t.z = fresh_symbols(m, "z", n);
-  const auto steps = triangular_elimination(t.z_of_x, m.states, t.z);
+  const auto steps = triangular_elimination(t.z_of_x, m.states, t.z, true);
   if (!steps) {
     w = "no explicit inverse of the block coordinates z_{i,j} = L_f^{j-1} h_i by elimination";
     return std::nullopt;
   }
-  GiNaC::exmap solved;
-  for (const auto& st : *steps) solved[m.states[st.state]] = st.value.subs(solved);
+  const SolvedStates solved = substitution_of(m.states, *steps);
   t.x_of_z.assign(n, ex(0));
   for (std::size_t j = 0; j < n; ++j) {
-    const auto it = solved.find(m.states[j]);
-    if (it == solved.end()) {
+    const auto it = solved.states.find(m.states[j]);
+    if (it == solved.states.end()) {
       w = fmt::format("the elimination does not give {}", m.states[j].get_name());
       return std::nullopt;
     }
-    t.x_of_z[j] = it->second;
+    t.x_of_z[j] = solved.in_z(it->second);
   }
   ExVec F;
   for (const auto& e : m.field()) F.push_back(simplify(e));
   for (std::size_t r = 0; r < n; ++r) {
     const bool last = level_of(indices, r) == indices[block_of(indices, r)];
     const ex phix = simplify(lie_derivative(t.z_of_x[r], last ? F : m.g, m.states));
-    const ex phiz = simplify(phix.subs(solved));
+    const ex phiz = simplify(solved.in_z(phix.subs(solved.states)));
     for (std::size_t c = 0; c < n; ++c)
       if (level_of(indices, c) > level_of(indices, r) && phiz.has(t.z[c])) {
         w = fmt::format(
