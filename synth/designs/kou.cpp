@@ -605,13 +605,20 @@ Verdict verdict_of(const Analysis&, const Lazy<Result>& work) {
   const Result& r = work.get();
   Verdict v;
   v.reasons = verdict_reasons(r);
-  v.applies = r.not_applicable.empty() && r.holds && r.rigorous;
-  if (v.applies) {
+  v.applies = r.not_applicable.empty() && r.holds;
+  if (v.applies && r.rigorous) {
     v.guarantee = Guarantee::rigorous;
     v.guarantee_text = fmt::format(
         "condition (9) proved over the whole domain box (Arb): |e| decays at rate {:.3g} or "
         "faster",
         r.rate());
+  } else if (v.applies) {  // negative at every sample, the enclosure undecided
+    v.guarantee = Guarantee::partial;
+    v.guarantee_text = fmt::format(
+        "sampled, not a proof: condition (9) holds at every sample (largest sampled eigenvalue "
+        "{:.6g}) but the Arb enclosure did not prove it ({}); where it holds |e| decays at rate "
+        "{:.3g} or faster",
+        r.verdict.max_eigenvalue_bound, r.verdict.method, r.rate());
   }
   return v;
 }
