@@ -325,13 +325,27 @@ TEST(DriftBracket, QuadraticTermInZ1FailsTheFirstPair) {
   const Perturbation quad = [](const std::vector<GiNaC::symbol>& z, const GiNaC::symbol&) {
     return ExVec{z[0] * z[0], 0};
   };
-  const Analysis a = analyse(linearizable_chain(2, Flavor::polynomial, quad).model);
+  const Model m = linearizable_chain(2, Flavor::polynomial, quad).model;
+  AnalysisOptions in_y;
+  in_y.canonical.output_transformation = false;
+  const Analysis a = analyse(m, in_y);
   const CanonicalForm& cf = a.canonical;
   ASSERT_EQ(cf.drift.size(), 1u);
   EXPECT_FALSE(cf.drift[0].holds());
   ASSERT_EQ(cf.input.size(), 1u);
   EXPECT_TRUE(cf.input[0].holds());
   EXPECT_FALSE(cf.linearizable);
+  // [tau_1, tau_2] = 2 tau_1: with phi = 1/psi', [tau~_1, tau~_2] = phi^2 [tau_1, tau_2] - 2 phi
+  // phi' tau_1 (n = 2: L_r h = 0, L_r L_f h = L_{tau_2} h = 1) vanishes for phi'/phi = 1, so
+  // psi' is proportional to exp(-y): an output transformation linearizes it.
+  const Analysis t = analyse(m);
+  ASSERT_TRUE(t.output_transformation.has_value()) << t.output_transformation_note;
+  const auto& ot = *t.output_transformation;
+  EXPECT_EQ(ot.failing, "[tau_1, tau_2]");
+  const ex k = ot.psi.diff(ot.y) * GiNaC::exp(ot.y);
+  EXPECT_TRUE(same(k.subs(ot.y == GiNaC::numeric(1, 2)), k.subs(ot.y == -1)));
+  EXPECT_FALSE(same(k.subs(ot.y == -1), 0));
+  EXPECT_TRUE(t.canonical.linearizable);
 }
 
 TEST(DriftBracket, QuadraticTermInZ1ForThreeStates) {
@@ -654,6 +668,73 @@ TEST(MultiOutputModels, FailingConditionsAreTheHandDerivations) {
 // h3 = ((z2 + beta1 sqrt(z1)) / beta3)^2 on the branch sqrt(h3) >= 0 (likewise h4), with
 // beta1 = beta3 = 71 sqrt(1962) / 28000 and beta2 = beta4 = 57 sqrt(1962) / 32000. Checked by
 // hand and by substitution: x_of_z(z_of_x(x)) = x, and d/dt z_of_x = A z + phi at z_of_x(x).
+// ---- output transformations y~ = psi(y) (Krener-Respondek, one output) --------------------
+
+std::string transformation_model(const std::string& name) {
+  return std::string(OBSYNTH_SOURCE_DIR) + "/tests/models/output_transformation/" + name + ".sym";
+}
+
+// The canonical form found for psi(y), checked by substitution only: with y~ = psi(h(x)),
+// d/dt T_1 = l_1(u, y~) and d/dt T_i = T_{i-1} + l_i(u, y~) along f + g (the block form with
+// the output last, y~ = T_n + y~(x0)), every identity by 50-digit evaluation (support/expect).
+void expect_observer_form_through_psi(const Model& m, const Analysis& a) {
+  ASSERT_TRUE(a.output_transformation.has_value()) << a.output_transformation_note;
+  const auto& t = *a.output_transformation;
+  const CanonicalForm& cf = a.canonical;
+  ASSERT_TRUE(cf.linearizable);
+  ASSERT_EQ(cf.T_kind, Availability::symbolic);
+  ASSERT_EQ(cf.l_kind, Availability::symbolic);
+  const ex ytilde = t.psi.subs(t.y == m.h[0]);
+  const ExVec F = m.field();
+  const OracleBox box = oracle_box(m);
+  const std::size_t n = m.n();
+  for (std::size_t i = 0; i < n; ++i) {
+    const ex l = cf.l[i].subs(t.y == ytilde);
+    const ex expected = i == 0 ? l : cf.T[i - 1] + l;
+    EXPECT_TRUE(same(derivative_along(cf.T[i], F, m.states), expected, box)) << "T_" << i + 1;
+  }
+  // The output is T_n up to its value at the base point: d(y~ - T_n)/dx = 0.
+  for (const auto& xi : m.states) EXPECT_TRUE(same((ytilde - cf.T[n - 1]).diff(xi), 0, box));
+}
+
+// y = exp(x1): psi' proportional to 1/y (its header), the bracket [tau_1, tau_2] failing for y.
+TEST(OutputTransformation, ExponentialSensorIsLinearizedByTheLogarithm) {
+  const Model m = load_model(transformation_model("exp_sensor"));
+  const Analysis a = analyse(m);
+  ASSERT_TRUE(a.output_transformation.has_value()) << a.output_transformation_note;
+  const auto& t = *a.output_transformation;
+  EXPECT_EQ(t.failing, "[tau_1, tau_2]");
+  // psi'(y) y is a nonzero constant: compare it at y = 1/2 and y = 2 (exact rationals).
+  const ex k = t.psi.diff(t.y) * t.y;
+  EXPECT_TRUE(same(k.subs(t.y == GiNaC::numeric(1, 2)), k.subs(t.y == 2)));
+  EXPECT_FALSE(same(k.subs(t.y == 2), 0));
+  expect_observer_form_through_psi(m, a);
+}
+
+// y = tanh(x1), n = 3: psi' proportional to 1/(1 - y^2); the failing bracket is [tau_2, tau_3].
+TEST(OutputTransformation, SaturatingSensorIsLinearizedByTheInverseTanh) {
+  const Model m = load_model(transformation_model("tanh_sensor"));
+  const Analysis a = analyse(m);
+  ASSERT_TRUE(a.output_transformation.has_value()) << a.output_transformation_note;
+  const auto& t = *a.output_transformation;
+  EXPECT_EQ(t.failing, "[tau_2, tau_3]");
+  const ex k = t.psi.diff(t.y) * (1 - t.y * t.y);
+  EXPECT_TRUE(same(k.subs(t.y == GiNaC::numeric(1, 3)), k.subs(t.y == GiNaC::numeric(-1, 2))));
+  EXPECT_FALSE(same(k.subs(t.y == GiNaC::numeric(1, 3)), 0));
+  expect_observer_form_through_psi(m, a);
+}
+
+// f3 = -x1 - x3^2/4: [tau_1, tau_2] = (0, 0, -1/2) for every output map (n >= 3); no psi.
+TEST(OutputTransformation, AFirstBracketFreeOfPsiRefutesEveryTransformation) {
+  const Analysis a = analyse(load_model(transformation_model("no_psi")));
+  EXPECT_FALSE(a.output_transformation.has_value());
+  EXPECT_FALSE(a.canonical.linearizable);
+  EXPECT_NE(a.output_transformation_note.find(
+                "component 3 of [tau~_1, tau~_2] does not involve psi and is not zero (-1/2)"),
+            std::string::npos)
+      << a.output_transformation_note;
+}
+
 TEST(QuadrupleTank, BlockCoordinatesInvertThroughTheSquareRoots) {
   using GiNaC::numeric;
   const Model m = load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/quadruple_tank.sym");

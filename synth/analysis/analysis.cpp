@@ -1,6 +1,12 @@
 #include "analysis/analysis.hpp"
 
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
 #include <algorithm>
+
+#include "analysis/output_transformation.hpp"
+#include "symbolic/expr_print.hpp"
 
 namespace obsynth {
 
@@ -143,6 +149,56 @@ class StageLog {
   } before_;
 };
 
+// The bracket conditions failed for one output: look for psi(y) that makes them hold, and
+// verify it by analysing the model observed through psi from scratch (rank, frame, conditions,
+// T). A budget stop ends the search only (the original form stays).
+void try_output_transformation(const Model& m, Budget& budget, const AnalysisOptions& opt,
+                               Analysis& a) {
+  const CanonicalForm& cf = a.canonical;
+  if (!opt.canonical.output_transformation || m.p() != 1 || !cf.applicable || cf.linearizable ||
+      cf.y.empty())
+    return;
+  const OutputTransformationCandidate cand = output_transformation_candidate(m, cf);
+  if (!cand.psi) {
+    a.output_transformation_note = "no output transformation y -> psi(y): " + cand.how;
+    return;
+  }
+  const std::string psi_text = to_string(*cand.psi);
+  Model observed = transformed_output(m, *cand.psi, cf.y[0]);
+  if (const auto errors = certify::check_definedness(observed).errors(); !errors.empty()) {
+    a.output_transformation_note =
+        fmt::format("psi(y) = {} ({}) is not defined on the output's range: {}", psi_text, cand.how,
+                    errors.front().message);
+    return;
+  }
+  try {
+    Observability ob;
+    analyse_observability(observed, budget, opt.observability, &ob);
+    CanonicalForm t;
+    analyse_canonical(observed, ob, budget, opt.canonical, &t);
+    if (!t.linearizable) {
+      a.output_transformation_note = fmt::format(
+          "the candidate psi(y) = {} ({}) does not satisfy every condition", psi_text, cand.how);
+      return;
+    }
+    std::vector<std::string> failing;
+    for (const auto& b : cf.drift)
+      if (!b.holds()) failing.push_back(fmt::format("[tau_{}, tau_{}]", b.i, b.j));
+    for (const auto& b : cf.input)
+      if (!b.holds()) failing.push_back(fmt::format("[g, tau_{}]", b.j));
+    // The form's own measurement symbol (measurement_symbols makes fresh ones per analysis).
+    const GiNaC::symbol y = t.y.at(0);
+    a.output_transformation = Analysis::OutputTransformation{
+        cand.psi->subs(cf.y[0] == y), y, std::move(observed),
+        fmt::format("{}; the conditions hold for psi(h) (analysed from scratch)", cand.how),
+        fmt::format("{}", fmt::join(failing, ", "))};
+    a.canonical = std::move(t);
+  } catch (const BudgetExceeded& e) {
+    a.output_transformation_note =
+        fmt::format("the candidate psi(y) = {} was not verified: {}", psi_text, e.what());
+  }
+}
+
 void run_stages(const Model& m, const AnalysisOptions& opt, Budget& budget, Analysis& a) {
   // With direct feedthrough the drift analysis reads y = h(x, u0) at the nominal input; the
   // canonical form (y = h(x)) does not apply.
@@ -166,8 +222,10 @@ void run_stages(const Model& m, const AnalysisOptions& opt, Budget& budget, Anal
   else if (a.observability.jets)  // no symbolic Lie derivatives: nothing for r, the frame, T
     a.canonical.not_applicable = "skipped: " + a.observability.symbolic_skipped +
                                  "; r, the frame, the brackets, T and l need them";
-  else
+  else {
     analyse_canonical(m, a.observability, budget, opt.canonical, &a.canonical);
+    try_output_transformation(m, budget, opt, a);
+  }
 }
 
 // y = h(x, u) with h(x, u) - h(x, u0) free of x: h0 = h(x, u0), k(u) = h(x, u) - h0 (a battery's

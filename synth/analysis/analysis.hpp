@@ -63,6 +63,23 @@ struct Analysis {
   // computed right after the drift observability, under its own budget.
   ObservabilityUnderInputs under_inputs;
   CanonicalForm canonical;
+  // One output whose bracket conditions fail for y = h(x) but hold for y~ = psi(y)
+  // (analysis/output_transformation.hpp): `canonical` is then the form of `model` with h replaced
+  // by psi(h) (`observed`), and the designs that take it observe psi(y). Searched only when the
+  // conditions fail; `output_transformation_note` says what the search found or why none.
+  struct OutputTransformation {
+    GiNaC::ex psi;        // psi(y), in y
+    GiNaC::symbol y;      // the measurement symbol
+    Model observed;       // the model with h = psi(h)
+    std::string how;      // how psi was found and verified
+    std::string failing;  // the conditions that fail for y itself
+  };
+  std::optional<OutputTransformation> output_transformation;
+  std::string output_transformation_note;
+  // The model the canonical form belongs to: `observed` after an output transformation.
+  const Model& canonical_model() const {
+    return output_transformation ? output_transformation->observed : model;
+  }
   std::map<std::string, double> timings_ms;
   std::vector<StageOutcome> stages;  // every stage of the pipeline, in order
 

@@ -115,6 +115,9 @@ struct CanonicalForm {
 
 struct CanonicalOptions {
   ZeroTestOptions zero;
+  // One output whose conditions fail: search y~ = psi(y) that makes them hold
+  // (analysis/output_transformation.hpp). Off: the form of y itself, failing.
+  bool output_transformation = true;
 };
 
 // progress, when given, receives the results as they are found (so a caller that catches a

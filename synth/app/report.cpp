@@ -498,6 +498,15 @@ void add_canonical_json(const Analysis& a, ordered_json& j) {
   j["r"] = app ? expr_list(cf.r) : ordered_json(nullptr);
   j["blocks"] = cf.blocks;
   j["frame_note"] = cf.frame_note;
+  if (const auto& t = a.output_transformation)
+    j["output_transformation"] = {{"psi", to_string(t->psi)},
+                                  {"y", t->y.get_name()},
+                                  {"observed_h", expr_list(t->observed.h)},
+                                  {"failing_for_y", t->failing},
+                                  {"how", t->how}};
+  else
+    j["output_transformation"] = nullptr;
+  j["output_transformation_note"] = a.output_transformation_note;
   if (app) {
     ordered_json fr = ordered_json::array();
     for (const auto& t : cf.frame) fr.push_back(expr_list(t));
@@ -665,12 +674,25 @@ void text_diffeomorphism(const Analysis& a, SectionMarks& marks, const LineWrite
   }
 }
 
+// The output transformation found (the form that follows is for psi(y)), or why none was.
+std::string output_transformation_text(const Analysis& a) {
+  if (const auto& t = a.output_transformation)
+    return fmt::format(
+        "output transformation y~ = psi(y) = {} (Krener-Respondek): the conditions fail for y "
+        "itself ({}); {}. Everything below is for the model observed through psi, h~ = psi(h) = "
+        "{}, and y in l(u, y) stands for psi(y)",
+        to_string(t->psi), t->failing, t->how, to_string(t->observed.h[0]));
+  if (!a.output_transformation_note.empty()) return a.output_transformation_note;
+  return "";
+}
+
 // The linearization section: r, the frame, conditions C1-C4 and, if linearizable, T.
 void text_canonical(const Analysis& a, SectionMarks& marks, const LineWriter& line) {
   const CanonicalForm& cf = a.canonical;
   marks.mark("frame");
   line("");
   line("Linearization by output injection (observer canonical form)");
+  if (const std::string t = output_transformation_text(a); !t.empty()) line("  " + t);
   if (!cf.applicable) {
     line("  " + cf.not_applicable);
   } else {
@@ -810,6 +832,10 @@ void markdown_canonical(const Analysis& a, SectionMarks& marks, const LineWriter
   marks.mark("frame");
   line("## Linearization by output injection");
   line("");
+  if (const std::string t = output_transformation_text(a); !t.empty()) {
+    line(t + ".");
+    line("");
+  }
   if (!cf.applicable) {
     line(cf.not_applicable);
   } else {

@@ -39,7 +39,7 @@ std::vector<numeric> gains_from_poles(const std::vector<numeric>& poles) {
 }
 
 ExVec outputs_at_base_point(const Analysis& a) {
-  const Model& m = a.model;
+  const Model& m = a.canonical_model();
   GiNaC::exmap at_x0;
   for (std::size_t i = 0; i < m.n() && i < a.canonical.base_point.size(); ++i)
     at_x0[m.states[i]] = a.canonical.base_point[i];
@@ -85,7 +85,7 @@ std::vector<std::string> canonical_form_failures(const Analysis& a) {
 }
 
 GeneratedFunction inverse_function(const Analysis& a) {
-  const Model& m = a.model;
+  const Model& m = a.canonical_model();
   const CanonicalForm& cf = a.canonical;
   GeneratedFunction f;
   f.name = "T_inverse";
@@ -117,7 +117,7 @@ struct Choices {
 
 // The range of each z_i = T_i(x) over samples of the domain box (0 where T is not available).
 std::vector<double> z_ranges(const Analysis& a) {
-  const Model& m = a.model;
+  const Model& m = a.canonical_model();
   const ExVec& T = a.canonical.T;
   std::vector<double> lo(T.size(), HUGE_VAL), hi(T.size(), -HUGE_VAL), range(m.n(), 0.0);
   if (a.canonical.T_kind != Availability::symbolic || T.size() != m.n()) return range;
@@ -321,7 +321,7 @@ GeneratedFunction fn(const std::string& name, const std::string& doc, std::vecto
 
 // T, T^-1, l and the frame, as the realisation needs them.
 void add_canonical_maps(const Analysis& a, const Choices& c, ObserverSpec& s) {
-  const Model& m = a.model;
+  const Model& m = a.canonical_model();
   const CanonicalForm& cf = a.canonical;
   const bool zreal = c.realisation == Realisation::z;
   const bool Tinv_closed = cf.T_inverse_kind == Availability::symbolic;
@@ -438,7 +438,7 @@ std::optional<InputSplit> split_step_constant(const ExVec& c,
 }
 
 void build_z_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
-  const Model& m = a.model;
+  const Model& m = a.canonical_model();
   const CanonicalForm& cf = a.canonical;
   const std::size_t n = m.n();
   const ExVec y0 = outputs_at_base_point(a);
@@ -492,7 +492,7 @@ void build_z_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
 }
 
 void build_x_realisation(const Analysis& a, const Choices& c, ObserverSpec& s) {
-  const Model& m = a.model;
+  const Model& m = a.canonical_model();
   const CanonicalForm& cf = a.canonical;
   const std::size_t n = m.n();
   const ExVec F = m.field();
@@ -611,6 +611,25 @@ Verdict applies(const Analysis& a) {
   return v;
 }
 
+// After an output transformation the form, and so every function above, reads y~ = psi(y):
+// the measured y enters through psi in each function that takes the outputs.
+void observe_through_psi(const Analysis& a, ObserverSpec& s) {
+  const Analysis::OutputTransformation& t = *a.output_transformation;
+  const GiNaC::exmap through{{t.y, t.psi}};
+  for (auto& f : s.functions) {
+    const bool reads_y = std::any_of(f.args.begin(), f.args.end(), [](const FunctionArg& g) {
+      return g.kind == FunctionArg::Kind::output;
+    });
+    if (!reads_y) continue;
+    for (auto& e : f.outputs) e = e.subs(through);
+    for (auto& l : f.lets) l.value = l.value.subs(through);
+  }
+  s.description.push_back(
+      fmt::format("Output transformation: the form is for y~ = psi(y) = {}; the step applies psi "
+                  "to the measured y ({})",
+                  to_string(t.psi), t.how));
+}
+
 ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   const Verdict v = applies(a);
   if (!v.applies)
@@ -629,6 +648,7 @@ ObserverSpec build(const Analysis& a, const DesignOptions& o) {
   else
     build_x_realisation(a, c, s);
   describe(a, c, s);
+  if (a.output_transformation) observe_through_psi(a, s);
   return s;
 }
 

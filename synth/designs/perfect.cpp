@@ -83,6 +83,13 @@ void used_orders(const ExVec& used, const Jets& j, ObserverSpec& s) {
 Verdict applies(const Analysis& a) {
   Verdict v;
   const CanonicalForm& cf = a.canonical;
+  if (a.output_transformation) {
+    v.reasons.push_back(fmt::format(
+        "the observer canonical form holds for psi(y) = {} only; the perfect observer would need "
+        "the jets of psi(y(t)) (not built)",
+        to_string(a.output_transformation->psi)));
+    return v;
+  }
   if (!cf.applicable || !cf.linearizable) {
     v.reasons.push_back(
         "needs the observer canonical form (seed 003 Lemma 1): " +
