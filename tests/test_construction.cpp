@@ -697,6 +697,14 @@ void expect_observer_form_through_psi(const Model& m, const Analysis& a) {
   for (const auto& xi : m.states) EXPECT_TRUE(same((ytilde - cf.T[n - 1]).diff(xi), 0, box));
 }
 
+// psi'(y) w(y) is a nonzero constant (psi is unique up to an affine map): equal at a and b.
+void expect_psi_prime_proportional(const Analysis::OutputTransformation& t, const ex& w,
+                                   const GiNaC::numeric& a, const GiNaC::numeric& b) {
+  const ex k = t.psi.diff(t.y) * w;
+  EXPECT_TRUE(same(k.subs(t.y == a), k.subs(t.y == b)));
+  EXPECT_FALSE(same(k.subs(t.y == a), 0));
+}
+
 // y = exp(x1): psi' proportional to 1/y (its header), the bracket [tau_1, tau_2] failing for y.
 TEST(OutputTransformation, ExponentialSensorIsLinearizedByTheLogarithm) {
   const Model m = load_model(transformation_model("exp_sensor"));
@@ -704,10 +712,7 @@ TEST(OutputTransformation, ExponentialSensorIsLinearizedByTheLogarithm) {
   ASSERT_TRUE(a.output_transformation.has_value()) << a.output_transformation_note;
   const auto& t = *a.output_transformation;
   EXPECT_EQ(t.failing, "[tau_1, tau_2]");
-  // psi'(y) y is a nonzero constant: compare it at y = 1/2 and y = 2 (exact rationals).
-  const ex k = t.psi.diff(t.y) * t.y;
-  EXPECT_TRUE(same(k.subs(t.y == GiNaC::numeric(1, 2)), k.subs(t.y == 2)));
-  EXPECT_FALSE(same(k.subs(t.y == 2), 0));
+  expect_psi_prime_proportional(t, t.y, GiNaC::numeric(1, 2), 2);
   expect_observer_form_through_psi(m, a);
 }
 
@@ -718,9 +723,7 @@ TEST(OutputTransformation, SaturatingSensorIsLinearizedByTheInverseTanh) {
   ASSERT_TRUE(a.output_transformation.has_value()) << a.output_transformation_note;
   const auto& t = *a.output_transformation;
   EXPECT_EQ(t.failing, "[tau_2, tau_3]");
-  const ex k = t.psi.diff(t.y) * (1 - t.y * t.y);
-  EXPECT_TRUE(same(k.subs(t.y == GiNaC::numeric(1, 3)), k.subs(t.y == GiNaC::numeric(-1, 2))));
-  EXPECT_FALSE(same(k.subs(t.y == GiNaC::numeric(1, 3)), 0));
+  expect_psi_prime_proportional(t, 1 - t.y * t.y, GiNaC::numeric(1, 3), GiNaC::numeric(-1, 2));
   expect_observer_form_through_psi(m, a);
 }
 

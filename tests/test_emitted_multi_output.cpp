@@ -23,6 +23,7 @@
 #include "emit/emit_c.hpp"
 #include "emit/emit_cxx.hpp"
 #include "front/parse.hpp"
+#include "support/shell.hpp"
 
 using namespace obsynth;
 namespace fs = std::filesystem;
@@ -30,14 +31,7 @@ namespace fs = std::filesystem;
 namespace {
 
 std::string run(const std::string& cmd) {
-  std::string out;
-  FILE* p = popen((cmd + " 2>&1").c_str(), "r");
-  if (!p) return "FAILED: popen";
-  char buf[4096];
-  while (std::fgets(buf, sizeof buf, p)) out += buf;
-  const int rc = pclose(p);
-  if (rc != 0) out = "FAILED(" + std::to_string(rc) + "): " + cmd + "\n" + out;
-  return out;
+  return obsynth::testing::run_command(cmd);
 }
 
 // Drivers for any n, m, p: read the simulator's CSV (t, x_1..x_n, xh_1..xh_n), take y = h(x)

@@ -41,6 +41,7 @@
 #include "emit/emit_cxx.hpp"
 #include "foundation/diagnostics.hpp"
 #include "front/parse.hpp"
+#include "support/shell.hpp"
 
 using namespace obsynth;
 namespace fs = std::filesystem;
@@ -217,14 +218,7 @@ TEST(FiniteTime, Seed004Example14) {
 // ---- generated code against the simulator --------------------------------------------------
 
 std::string run(const std::string& cmd) {
-  std::string out;
-  FILE* p = popen((cmd + " 2>&1").c_str(), "r");
-  if (!p) return "popen failed";
-  char buf[4096];
-  while (std::fgets(buf, sizeof buf, p)) out += buf;
-  const int rc = pclose(p);
-  if (rc != 0) out = "FAILED(" + std::to_string(rc) + "): " + cmd + "\n" + out;
-  return out;
+  return obsynth::testing::run_command(cmd);
 }
 
 // Drivers of a two-state finite-time observer, fed the simulator's CSV (t, x1, x2, ...): the
