@@ -801,16 +801,23 @@ void render_outputs(const Model& m, const SimulationOptions& opt, const std::str
       state_boxes(m),
       stop_label(res.diverged)};
   res.svg = render_svg(plot);
-  double e0 = 0, e1 = 0;
-  for (std::size_t k = 0; k < n; ++k) {
-    e0 = std::max(e0, std::fabs(res.x.front()[k] - res.xh.front()[k]));
-    e1 = std::max(e1, std::fabs(res.x.back()[k] - res.xh.back()[k]));
-  }
+  // max over the states of |x - x_hat| at each sample: at the start, the end, and its peak
+  // (a transient can exceed both).
+  const auto error_at = [&](std::size_t s) {
+    double e = 0;
+    for (std::size_t k = 0; k < n; ++k) e = std::max(e, std::fabs(res.x[s][k] - res.xh[s][k]));
+    return e;
+  };
+  std::size_t peak = 0;
+  for (std::size_t s = 1; s < res.t.size(); ++s)
+    if (error_at(s) > error_at(peak)) peak = s;
   res.summary = method_line(res) + "\n";
   if (!plant_note.empty()) res.summary += plant_note + "\n";
-  res.summary +=
-      fmt::format("{} steps of {:g}: max |x - x_hat| {:.3e} at t = 0, {:.3e} at t = {:g}",
-                  res.t.size() - 1, opt.dt, e0, e1, res.t.back());
+  res.summary += fmt::format(
+      "{} steps of {:g}: max |x - x_hat| {:.3e} at t = 0, {:.3e} at t = {:g} (peak {:.3e} at t "
+      "= {:g})",
+      res.t.size() - 1, opt.dt, error_at(0), error_at(res.t.size() - 1), res.t.back(),
+      error_at(peak), res.t[peak]);
 }
 
 }  // namespace
