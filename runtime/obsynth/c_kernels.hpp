@@ -44,4 +44,16 @@ inline int jet_update(float* eta, float* phi, float* cached_dt, float* y_prev, i
                       float dt, float y, float* work) noexcept {
   return c_float::obsynth_jet_update(eta, phi, cached_dt, y_prev, K, epsilon, dt, y, work);
 }
+inline int solve_cholesky(double* M, int d, const double* v, double* x) noexcept {
+  return c_double::obsynth_solve_cholesky(M, d, v, x);
+}
+inline int solve_cholesky(float* M, int d, const float* v, float* x) noexcept {
+  return c_float::obsynth_solve_cholesky(M, d, v, x);
+}
+inline int solve_lu(double* M, int d, const double* v, double* x) noexcept {
+  return c_double::obsynth_solve_lu(M, d, v, x);
+}
+inline int solve_lu(float* M, int d, const float* v, float* x) noexcept {
+  return c_float::obsynth_solve_lu(M, d, v, x);
+}
 }  // namespace obsynth::c

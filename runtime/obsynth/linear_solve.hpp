@@ -3,8 +3,10 @@
 //
 // Factorised solves and packed symmetric blocks for observers whose state holds a matrix
 // (Riccati Q, Kalman-like S) or whose gain needs M^-1 v (high-gain O(x)^-1). Fixed size,
-// no heap, noexcept, failure as `false` (the caller turns it into a Status). Eigen's LLT and
-// PartialPivLU do the factorisations; never an explicit inverse.
+// no heap, noexcept, failure as `false` (the caller turns it into a Status). The factorisations
+// are the C99 kernels of obsynth/c/kernels.h (Cholesky; LU with partial pivoting and its
+// conditioning limit), the same text the C back end and the simulator run; never an explicit
+// inverse.
 #pragma once
 
 #include <cmath>
@@ -50,10 +52,10 @@ template <class Scalar, int D>
 inline bool solve_cholesky(const Eigen::Matrix<Scalar, D, D>& M,
                            const Eigen::Matrix<Scalar, D, 1>& v,
                            Eigen::Matrix<Scalar, D, 1>& x) noexcept {
-  const Eigen::LLT<Eigen::Matrix<Scalar, D, D>> llt(M);
-  if (llt.info() != Eigen::Success) return false;
-  x = llt.solve(v);
-  return all_finite(x);
+  Scalar a[D * D];  // row-major copy: the kernel factorises in place
+  for (int r = 0; r < D; ++r)
+    for (int c = 0; c < D; ++c) a[r * D + c] = M(r, c);
+  return c::solve_cholesky(a, D, v.data(), x.data()) != 0;
 }
 
 /// The ill-conditioning limit of solve_lu: sqrt(epsilon) of the scalar type (2^-26 = 1.49e-8 for
@@ -76,13 +78,10 @@ inline Scalar lu_conditioning_limit() noexcept {
 template <class Scalar, int D>
 inline bool solve_lu(const Eigen::Matrix<Scalar, D, D>& M, const Eigen::Matrix<Scalar, D, 1>& v,
                      Eigen::Matrix<Scalar, D, 1>& x) noexcept {
-  const Eigen::PartialPivLU<Eigen::Matrix<Scalar, D, D>> lu(M);
-  const auto U = lu.matrixLU().diagonal().cwiseAbs();
-  const Scalar largest = U.maxCoeff();
-  if (!(largest > Scalar(0)) || !std::isfinite(largest)) return false;
-  if (!(U.minCoeff() > lu_conditioning_limit<Scalar>() * largest)) return false;
-  x = lu.solve(v);
-  return all_finite(x);
+  Scalar a[D * D];  // row-major copy: the kernel factorises in place
+  for (int r = 0; r < D; ++r)
+    for (int c = 0; c < D; ++c) a[r * D + c] = M(r, c);
+  return c::solve_lu(a, D, v.data(), x.data()) != 0;
 }
 
 }  // namespace obsynth
