@@ -342,9 +342,9 @@ TEST(DriftBracket, QuadraticTermInZ1FailsTheFirstPair) {
   ASSERT_TRUE(t.output_transformation.has_value()) << t.output_transformation_note;
   const auto& ot = *t.output_transformation;
   EXPECT_EQ(ot.failing, "[tau_1, tau_2]");
-  const ex k = ot.psi.diff(ot.y) * GiNaC::exp(ot.y);
-  EXPECT_TRUE(same(k.subs(ot.y == GiNaC::numeric(1, 2)), k.subs(ot.y == -1)));
-  EXPECT_FALSE(same(k.subs(ot.y == -1), 0));
+  const ex k = ot.psi[0].diff(ot.y[0]) * GiNaC::exp(ot.y[0]);
+  EXPECT_TRUE(same(k.subs(ot.y[0] == GiNaC::numeric(1, 2)), k.subs(ot.y[0] == -1)));
+  EXPECT_FALSE(same(k.subs(ot.y[0] == -1), 0));
   EXPECT_TRUE(t.canonical.linearizable);
 }
 
@@ -674,9 +674,10 @@ std::string transformation_model(const std::string& name) {
   return std::string(OBSYNTH_SOURCE_DIR) + "/tests/models/output_transformation/" + name + ".sym";
 }
 
-// The canonical form found for psi(y), checked by substitution only: with y~ = psi(h(x)),
-// d/dt T_1 = l_1(u, y~) and d/dt T_i = T_{i-1} + l_i(u, y~) along f + g (the block form with
-// the output last, y~ = T_n + y~(x0)), every identity by 50-digit evaluation (support/expect).
+// The canonical form found for psi(y), checked by substitution only: with y~_i = psi_i(h_i(x)),
+// in each block d/dt T_{b,1} = l_{b,1}(u, y~) and d/dt T_{b,k} = T_{b,k-1} + l_{b,k}(u, y~)
+// along f + g, and y~_b - T_{b,k_b} is constant (the output last); every identity by 50-digit
+// evaluation (support/expect).
 void expect_observer_form_through_psi(const Model& m, const Analysis& a) {
   ASSERT_TRUE(a.output_transformation.has_value()) << a.output_transformation_note;
   const auto& t = *a.output_transformation;
@@ -684,25 +685,32 @@ void expect_observer_form_through_psi(const Model& m, const Analysis& a) {
   ASSERT_TRUE(cf.linearizable);
   ASSERT_EQ(cf.T_kind, Availability::symbolic);
   ASSERT_EQ(cf.l_kind, Availability::symbolic);
-  const ex ytilde = t.psi.subs(t.y == m.h[0]);
+  GiNaC::exmap through;
+  ExVec ytilde;
+  for (std::size_t i = 0; i < m.p(); ++i) {
+    ytilde.push_back(t.psi[i].subs(t.y[i] == m.h[i]));
+    through[t.y[i]] = ytilde.back();
+  }
   const ExVec F = m.field();
   const OracleBox box = oracle_box(m);
-  const std::size_t n = m.n();
-  for (std::size_t i = 0; i < n; ++i) {
-    const ex l = cf.l[i].subs(t.y == ytilde);
-    const ex expected = i == 0 ? l : cf.T[i - 1] + l;
-    EXPECT_TRUE(same(derivative_along(cf.T[i], F, m.states), expected, box)) << "T_" << i + 1;
+  for (std::size_t b = 0; b < cf.blocks.size(); ++b) {
+    const std::size_t s = cf.block_start(b), e = cf.block_end(b);
+    for (std::size_t i = s; i <= e; ++i) {
+      const ex l = cf.l[i].subs(through);
+      const ex expected = i == s ? l : cf.T[i - 1] + l;
+      EXPECT_TRUE(same(derivative_along(cf.T[i], F, m.states), expected, box)) << "T_" << i + 1;
+    }
+    for (const auto& xi : m.states)
+      EXPECT_TRUE(same((ytilde[b] - cf.T[e]).diff(xi), 0, box)) << "output " << b + 1;
   }
-  // The output is T_n up to its value at the base point: d(y~ - T_n)/dx = 0.
-  for (const auto& xi : m.states) EXPECT_TRUE(same((ytilde - cf.T[n - 1]).diff(xi), 0, box));
 }
 
 // psi'(y) w(y) is a nonzero constant (psi is unique up to an affine map): equal at a and b.
 void expect_psi_prime_proportional(const Analysis::OutputTransformation& t, const ex& w,
                                    const GiNaC::numeric& a, const GiNaC::numeric& b) {
-  const ex k = t.psi.diff(t.y) * w;
-  EXPECT_TRUE(same(k.subs(t.y == a), k.subs(t.y == b)));
-  EXPECT_FALSE(same(k.subs(t.y == a), 0));
+  const ex k = t.psi[0].diff(t.y[0]) * w;
+  EXPECT_TRUE(same(k.subs(t.y[0] == a), k.subs(t.y[0] == b)));
+  EXPECT_FALSE(same(k.subs(t.y[0] == a), 0));
 }
 
 // y = exp(x1): psi' proportional to 1/y (its header), the bracket [tau_1, tau_2] failing for y.
@@ -712,7 +720,7 @@ TEST(OutputTransformation, ExponentialSensorIsLinearizedByTheLogarithm) {
   ASSERT_TRUE(a.output_transformation.has_value()) << a.output_transformation_note;
   const auto& t = *a.output_transformation;
   EXPECT_EQ(t.failing, "[tau_1, tau_2]");
-  expect_psi_prime_proportional(t, t.y, GiNaC::numeric(1, 2), 2);
+  expect_psi_prime_proportional(t, t.y[0], GiNaC::numeric(1, 2), 2);
   expect_observer_form_through_psi(m, a);
 }
 
@@ -723,7 +731,23 @@ TEST(OutputTransformation, SaturatingSensorIsLinearizedByTheInverseTanh) {
   ASSERT_TRUE(a.output_transformation.has_value()) << a.output_transformation_note;
   const auto& t = *a.output_transformation;
   EXPECT_EQ(t.failing, "[tau_2, tau_3]");
-  expect_psi_prime_proportional(t, 1 - t.y * t.y, GiNaC::numeric(1, 3), GiNaC::numeric(-1, 2));
+  expect_psi_prime_proportional(t, 1 - t.y[0] * t.y[0], GiNaC::numeric(1, 3),
+                                GiNaC::numeric(-1, 2));
+  expect_observer_form_through_psi(m, a);
+}
+
+// Two outputs, y = (exp(x1), tanh(x3)) (its header): each sensor inverted, psi = (log y1,
+// atanh y2) exactly; the first bracket of each block fails in y itself.
+TEST(OutputTransformation, TwoSensorsAreInvertedOneByOne) {
+  const Model m = load_model(transformation_model("two_sensors"));
+  const Analysis a = analyse(m);
+  ASSERT_TRUE(a.output_transformation.has_value()) << a.output_transformation_note;
+  const auto& t = *a.output_transformation;
+  EXPECT_EQ(t.failing, "[tau_{1,1}, tau_{1,2}], [tau_{2,1}, tau_{2,2}]");
+  EXPECT_TRUE(same(t.psi[0], GiNaC::log(t.y[0]), {{t.y[0].get_name(), {GiNaC::numeric(1, 2), 2}}}));
+  EXPECT_TRUE(same(t.psi[1], GiNaC::atanh(t.y[1]),
+                   {{t.y[1].get_name(), {GiNaC::numeric(-1, 2), GiNaC::numeric(1, 2)}}}));
+  EXPECT_EQ(a.canonical.blocks, (std::vector<std::size_t>{2, 2}));
   expect_observer_form_through_psi(m, a);
 }
 

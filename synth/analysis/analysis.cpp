@@ -149,22 +149,22 @@ class StageLog {
   } before_;
 };
 
-// The bracket conditions failed for one output: look for psi(y) that makes them hold, and
-// verify it by analysing the model observed through psi from scratch (rank, frame, conditions,
-// T). A budget stop ends the search only (the original form stays).
+// The bracket conditions failed: look for psi(y) that makes them hold, and verify it by
+// analysing the model observed through psi from scratch (rank, frame, conditions, T). A budget
+// stop ends the search only (the original form stays).
 void try_output_transformation(const Model& m, Budget& budget, const AnalysisOptions& opt,
                                Analysis& a) {
   const CanonicalForm& cf = a.canonical;
-  if (!opt.canonical.output_transformation || m.p() != 1 || !cf.applicable || cf.linearizable ||
-      cf.y.empty())
+  if (!opt.canonical.output_transformation || !cf.applicable || cf.linearizable ||
+      cf.y.size() != m.p())
     return;
   const OutputTransformationCandidate cand = output_transformation_candidate(m, cf);
   if (!cand.psi) {
     a.output_transformation_note = "no output transformation y -> psi(y): " + cand.how;
     return;
   }
-  const std::string psi_text = to_string(*cand.psi);
-  Model observed = transformed_output(m, *cand.psi, cf.y[0]);
+  const std::string psi_text = fmt::format("[{}]", fmt::join(to_strings(*cand.psi), ", "));
+  Model observed = transformed_output(m, *cand.psi, cf.y);
   if (const auto errors = certify::check_definedness(observed).errors(); !errors.empty()) {
     a.output_transformation_note =
         fmt::format("psi(y) = {} ({}) is not defined on the output's range: {}", psi_text, cand.how,
@@ -183,13 +183,19 @@ void try_output_transformation(const Model& m, Budget& budget, const AnalysisOpt
     }
     std::vector<std::string> failing;
     for (const auto& b : cf.drift)
-      if (!b.holds()) failing.push_back(fmt::format("[tau_{}, tau_{}]", b.i, b.j));
+      if (!b.holds())
+        failing.push_back(fmt::format("[{}, {}]", cf.tau_name(b.i - 1), cf.tau_name(b.j - 1)));
     for (const auto& b : cf.input)
-      if (!b.holds()) failing.push_back(fmt::format("[g, tau_{}]", b.j));
-    // The form's own measurement symbol (measurement_symbols makes fresh ones per analysis).
-    const GiNaC::symbol y = t.y.at(0);
+      if (!b.holds()) failing.push_back(fmt::format("[g, {}]", cf.tau_name(b.j - 1)));
+    for (const auto& b : cf.output)
+      if (!b.holds()) failing.push_back(fmt::format("<dh_{}, {}>", b.i, cf.tau_name(b.j - 1)));
+    // The form's own measurement symbols (measurement_symbols makes fresh ones per analysis).
+    GiNaC::exmap rename;
+    for (std::size_t i = 0; i < cf.y.size(); ++i) rename[cf.y[i]] = t.y.at(i);
+    ExVec psi;
+    for (const auto& e : *cand.psi) psi.push_back(e.subs(rename));
     a.output_transformation = Analysis::OutputTransformation{
-        cand.psi->subs(cf.y[0] == y), y, std::move(observed),
+        std::move(psi), t.y, std::move(observed),
         fmt::format("{}; the conditions hold for psi(h) (analysed from scratch)", cand.how),
         fmt::format("{}", fmt::join(failing, ", "))};
     a.canonical = std::move(t);

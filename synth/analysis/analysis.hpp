@@ -63,16 +63,16 @@ struct Analysis {
   // computed right after the drift observability, under its own budget.
   ObservabilityUnderInputs under_inputs;
   CanonicalForm canonical;
-  // One output whose bracket conditions fail for y = h(x) but hold for y~ = psi(y)
+  // Bracket conditions that fail for y = h(x) but hold for y~ = psi(y)
   // (analysis/output_transformation.hpp): `canonical` is then the form of `model` with h replaced
   // by psi(h) (`observed`), and the designs that take it observe psi(y). Searched only when the
   // conditions fail; `output_transformation_note` says what the search found or why none.
   struct OutputTransformation {
-    GiNaC::ex psi;        // psi(y), in y
-    GiNaC::symbol y;      // the measurement symbol
-    Model observed;       // the model with h = psi(h)
-    std::string how;      // how psi was found and verified
-    std::string failing;  // the conditions that fail for y itself
+    ExVec psi;                     // psi_i(y_i), one per output (y_i itself when unchanged)
+    std::vector<GiNaC::symbol> y;  // the measurement symbols of the form
+    Model observed;                // the model with h_i = psi_i(h_i)
+    std::string how;               // how psi was found and verified
+    std::string failing;           // the conditions that fail for y itself
   };
   std::optional<OutputTransformation> output_transformation;
   std::string output_transformation_note;

@@ -166,12 +166,46 @@ ex fold_even_roots(const ex& e) {
 
 }  // namespace
 
+// Several outputs: y_i = s_i(x_k) of one state, not affine, solved for x_k (exp, log, atan,
+// tanh, roots: analysis/inverse.hpp) gives psi_i = s_i^-1.
+OutputTransformationCandidate sensor_inversions(const Model& m, const CanonicalForm& cf) {
+  OutputTransformationCandidate out;
+  ExVec psi;
+  std::vector<std::string> done;
+  for (std::size_t i = 0; i < m.p(); ++i) {
+    psi.push_back(cf.y[i]);
+    std::vector<GiNaC::symbol> read;
+    for (const auto& x : m.states)
+      if (m.h[i].has(x)) read.push_back(x);
+    if (read.size() != 1 || !m.h[i].diff(read[0]).has(read[0])) continue;  // affine already
+    const auto inverse = solve_for(m.h[i] - cf.y[i], read[0], true);
+    if (!inverse || depends_on(*inverse, m.states)) continue;
+    psi.back() = *inverse;
+    done.push_back(fmt::format("y{} = {} inverted: psi_{} = {}", i + 1, to_string(m.h[i]), i + 1,
+                               to_string(*inverse)));
+  }
+  if (done.empty()) {
+    out.how =
+        "several outputs: no output reads a single state through an invertible nonlinear map "
+        "(the jets construction is for one output)";
+    return out;
+  }
+  out.psi = psi;
+  out.how = fmt::format("several outputs, each sensor's map inverted: {}", fmt::join(done, "; "));
+  return out;
+}
+
 OutputTransformationCandidate output_transformation_candidate(const Model& m,
                                                               const CanonicalForm& cf) {
   OutputTransformationCandidate out;
   const std::size_t n = m.n();
-  if (m.p() != 1 || !cf.applicable || cf.r.size() != n || cf.y.empty()) {
-    out.how = "searched for one output only";
+  if (!cf.applicable || cf.y.size() != m.p()) {
+    out.how = "the canonical form does not apply";
+    return out;
+  }
+  if (m.p() > 1) return sensor_inversions(m, cf);
+  if (cf.r.size() != n) {
+    out.how = "no dual field r";
     return out;
   }
   if (n > kMaxStates) {
@@ -254,7 +288,7 @@ OutputTransformationCandidate output_transformation_candidate(const Model& m,
                           to_string(dpsi), to_string(*C), from, psi.reason);
     return out;
   }
-  out.psi = simplify(*psi.value);
+  out.psi = ExVec{simplify(*psi.value)};
   out.how = fmt::format("{} gives phi'/phi = {} (phi = 1/psi'), so psi' = {}", from, to_string(*C),
                         to_string(dpsi));
   return out;
@@ -309,13 +343,15 @@ ex fold_log_of_even_power(const ex& e, const SampleBoxes& boxes) {
   return fold(e);
 }
 
-Model transformed_output(const Model& m, const ex& psi, const GiNaC::symbol& y) {
+Model transformed_output(const Model& m, const ExVec& psi, const std::vector<GiNaC::symbol>& y) {
   Model t = m;
   const SampleBoxes boxes = m.sample_boxes();
-  for (auto& h : t.h)
-    h = affine_if_constant_gradient(
-        simplify(fold_log_exp(fold_log_of_even_power(GiNaC::expand(psi.subs(y == h)), boxes))),
-        m.states);
+  for (std::size_t i = 0; i < t.h.size(); ++i) {
+    if (psi[i].is_equal(y[i])) continue;
+    const ex composed = GiNaC::expand(psi[i].subs(y[i] == m.h[i]));
+    t.h[i] = affine_if_constant_gradient(
+        simplify(fold_log_exp(fold_log_of_even_power(composed, boxes))), m.states);
+  }
   return t;
 }
 

@@ -19,18 +19,20 @@
 namespace obsynth {
 
 struct OutputTransformationCandidate {
-  std::optional<GiNaC::ex> psi;  // psi(y) in the measurement symbol y (cf.y[0])
-  GiNaC::ex c = 0;               // phi'/phi = c(y), when found
-  std::string how;               // which bracket fixed c, or why there is no candidate
+  std::optional<ExVec> psi;  // psi_i(y_i) in the measurement symbols (cf.y), one per output
+  GiNaC::ex c = 0;           // one output: phi'/phi = c(y), when found
+  std::string how;           // how the candidate was found, or why there is none
 };
 
-// One output, the canonical form applicable and its bracket conditions failing: the candidate
-// psi, or why there is none (a bracket free of the jets that fails whatever psi, c not a
-// function of y, an integral outside the integrator's class).
+// The canonical form applicable and its bracket conditions failing: the candidate psi, or why
+// there is none. One output: the jets construction above (a bracket free of the jets that fails
+// whatever psi, c not a function of y, an integral outside the integrator's class). Several
+// outputs: each output that reads a single state through an invertible map, y_i = s_i(x_k), is
+// inverted, psi_i = s_i^-1 (the sensor's own nonlinearity); the others are kept.
 OutputTransformationCandidate output_transformation_candidate(const Model& m,
                                                               const CanonicalForm& cf);
 
-// The model observed through psi: h replaced by psi(h), simplified.
-Model transformed_output(const Model& m, const GiNaC::ex& psi, const GiNaC::symbol& y);
+// The model observed through psi: h_i replaced by psi_i(h_i), simplified.
+Model transformed_output(const Model& m, const ExVec& psi, const std::vector<GiNaC::symbol>& y);
 
 }  // namespace obsynth

@@ -499,8 +499,13 @@ void add_canonical_json(const Analysis& a, ordered_json& j) {
   j["blocks"] = cf.blocks;
   j["frame_note"] = cf.frame_note;
   if (const auto& t = a.output_transformation)
-    j["output_transformation"] = {{"psi", to_string(t->psi)},
-                                  {"y", t->y.get_name()},
+    j["output_transformation"] = {{"psi", expr_list(t->psi)},
+                                  {"y",
+                                   [&] {
+                                     std::vector<std::string> names;
+                                     for (const auto& y : t->y) names.push_back(y.get_name());
+                                     return names;
+                                   }()},
                                   {"observed_h", expr_list(t->observed.h)},
                                   {"failing_for_y", t->failing},
                                   {"how", t->how}};
@@ -678,10 +683,11 @@ void text_diffeomorphism(const Analysis& a, SectionMarks& marks, const LineWrite
 std::string output_transformation_text(const Analysis& a) {
   if (const auto& t = a.output_transformation)
     return fmt::format(
-        "output transformation y~ = psi(y) = {} (Krener-Respondek): the conditions fail for y "
+        "output transformation y~ = psi(y) = [{}] (Krener-Respondek): the conditions fail for y "
         "itself ({}); {}. Everything below is for the model observed through psi, h~ = psi(h) = "
-        "{}, and y in l(u, y) stands for psi(y)",
-        to_string(t->psi), t->failing, t->how, to_string(t->observed.h[0]));
+        "[{}], and y in l(u, y) stands for psi(y)",
+        fmt::join(to_strings(t->psi), ", "), t->failing, t->how,
+        fmt::join(to_strings(t->observed.h), ", "));
   if (!a.output_transformation_note.empty()) return a.output_transformation_note;
   return "";
 }

@@ -615,7 +615,8 @@ Verdict applies(const Analysis& a) {
 // the measured y enters through psi in each function that takes the outputs.
 void observe_through_psi(const Analysis& a, ObserverSpec& s) {
   const Analysis::OutputTransformation& t = *a.output_transformation;
-  const GiNaC::exmap through{{t.y, t.psi}};
+  GiNaC::exmap through;
+  for (std::size_t i = 0; i < t.y.size(); ++i) through[t.y[i]] = t.psi[i];
   for (auto& f : s.functions) {
     const bool reads_y = std::any_of(f.args.begin(), f.args.end(), [](const FunctionArg& g) {
       return g.kind == FunctionArg::Kind::output;
@@ -625,9 +626,9 @@ void observe_through_psi(const Analysis& a, ObserverSpec& s) {
     for (auto& l : f.lets) l.value = l.value.subs(through);
   }
   s.description.push_back(
-      fmt::format("Output transformation: the form is for y~ = psi(y) = {}; the step applies psi "
+      fmt::format("Output transformation: the form is for y~ = psi(y) = [{}]; the step applies psi "
                   "to the measured y ({})",
-                  to_string(t.psi), t.how));
+                  fmt::join(to_strings(t.psi), ", "), t.how));
 }
 
 ObserverSpec build(const Analysis& a, const DesignOptions& o) {

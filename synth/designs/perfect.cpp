@@ -85,9 +85,9 @@ Verdict applies(const Analysis& a) {
   const CanonicalForm& cf = a.canonical;
   if (a.output_transformation) {
     v.reasons.push_back(fmt::format(
-        "the observer canonical form holds for psi(y) = {} only; the perfect observer would need "
-        "the jets of psi(y(t)) (not built)",
-        to_string(a.output_transformation->psi)));
+        "the observer canonical form holds for psi(y) = [{}] only; the perfect observer would "
+        "need the jets of psi(y(t)) (not built)",
+        fmt::join(to_strings(a.output_transformation->psi), ", ")));
     return v;
   }
   if (!cf.applicable || !cf.linearizable) {
