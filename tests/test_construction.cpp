@@ -720,6 +720,10 @@ TEST(OutputTransformation, ExponentialSensorIsLinearizedByTheLogarithm) {
   ASSERT_TRUE(a.output_transformation.has_value()) << a.output_transformation_note;
   const auto& t = *a.output_transformation;
   EXPECT_EQ(t.failing, "[tau_1, tau_2]");
+  // The residual in y itself is kept for the report: (0, 2 e^-2x1) by hand (its header).
+  ASSERT_EQ(t.failing_checks.size(), 1u);
+  EXPECT_TRUE(same(t.failing_checks[0].second.residual, ExVec{0, 2 * GiNaC::exp(-2 * m.states[0])},
+                   oracle_box(m)));
   expect_psi_prime_proportional(t, t.y[0], GiNaC::numeric(1, 2), 2);
   expect_observer_form_through_psi(m, a);
 }

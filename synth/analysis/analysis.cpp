@@ -181,23 +181,28 @@ void try_output_transformation(const Model& m, Budget& budget, const AnalysisOpt
           "the candidate psi(y) = {} ({}) does not satisfy every condition", psi_text, cand.how);
       return;
     }
-    std::vector<std::string> failing;
+    std::vector<std::pair<std::string, BracketCheck>> checks;
     for (const auto& b : cf.drift)
       if (!b.holds())
-        failing.push_back(fmt::format("[{}, {}]", cf.tau_name(b.i - 1), cf.tau_name(b.j - 1)));
+        checks.emplace_back(fmt::format("[{}, {}]", cf.tau_name(b.i - 1), cf.tau_name(b.j - 1)), b);
     for (const auto& b : cf.input)
-      if (!b.holds()) failing.push_back(fmt::format("[g, {}]", cf.tau_name(b.j - 1)));
+      if (!b.holds()) checks.emplace_back(fmt::format("[g, {}]", cf.tau_name(b.j - 1)), b);
     for (const auto& b : cf.output)
-      if (!b.holds()) failing.push_back(fmt::format("<dh_{}, {}>", b.i, cf.tau_name(b.j - 1)));
+      if (!b.holds()) checks.emplace_back(fmt::format("<dh_{}, {}>", b.i, cf.tau_name(b.j - 1)), b);
+    std::vector<std::string> failing;
+    for (const auto& c : checks) failing.push_back(c.first);
     // The form's own measurement symbols (measurement_symbols makes fresh ones per analysis).
     GiNaC::exmap rename;
     for (std::size_t i = 0; i < cf.y.size(); ++i) rename[cf.y[i]] = t.y.at(i);
     ExVec psi;
     for (const auto& e : *cand.psi) psi.push_back(e.subs(rename));
     a.output_transformation = Analysis::OutputTransformation{
-        std::move(psi), t.y, std::move(observed),
+        std::move(psi),
+        t.y,
+        std::move(observed),
         fmt::format("{}; the conditions hold for psi(h) (analysed from scratch)", cand.how),
-        fmt::format("{}", fmt::join(failing, ", "))};
+        fmt::format("{}", fmt::join(failing, ", ")),
+        std::move(checks)};
     a.canonical = std::move(t);
   } catch (const BudgetExceeded& e) {
     a.output_transformation_note =

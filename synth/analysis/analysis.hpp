@@ -72,7 +72,9 @@ struct Analysis {
     std::vector<GiNaC::symbol> y;  // the measurement symbols of the form
     Model observed;                // the model with h_i = psi_i(h_i)
     std::string how;               // how psi was found and verified
-    std::string failing;           // the conditions that fail for y itself
+    std::string failing;           // the conditions that fail for y itself, by name
+    // Those conditions with their residuals and witness points, as for y itself.
+    std::vector<std::pair<std::string, BracketCheck>> failing_checks;
   };
   std::optional<OutputTransformation> output_transformation;
   std::string output_transformation_note;

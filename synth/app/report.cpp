@@ -507,7 +507,15 @@ void add_canonical_json(const Analysis& a, ordered_json& j) {
                                      return names;
                                    }()},
                                   {"observed_h", expr_list(t->observed.h)},
-                                  {"failing_for_y", t->failing},
+                                  {"failing_for_y",
+                                   [&] {
+                                     ordered_json list = ordered_json::array();
+                                     for (const auto& [name, b] : t->failing_checks)
+                                       list.push_back({{"condition", name},
+                                                       {"residual", expr_list(b.residual)},
+                                                       {"residual_note", b.residual_note}});
+                                     return list;
+                                   }()},
                                   {"how", t->how}};
   else
     j["output_transformation"] = nullptr;
@@ -699,6 +707,9 @@ void text_canonical(const Analysis& a, SectionMarks& marks, const LineWriter& li
   line("");
   line("Linearization by output injection (observer canonical form)");
   if (const std::string t = output_transformation_text(a); !t.empty()) line("  " + t);
+  if (a.output_transformation)
+    for (const auto& [name, b] : a.output_transformation->failing_checks)
+      line(fmt::format("  in y itself: {} = 0 FAILS{}", name, failure_text(a.model, b)));
   if (!cf.applicable) {
     line("  " + cf.not_applicable);
   } else {
@@ -841,6 +852,11 @@ void markdown_canonical(const Analysis& a, SectionMarks& marks, const LineWriter
   if (const std::string t = output_transformation_text(a); !t.empty()) {
     line(t + ".");
     line("");
+  }
+  if (a.output_transformation) {
+    for (const auto& [name, b] : a.output_transformation->failing_checks)
+      line(fmt::format("- in y itself: {} = 0 fails{}", name, failure_text(a.model, b)));
+    if (!a.output_transformation->failing_checks.empty()) line("");
   }
   if (!cf.applicable) {
     line(cf.not_applicable);
