@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <functional>
+
 #include "analysis/inverse.hpp"
 #include "analysis/triangular_form.hpp"
 #include "symbolic/expr_print.hpp"
@@ -72,6 +74,20 @@ std::optional<ex> ratio_from(const ExVec& v, const GiNaC::symbol& q1) {
   return std::nullopt;
 }
 
+// e with `rule` applied to every subexpression, innermost first.
+ex rewrite_bottom_up(const ex& e, const std::function<ex(const ex&)>& rule) {
+  struct Rewrite : GiNaC::map_function {
+    const std::function<ex(const ex&)>& rule;
+    explicit Rewrite(const std::function<ex(const ex&)>& r) : rule(r) {}
+    ex operator()(const ex& x) override { return rule(x.map(*this)); }
+  } rewrite(rule);
+  return rewrite(e);
+}
+
+bool is_call(const ex& e, const char* name) {
+  return GiNaC::is_a<GiNaC::function>(e) && GiNaC::ex_to<GiNaC::function>(e).get_name() == name;
+}
+
 ex fold_exp_log(const ex& e);
 
 // c(x) as C(y) with c(x) = C(h(x)): h solved for one state it depends on, substituted; nullopt
@@ -96,15 +112,13 @@ ex exp_of(const ex& e) {
     for (std::size_t k = 0; k < x.nops(); ++k) out *= exp_of(x.op(k));
     return out;
   }
-  if (GiNaC::is_a<GiNaC::function>(x) && GiNaC::ex_to<GiNaC::function>(x).get_name() == "log")
-    return x.op(0);
+  if (is_call(x, "log")) return x.op(0);
   if (GiNaC::is_a<GiNaC::mul>(x)) {
     ex coeff = 1, log_arg;
     bool one_log = false;
     for (std::size_t k = 0; k < x.nops(); ++k) {
       const ex f = x.op(k);
-      if (!one_log && GiNaC::is_a<GiNaC::function>(f) &&
-          GiNaC::ex_to<GiNaC::function>(f).get_name() == "log") {
+      if (!one_log && is_call(f, "log")) {
         log_arg = f.op(0);
         one_log = true;
       } else {
@@ -118,50 +132,25 @@ ex exp_of(const ex& e) {
 
 // exp(k log g) -> g^k everywhere in e (h solved for a state often leaves exp(-log(y))).
 ex fold_exp_log(const ex& e) {
-  struct Fold : GiNaC::map_function {
-    ex operator()(const ex& x) override {
-      const ex inner = x.map(*this);
-      if (GiNaC::is_a<GiNaC::function>(inner) &&
-          GiNaC::ex_to<GiNaC::function>(inner).get_name() == "exp")
-        return exp_of(inner.op(0));
-      return inner;
-    }
-  } fold;
-  return fold(e);
+  return rewrite_bottom_up(e, [](const ex& x) { return is_call(x, "exp") ? exp_of(x.op(0)) : x; });
 }
 
 // log(exp(a)) -> a (a real): psi = log composed with an exponential sensor.
 ex fold_log_exp(const ex& e) {
-  struct Fold : GiNaC::map_function {
-    ex operator()(const ex& x) override {
-      const ex inner = x.map(*this);
-      if (GiNaC::is_a<GiNaC::function>(inner) &&
-          GiNaC::ex_to<GiNaC::function>(inner).get_name() == "log") {
-        const ex a = inner.op(0);
-        if (GiNaC::is_a<GiNaC::function>(a) && GiNaC::ex_to<GiNaC::function>(a).get_name() == "exp")
-          return a.op(0);
-      }
-      return inner;
-    }
-  } fold;
-  return fold(e);
+  return rewrite_bottom_up(e, [](const ex& x) {
+    return is_call(x, "log") && is_call(x.op(0), "exp") ? x.op(0).op(0) : x;
+  });
 }
 
 // (b^(2k))^q -> b^(2kq): the integrator writes log(b^2) / 2 for log|b|. psi' is needed only up
 // to a constant factor on the output's range, which is connected and where b has no zero (phi'
 // / phi = c is finite there), so the sign of b is constant there and drops out.
 ex fold_even_roots(const ex& e) {
-  struct Fold : GiNaC::map_function {
-    ex operator()(const ex& x) override {
-      const ex inner = x.map(*this);
-      if (GiNaC::is_a<GiNaC::power>(inner) && GiNaC::is_a<GiNaC::power>(inner.op(0))) {
-        const ex k = inner.op(0).op(1);
-        if (k.info(GiNaC::info_flags::even)) return GiNaC::pow(inner.op(0).op(0), k * inner.op(1));
-      }
-      return inner;
-    }
-  } fold;
-  return fold(e);
+  return rewrite_bottom_up(e, [](const ex& x) {
+    if (!GiNaC::is_a<GiNaC::power>(x) || !GiNaC::is_a<GiNaC::power>(x.op(0))) return x;
+    const ex k = x.op(0).op(1);
+    return k.info(GiNaC::info_flags::even) ? GiNaC::pow(x.op(0).op(0), k * x.op(1)) : x;
+  });
 }
 
 }  // namespace
@@ -318,29 +307,21 @@ ex affine_if_constant_gradient(const ex& e, const Symbols& x) {
 // log(b^(2k)) -> 2k log(s b) where b has no zero on the domain box (proved) and s is its sign
 // there (the box is connected): the integrator's log(y^2)/2 for log|y|, composed with h.
 ex fold_log_of_even_power(const ex& e, const SampleBoxes& boxes) {
-  struct Fold : GiNaC::map_function {
-    const SampleBoxes& boxes;
-    explicit Fold(const SampleBoxes& b) : boxes(b) {}
-    ex operator()(const ex& x) override {
-      const ex inner = x.map(*this);
-      if (!GiNaC::is_a<GiNaC::function>(inner) ||
-          GiNaC::ex_to<GiNaC::function>(inner).get_name() != "log" ||
-          !GiNaC::is_a<GiNaC::power>(inner.op(0)) ||
-          !inner.op(0).op(1).info(GiNaC::info_flags::even))
-        return inner;
-      const ex b = inner.op(0).op(0), k = inner.op(0).op(1);
-      if (zeros_in_box(b, boxes).kind != BoxZeros::never) return inner;
-      GiNaC::exmap centre;
-      for (const auto& s : symbols_in(b)) {
-        const Interval iv = boxes.box(s);
-        centre[s] = (iv.lo + iv.hi) / 2;
-      }
-      GiNaC::numeric v;
-      if (!evaluate_real(b, centre, 30, v) || v.is_zero()) return inner;
-      return k * GiNaC::log(v.is_positive() ? b : -b);
+  return rewrite_bottom_up(e, [&](const ex& x) {
+    if (!is_call(x, "log") || !GiNaC::is_a<GiNaC::power>(x.op(0)) ||
+        !x.op(0).op(1).info(GiNaC::info_flags::even))
+      return x;
+    const ex b = x.op(0).op(0), k = x.op(0).op(1);
+    if (zeros_in_box(b, boxes).kind != BoxZeros::never) return x;
+    GiNaC::exmap centre;
+    for (const auto& s : symbols_in(b)) {
+      const Interval iv = boxes.box(s);
+      centre[s] = (iv.lo + iv.hi) / 2;
     }
-  } fold(boxes);
-  return fold(e);
+    GiNaC::numeric v;
+    if (!evaluate_real(b, centre, 30, v) || v.is_zero()) return x;
+    return ex(k * GiNaC::log(v.is_positive() ? b : -b));
+  });
 }
 
 Model transformed_output(const Model& m, const ExVec& psi, const std::vector<GiNaC::symbol>& y) {

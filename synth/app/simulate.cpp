@@ -809,15 +809,19 @@ void render_outputs(const Model& m, const SimulationOptions& opt, const std::str
     return e;
   };
   std::size_t peak = 0;
+  double peak_error = error_at(0);
   for (std::size_t s = 1; s < res.t.size(); ++s)
-    if (error_at(s) > error_at(peak)) peak = s;
+    if (const double e = error_at(s); e > peak_error) {
+      peak = s;
+      peak_error = e;
+    }
   res.summary = method_line(res) + "\n";
   if (!plant_note.empty()) res.summary += plant_note + "\n";
   res.summary += fmt::format(
       "{} steps of {:g}: max |x - x_hat| {:.3e} at t = 0, {:.3e} at t = {:g} (peak {:.3e} at t "
       "= {:g})",
-      res.t.size() - 1, opt.dt, error_at(0), error_at(res.t.size() - 1), res.t.back(),
-      error_at(peak), res.t[peak]);
+      res.t.size() - 1, opt.dt, error_at(0), error_at(res.t.size() - 1), res.t.back(), peak_error,
+      res.t[peak]);
 }
 
 }  // namespace
