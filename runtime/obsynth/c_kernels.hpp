@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cmath>
+#include <type_traits>
 
 namespace obsynth::c_double {
 using Scalar = double;
@@ -29,6 +30,51 @@ inline int discretise(const double* A, int n, double dt, double* E, double* G,
 }
 inline int discretise(const float* A, int n, float dt, float* E, float* G, float* work) noexcept {
   return c_float::obsynth_discretise(A, n, dt, E, G, work);
+}
+// Newton by reverse communication (obsynth_newton_*): the state per precision and its verdicts.
+template <class Scalar>
+using newton_state = std::conditional_t<std::is_same_v<Scalar, float>, c_float::obsynth_newton,
+                                        c_double::obsynth_newton>;
+constexpr int newton_running = c_double::OBSYNTH_NEWTON_RUNNING;
+constexpr int newton_converged = c_double::OBSYNTH_NEWTON_CONVERGED;
+constexpr int newton_not_converged = c_double::OBSYNTH_NEWTON_NOT_CONVERGED;
+inline void newton_begin(c_double::obsynth_newton* s, const double* z, const double* x, int n,
+                         int iterations, double tol) noexcept {
+  c_double::obsynth_newton_begin(s, z, x, n, iterations, tol);
+}
+inline void newton_begin(c_float::obsynth_newton* s, const float* z, const float* x, int n,
+                         int iterations, float tol) noexcept {
+  c_float::obsynth_newton_begin(s, z, x, n, iterations, tol);
+}
+inline int newton_residual(c_double::obsynth_newton* s, const double* Tx, const double* z, int n,
+                           double* r, double* x, const double* x_prev) noexcept {
+  return c_double::obsynth_newton_residual(s, Tx, z, n, r, x, x_prev);
+}
+inline int newton_residual(c_float::obsynth_newton* s, const float* Tx, const float* z, int n,
+                           float* r, float* x, const float* x_prev) noexcept {
+  return c_float::obsynth_newton_residual(s, Tx, z, n, r, x, x_prev);
+}
+inline void newton_step(const double* tau, const double* r, int n, double* dx) noexcept {
+  c_double::obsynth_newton_step(tau, r, n, dx);
+}
+inline void newton_step(const float* tau, const float* r, int n, float* dx) noexcept {
+  c_float::obsynth_newton_step(tau, r, n, dx);
+}
+inline void newton_apply(c_double::obsynth_newton* s, const double* dx, int n, double* x,
+                         double* x_prev) noexcept {
+  c_double::obsynth_newton_apply(s, dx, n, x, x_prev);
+}
+inline void newton_apply(c_float::obsynth_newton* s, const float* dx, int n, float* x,
+                         float* x_prev) noexcept {
+  c_float::obsynth_newton_apply(s, dx, n, x, x_prev);
+}
+inline void exact_step(const double* E, const double* G, const double* w0, const double* c, int n,
+                       int k, int increment, double* w1) noexcept {
+  c_double::obsynth_exact_step(E, G, w0, c, n, k, increment, w1);
+}
+inline void exact_step(const float* E, const float* G, const float* w0, const float* c, int n,
+                       int k, int increment, float* w1) noexcept {
+  c_float::obsynth_exact_step(E, G, w0, c, n, k, increment, w1);
 }
 inline int packed_positive_definite(const double* w, int off, int d, double* work) noexcept {
   return c_double::obsynth_packed_positive_definite(w, off, d, work);

@@ -92,18 +92,22 @@ class ExactLinearStep {
     return true;
   }
   /// w(t + dt) from w(t) and the held input: w + (E w + G c) in single precision (w added last,
-  /// once: the increment keeps its full relative precision; adding the columns to w one by one
-  /// would round against w once per column), M w + G c otherwise (G = Gamma or Gamma B).
-  /// Coefficient-based products (lazyProduct): unrolled with compile-time sizes, scalar or
-  /// packet code as Eigen sees fit, and never a call into Eigen's general GEMV kernel (which a
-  /// plain fixed-size matrix-vector product becomes from N = 8 on, with run-time sizes and
-  /// strides). M w and G c are summed apart and added at the end, so G c (known only after the
-  /// step constant) is off the step-to-step dependency chain through w.
+  /// once: the increment keeps its full relative precision), M w + G c otherwise (G = Gamma or
+  /// Gamma B). The arithmetic of the C kernel obsynth_exact_step, operation for operation (G c
+  /// first, then M's columns by multiply-adds, so w enters the step-to-step dependency chain
+  /// through one multiply-add per column: seed 003's step at 0.9 of the expert's time rather
+  /// than 1.0; test_c_kernels checks the two agree bit for bit). Written in Eigen packets rather
+  /// than calling the kernel: through the kernel GCC 12 stores the new state as scalars and
+  /// reloads it as a packet, and the store-forwarding stalls double the step's time.
+  /// Coefficient-based products (lazyProduct): unrolled with compile-time sizes, never a call
+  /// into Eigen's general GEMV kernel (which a plain fixed-size product becomes from N = 8 on).
   Vec apply(const Vec& w, const In& c) const noexcept {
+    Vec r = Gamma_.lazyProduct(c);
+    for (int j = 0; j < N; ++j) r += M_.col(j) * w(j);
     if constexpr (kIncrement) {
-      return w + (M_.lazyProduct(w) + Gamma_.lazyProduct(c));
+      return w + r;
     } else {
-      return M_.lazyProduct(w) + Gamma_.lazyProduct(c);
+      return r;
     }
   }
 

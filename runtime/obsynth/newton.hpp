@@ -48,6 +48,7 @@
 #include <limits>
 #include <type_traits>
 
+#include "obsynth/c_kernels.hpp"
 #include "obsynth/eigen.hpp"
 #include "obsynth/numeric.hpp"
 #include "obsynth/status.hpp"
@@ -58,8 +59,8 @@ namespace obsynth {
 template <class Scalar>
 struct NewtonResult {
   Status status = Status::ok;
-  int iterations = 0;                  ///< Newton updates computed (see above)
-  Scalar residual_norm = Scalar(0);    ///< |T(x) - z|_inf at the returned x
+  int iterations = 0;                ///< Newton updates computed (see above)
+  Scalar residual_norm = Scalar(0);  ///< |T(x) - z|_inf at the returned x
 };
 
 namespace detail {
@@ -81,57 +82,39 @@ constexpr void check_matrix_fn() noexcept {
                 "J(const Matrix<Scalar,N,1>& x, Matrix<Scalar,N,N>& J) and be noexcept");
 }
 
-/// Shared Newton loop. `solve_step(x, r, dx)` computes the update dx for residual r at x and
-/// returns Status::ok, Status::singular or Status::non_finite.
-template <class Scalar, int N, class TFn, class StepFn>
-inline NewtonResult<Scalar> newton_loop(TFn& T, StepFn&& solve_step,
+/// The Newton loop: the C kernel's iteration (obsynth_newton_*, as the C back end and the
+/// simulator run it). `update(x, r, dx)` computes the update dx for residual r at x and returns
+/// Status::ok, Status::singular or Status::non_finite (a non-finite dx is caught by the next
+/// residual, which puts x back at the last iterate).
+template <class Scalar, int N, class TFn, class UpdateFn>
+inline NewtonResult<Scalar> newton_loop(TFn& T, UpdateFn&& update,
                                         const Eigen::Matrix<Scalar, N, 1>& z,
                                         Eigen::Matrix<Scalar, N, 1>& x, int max_iterations,
                                         Scalar tol) noexcept {
   using Vec = Eigen::Matrix<Scalar, N, 1>;
+  c::newton_state<Scalar> nw;
+  c::newton_begin(&nw, z.data(), x.data(), N, max_iterations, tol);
+  Vec Tx = Vec::Zero(), r, dx, x_prev = x;
   NewtonResult<Scalar> res;
-  res.residual_norm = std::numeric_limits<Scalar>::quiet_NaN();
-  if (!all_finite(z) || !all_finite(x) || !is_finite(tol)) {
-    res.status = Status::non_finite;
-    return res;
+  for (;;) {
+    if (nw.status == c::newton_running) T(static_cast<const Vec&>(x), Tx);
+    if (!c::newton_residual(&nw, Tx.data(), z.data(), N, r.data(), x.data(), x_prev.data())) break;
+    res.status = update(static_cast<const Vec&>(x), static_cast<const Vec&>(r), dx);
+    if (res.status != Status::ok) {
+      res.iterations = nw.updates;
+      res.residual_norm = nw.residual_norm;
+      return res;
+    }
+    c::newton_apply(&nw, dx.data(), N, x.data(), x_prev.data());
   }
-  const Scalar threshold = tol * (Scalar(1) + inf_norm(z));
-  Vec Tx;
-  Vec r;
-  Vec dx;
-  Vec x_prev = x;
-  for (int it = 0;; ++it) {
-    T(static_cast<const Vec&>(x), Tx);
-    r = Tx - z;
-    if (!all_finite(r)) {
-      // The update that led here (if any) overshot into a region where T is not finite:
-      // fall back to the last iterate whose residual was finite.
-      x = x_prev;
-      res.status = Status::non_finite;
-      return res;
-    }
-    res.residual_norm = inf_norm(r);
-    if (res.residual_norm <= threshold) {
-      res.status = Status::ok;
-      return res;
-    }
-    if (it >= max_iterations) {
-      res.status = Status::newton_not_converged;
-      return res;
-    }
-    const Status s = solve_step(static_cast<const Vec&>(x), static_cast<const Vec&>(r), dx);
-    if (s != Status::ok) {
-      res.status = s;
-      return res;
-    }
-    if (!all_finite(dx)) {
-      res.status = Status::non_finite;
-      return res;
-    }
-    x_prev = x;
-    x -= dx;
-    res.iterations = it + 1;
-  }
+  res.status = nw.status == c::newton_converged       ? Status::ok
+               : nw.status == c::newton_not_converged ? Status::newton_not_converged
+                                                      : Status::non_finite;
+  res.iterations = nw.updates;
+  res.residual_norm = nw.updates == 0 && res.status == Status::non_finite
+                          ? std::numeric_limits<Scalar>::quiet_NaN()
+                          : nw.residual_norm;
+  return res;
 }
 
 }  // namespace detail
@@ -151,7 +134,7 @@ inline NewtonResult<Scalar> newton_solve_inverse_jacobian(
   auto step = [&inverse_jacobian](const Vec& xi, const Vec& r, Vec& dx) noexcept {
     Mat tau;
     inverse_jacobian(xi, tau);
-    dx.noalias() = tau * r;
+    c::newton_step(tau.data(), r.data(), N, dx.data());
     return Status::ok;  // non-finite tau shows up as a non-finite dx
   };
   return detail::newton_loop<Scalar, N>(T, step, z, x, max_iterations, tol);

@@ -105,27 +105,22 @@ std::unique_ptr<Jet> make_jet(std::size_t k, double eps) {
   }
 }
 
-// Newton on T(x) = z with (dT/dx)^-1 given, as the runtime does.
+// Newton on T(x) = z with (dT/dx)^-1 given: the firmware's iteration (the C kernel's
+// obsynth_newton_*); the estimate is its last finite iterate.
 Vec newton(const NumericFunction& T, const NumericFunction& frame, const Vec& z, Vec x,
            int iterations, double tol) {
-  const std::size_t n = z.size();
-  for (int it = 0; it < iterations; ++it) {
-    const Vec Tx = T(x);
-    double res = 0;
-    Vec r(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      r[i] = Tx[i] - z[i];
-      res = std::max(res, std::fabs(r[i]));
-    }
-    if (res <= tol) break;
-    const Vec tau = frame(x);  // column-major: tau_k = columns
-    for (std::size_t i = 0; i < n; ++i) {
-      double d = 0;
-      for (std::size_t k = 0; k < n; ++k) d += tau[k * n + i] * r[k];
-      x[i] -= d;
-    }
+  const int n = static_cast<int>(z.size());
+  Vec Tx, r(z.size()), dx(z.size()), x_prev = x;
+  c_double::obsynth_newton nw;
+  c_double::obsynth_newton_begin(&nw, z.data(), x.data(), n, iterations, tol);
+  for (;;) {
+    Tx = T(x);
+    if (!c_double::obsynth_newton_residual(&nw, Tx.data(), z.data(), n, r.data(), x.data(),
+                                           x_prev.data()))
+      return x;
+    c_double::obsynth_newton_step(frame(x).data(), r.data(), n, dx.data());
+    c_double::obsynth_newton_apply(&nw, dx.data(), n, x.data(), x_prev.data());
   }
-  return x;
 }
 
 std::string csv_header(const std::vector<std::string>& names) {
@@ -293,20 +288,11 @@ class ProgramObserver {
     st.held = fn_(h.function)(concat(st.u, st.y));
     return true;
   }
-  // w + (E w + Gamma c), the increment added once (as the C step and the float runtime).
-  bool run(const op::ExactLinearStep& e, Step& st) {
-    const std::size_t n = w_.size(), k = st.held.size();
-    for (std::size_t i = 0; i < n; ++i) {
-      double acc = 0;
-      if (e.basis) {
-        for (std::size_t j = 0; j < n; ++j) acc += E_[i * n + j] * w_[j];
-        for (std::size_t j = 0; j < k; ++j) acc += Gamma_[i * k + j] * st.held[j];
-      } else {
-        for (std::size_t j = 0; j < n; ++j)
-          acc += E_[i * n + j] * w_[j] + Gamma_[i * n + j] * st.held[j];
-      }
-      st.w[i] = w_[i] + acc;
-    }
+  // w + (E w + Gamma c), the increment added once: the C step's kernel.
+  bool run(const op::ExactLinearStep&, Step& st) {
+    c_double::obsynth_exact_step(E_.data(), Gamma_.data(), w_.data(), st.held.data(),
+                                 static_cast<int>(w_.size()), static_cast<int>(st.held.size()), 1,
+                                 st.w.data());
     return true;
   }
   bool run(const op::Rk4& r, Step& st) {

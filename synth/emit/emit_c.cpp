@@ -126,21 +126,6 @@ const char* kDiscretiseOp =
     R"(  if (!(dt == o->dt) && !discretise(o, dt)) return o->status = {{P}}_non_finite;
 )";
 
-const char* kExactLinearStepOp = R"(  for (i = 0; i < N; ++i) {
-    Scalar acc = {{zero}}; /* the increment E w + Gamma c, added to w once */
-    for (j = 0; j < N; ++j) acc += o->E[i * N + j] * o->w[j] + o->Gamma[i * N + j] * c[j];
-    w[i] = o->w[i] + acc;
-  }
-)";
-
-const char* kExactLinearStepBasisOp = R"(  for (i = 0; i < N; ++i) {
-    Scalar acc = {{zero}}; /* the increment E w + (Gamma B) b, added to w once */
-    for (j = 0; j < N; ++j) acc += o->E[i * N + j] * o->w[j];
-    for (j = 0; j < K; ++j) acc += o->Gamma[i * K + j] * b[j];
-    w[i] = o->w[i] + acc;
-  }
-)";
-
 // RK4 from o->w into w (one step, the stages evaluate the field directly).
 const char* kRk4Op = R"(  {{rhs}}(o->w, {{rhs_in}}{{PRM}}, k1);
   for (i = 0; i < N; ++i) t[i] = o->w[i] + dt / {{two}} * k1[i];
@@ -220,32 +205,25 @@ const char* kJetUpdateOp = R"(  for (j = 0; j < {{P}}_p; ++j)
 )";
 
 // No closed-form inverse: Newton on T(x) = w seeded from the previous estimate, with the
-// inverse Jacobian (the frame [tau], column-major) given in closed form.
+// inverse Jacobian (the frame [tau], column-major) given in closed form; the iteration is the
+// kernel's (obsynth_newton_*, reverse communication), the estimate its last finite iterate.
 const char* kEstimateNewton =
-    R"(  Scalar x[{{n}}], Tx[{{n}}], r[{{n}}], tau[{{n}} * {{n}}], z_norm = {{zero}}, r_norm;
-  int i, j, it;
-  for (i = 0; i < {{n}}; ++i) {
-    x[i] = o->xh[i];
-    z_norm = {{fabs}}(o->w[i]) > z_norm ? {{fabs}}(o->w[i]) : z_norm;
-  }
-  for (it = 0;; ++it) {
+    R"(  Scalar x[{{n}}], Tx[{{n}}], r[{{n}}], dx[{{n}}], x_prev[{{n}}], tau[{{n}} * {{n}}];
+  obsynth_newton nw;
+  int i;
+  for (i = 0; i < {{n}}; ++i) x[i] = x_prev[i] = o->xh[i];
+  obsynth_newton_begin(&nw, o->w, x, {{n}}, {{iterations}}, {{tolerance}});
+  for (;;) {
     {{map}}(x{{PRM}}, Tx);
-    r_norm = {{zero}};
-    for (i = 0; i < {{n}}; ++i) {
-      r[i] = Tx[i] - o->w[i];
-      r_norm = {{fabs}}(r[i]) > r_norm ? {{fabs}}(r[i]) : r_norm;
-    }
-    if (!isfinite(r_norm)) return {{P}}_non_finite; /* estimate kept */
-    for (i = 0; i < {{n}}; ++i) o->xh[i] = x[i];
-    if (r_norm <= {{tolerance}} * ({{one}} + z_norm)) return {{P}}_ok;
-    if (it == {{iterations}}) return {{P}}_not_converged;
+    if (!obsynth_newton_residual(&nw, Tx, o->w, {{n}}, r, x, x_prev)) break;
     {{jacobian}}(x{{PRM}}, tau);
-    for (i = 0; i < {{n}}; ++i) {
-      Scalar dx = {{zero}};
-      for (j = 0; j < {{n}}; ++j) dx += tau[j * {{n}} + i] * r[j];
-      x[i] -= dx;
-    }
+    obsynth_newton_step(tau, r, {{n}}, dx);
+    obsynth_newton_apply(&nw, dx, {{n}}, x, x_prev);
   }
+  for (i = 0; i < {{n}}; ++i) o->xh[i] = x[i];
+  return nw.status == OBSYNTH_NEWTON_CONVERGED       ? {{P}}_ok
+         : nw.status == OBSYNTH_NEWTON_NOT_CONVERGED ? {{P}}_not_converged
+                                                     : {{P}}_non_finite; /* estimate: last finite iterate */
 )";
 
 // ---- UpdateKind::sampled_delay (spec.hpp SampledDelay) ----------------------------------------
@@ -456,9 +434,6 @@ std::string estimate_body(const StepProgram& p, const std::string& prm, CBuilder
       overloaded{[&](const est::Newton& e) {
                    return render_template(kEstimateNewton,
                                           {{"n", std::to_string(n)},
-                                           {"zero", b.lit(0)},
-                                           {"one", b.lit(1)},
-                                           {"fabs", single ? "fabsf" : "fabs"},
                                            {"map", b.fn(e.map)},
                                            {"jacobian", b.fn(e.inverse_jacobian)},
                                            {"PRM", prm},
@@ -609,8 +584,9 @@ class CStepPrinter {
                        b_.fn(h.function), prm_);
   }
   std::string operator()(const op::ExactLinearStep& e) const {
-    return render_template(e.basis ? kExactLinearStepBasisOp : kExactLinearStepOp,
-                           {{"zero", b_.lit(0)}});
+    return fmt::format(
+        "  obsynth_exact_step(o->E, o->Gamma, o->w, {}, N, {}, 1, w); /* w + (E w + G {}) */\n",
+        e.basis ? "b" : "c", e.basis ? "K" : "N", e.basis ? "b" : "c");
   }
   std::string operator()(const op::Rk4& r) const {
     if (!r.field.guarded)
@@ -738,7 +714,7 @@ class CStepPrinter {
     }
     if (p_.has<op::SampleGuard>()) return render_template_subset(kSampledDelayLocals, delay_);
     if (const auto* e = p_.find<op::ExactLinearStep>())
-      return fmt::format("  Scalar {}, w[N]{};\n  int i, j;\n", e->basis ? "b[K]" : "c[N]",
+      return fmt::format("  Scalar {}, w[N]{};\n  int i;\n", e->basis ? "b[K]" : "c[N]",
                          p_.has<op::EstimateLocal>() ? fmt::format(", x[{}_n]", P()) : "");
     const auto* r = p_.find<op::Rk4>();
     return fmt::format("  Scalar k1[N], k2[N], k3[N], k4[N], t[N], w[N];\n  int i{};\n",

@@ -148,4 +148,80 @@ TEST(CKernels, PackedPositiveDefiniteAgreesWithEigen) {
   EXPECT_GT(indefinite, 20);
 }
 
+// The exact step: against Phi w + Gamma c from Eigen's matrix exponential (an independent
+// oracle), and the C++ runtime's ExactLinearStep::apply (Eigen packets, the kernel's order of
+// operations) bit for bit. For the bitwise part A = u v^T / 8 with v^T u = 0 (A^2 = 0, every
+// entry a dyadic rational, dt = 1/4): E = A dt and Gamma = dt I + A dt^2 / 2 are then computed
+// exactly in either storage order, so any difference is the step's own arithmetic.
+template <class Scalar>
+void expect_exact_step_matches_the_runtime(int columns) {
+  constexpr int n = 4;
+  const double u[n] = {1, 2, 1, 2}, v[n] = {2, -1, 2, -1};
+  Eigen::Matrix<Scalar, n, n> A;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) A(i, j) = Scalar(u[i] * v[j] / 8);
+  const Scalar dt = Scalar(0.25);
+  const bool increment = obsynth::ExactLinearStep<Scalar, n>::kIncrement;
+  Scalar E[n * n], G[n * n], work[4 * n * n], rowsA[n * n];
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) rowsA[i * n + j] = A(i, j);
+  ASSERT_TRUE(obsynth::c::discretise(rowsA, n, dt, E, G, work));
+  if (!increment)
+    for (int i = 0; i < n; ++i) E[i * n + i] += Scalar(1);
+  std::mt19937 gen(columns);
+  std::uniform_real_distribution<double> U(-10, 10);
+  for (int trial = 0; trial < 50; ++trial) {
+    Eigen::Matrix<Scalar, n, 1> w, next;
+    for (int i = 0; i < n; ++i) w(i) = Scalar(U(gen));
+    Scalar kernel[n];
+    if (columns == n) {
+      Eigen::Matrix<Scalar, n, 1> c;
+      for (int i = 0; i < n; ++i) c(i) = Scalar(U(gen));
+      obsynth::ExactLinearStep<Scalar, n> step;
+      ASSERT_TRUE(step.prepare(A, dt));
+      next = step.apply(w, c);
+      obsynth::c::exact_step(E, G, w.data(), c.data(), n, n, increment, kernel);
+    } else {  // one held input through B = (1, -1/2, 2, 1/4): Gamma B exact as well
+      const Eigen::Matrix<Scalar, n, 1> B(Scalar(1), Scalar(-0.5), Scalar(2), Scalar(0.25));
+      Scalar GB[n];
+      for (int i = 0; i < n; ++i) {
+        GB[i] = Scalar(0);
+        for (int r = 0; r < n; ++r) GB[i] += G[i * n + r] * B(r);
+      }
+      Eigen::Matrix<Scalar, 1, 1> b(Scalar(U(gen)));
+      obsynth::ExactLinearStep<Scalar, n, 1> step;
+      ASSERT_TRUE(step.prepare(A, B, dt));
+      next = step.apply(w, b);
+      obsynth::c::exact_step(E, GB, w.data(), b.data(), n, 1, increment, kernel);
+    }
+    for (int i = 0; i < n; ++i) EXPECT_EQ(next(i), kernel[i]) << "row " << i;
+  }
+}
+
+TEST(CKernels, ExactStepIsTheRuntimesStepBitForBit) {
+  expect_exact_step_matches_the_runtime<double>(4);
+  expect_exact_step_matches_the_runtime<float>(4);
+  expect_exact_step_matches_the_runtime<double>(1);
+  expect_exact_step_matches_the_runtime<float>(1);
+}
+
+TEST(CKernels, ExactStepMatchesTheMatrixExponential) {
+  for (int n : {1, 3, 6}) {
+    const Mat A = closed_loop(n, 2.0);
+    const double dt = 0.05;
+    Mat M = Mat::Zero(2 * n, 2 * n);
+    M.topLeftCorner(n, n) = A * dt;
+    M.topRightCorner(n, n) = Mat::Identity(n, n) * dt;
+    const Mat X = M.exp();
+    std::vector<double> E(static_cast<std::size_t>(n * n)), G(E.size()), work(4 * E.size());
+    ASSERT_TRUE(kd::obsynth_discretise(rows(A).data(), n, dt, E.data(), G.data(), work.data()));
+    Eigen::VectorXd w = Eigen::VectorXd::LinSpaced(n, -1, 2), c = Eigen::VectorXd::Constant(n, 0.5);
+    const Eigen::VectorXd expected = X.topLeftCorner(n, n) * w + X.topRightCorner(n, n) * c;
+    std::vector<double> next(static_cast<std::size_t>(n));
+    kd::obsynth_exact_step(E.data(), G.data(), w.data(), c.data(), n, n, 1, next.data());
+    for (int i = 0; i < n; ++i)
+      EXPECT_NEAR(next[static_cast<std::size_t>(i)], expected(i), 1e-12 * (1 + expected.norm()));
+  }
+}
+
 }  // namespace

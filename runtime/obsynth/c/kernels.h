@@ -140,6 +140,25 @@ static inline int obsynth_discretise(const Scalar* A, int n, Scalar dt, Scalar* 
   return obsynth_all_finite(E, n * n) && obsynth_all_finite(G, n * n);
 }
 
+/* One exact zero-order-hold step with obsynth_discretise's matrices: w1 = w0 + (E w0 + G c)
+ * (increment = 1, E = Phi - I: the increment is added to w0 once, keeping its relative
+ * precision), or w1 = E w0 + G c (increment = 0, E = Phi: double precision, where Phi's rounding
+ * is negligible). G is n x k (Gamma, k = n, or Gamma B for k held inputs). Per row, G c is summed
+ * first and E's columns are added to it by multiply-adds, so w0 enters the step-to-step
+ * dependency chain through one multiply-add per column rather than through a product that is
+ * summed and then added to G c (seed 003's step: 0.90 of the expert's time instead of 1.0).
+ * k >= 1; w1 must not alias w0. */
+static inline void obsynth_exact_step(const Scalar* E, const Scalar* G, const Scalar* w0,
+                                      const Scalar* c, int n, int k, int increment, Scalar* w1) {
+  int i, j;
+  for (i = 0; i < n; ++i) {
+    Scalar acc = G[i * k] * c[0];
+    for (j = 1; j < k; ++j) acc += G[i * k + j] * c[j];
+    for (j = 0; j < n; ++j) acc += E[i * n + j] * w0[j];
+    w1[i] = increment ? w0[i] + acc : acc;
+  }
+}
+
 /* The symmetric d x d matrix stored as its upper triangle, row by row, at w + off. */
 static inline void obsynth_unpack_symmetric(const Scalar* w, int off, int d, Scalar* M) {
   int r, c, k = off;
@@ -217,9 +236,7 @@ static inline int obsynth_solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x)
       x[i] -= f * x[k];
     }
   }
-  if (!OBSYNTH_C_ISFINITE(largest) ||
-      !(smallest > OBSYNTH_C_SQRT_EPSILON * largest))
-    return 0;
+  if (!OBSYNTH_C_ISFINITE(largest) || !(smallest > OBSYNTH_C_SQRT_EPSILON * largest)) return 0;
   for (i = d - 1; i >= 0; --i) {
     Scalar t = x[i];
     for (k = i + 1; k < d; ++k) t -= M[i * d + k] * x[k];
@@ -231,8 +248,7 @@ static inline int obsynth_solve_lu(Scalar* M, int d, const Scalar* v, Scalar* x)
 /* 1 when the symmetric d x d block packed at w + off (upper triangle, row by row) is positive
  * definite: every pivot of its square-root-free Cholesky factorisation L D L^T is finite and
  * > 0 (exactly when L L^T exists). work: d * d + d Scalars. */
-static inline int obsynth_packed_positive_definite(const Scalar* w, int off, int d,
-                                                   Scalar* work) {
+static inline int obsynth_packed_positive_definite(const Scalar* w, int off, int d, Scalar* work) {
   Scalar* L = work;
   Scalar* D = work + d * d;
   int i, j, k;
@@ -356,6 +372,104 @@ static inline void obsynth_jet_read(const Scalar* eta, int K, Scalar epsilon, Sc
     out[i * stride] = eta[i] / scale;
     scale *= epsilon;
   }
+}
+
+/* Newton on map(x) = z with the inverse Jacobian tau(x) = (d map / dx)^-1 given (column-major),
+ * by reverse communication: the kernel holds the iteration (stopping rule, iteration limit,
+ * fallback) and the caller evaluates map and tau where it asks, so that C, C++ and the
+ * simulator run one loop with their own function calls:
+ *
+ *   obsynth_newton_begin(&nw, z, x, n, iterations, tol);    x: the seed (previous estimate)
+ *   for (;;) {
+ *     map(x, Tx);
+ *     if (!obsynth_newton_residual(&nw, Tx, z, n, r, x, x_prev)) break;   nw.status: verdict
+ *     tau(x, tau);
+ *     obsynth_newton_step(tau, r, n, dx);
+ *     obsynth_newton_apply(&nw, dx, n, x, x_prev);
+ *   }
+ *
+ * Stopping rule |r|_inf <= tol (1 + |z|_inf) with r = map(x) - z (absolute for |z| <~ 1,
+ * relative beyond), tested at every iterate including the seed. Verdicts: converged; not
+ * converged after `iterations` updates (x: the last iterate); non-finite residual (x: the last
+ * iterate whose residual was finite, the seed if it was the first). */
+enum {
+  OBSYNTH_NEWTON_RUNNING = 0,
+  OBSYNTH_NEWTON_CONVERGED = 1,
+  OBSYNTH_NEWTON_NOT_CONVERGED = 2,
+  OBSYNTH_NEWTON_NON_FINITE = 3
+};
+typedef struct {
+  Scalar threshold;     /* tol (1 + |z|_inf) */
+  Scalar residual_norm; /* |r|_inf at the last iterate tested */
+  int iterations;       /* updates allowed */
+  int updates;          /* updates made */
+  int status;           /* OBSYNTH_NEWTON_* */
+} obsynth_newton;
+
+/* A non-finite seed x, z or tol ends the iteration before it starts (status non-finite). */
+static inline void obsynth_newton_begin(obsynth_newton* s, const Scalar* z, const Scalar* x, int n,
+                                        int iterations, Scalar tol) {
+  Scalar z_norm = (Scalar)0;
+  int i;
+  for (i = 0; i < n; ++i) z_norm = OBSYNTH_C_FABS(z[i]) > z_norm ? OBSYNTH_C_FABS(z[i]) : z_norm;
+  s->threshold = tol * ((Scalar)1 + z_norm);
+  s->residual_norm = (Scalar)0;
+  s->iterations = iterations;
+  s->updates = 0;
+  s->status = OBSYNTH_C_ISFINITE(s->threshold) && obsynth_all_finite(x, n)
+                  ? OBSYNTH_NEWTON_RUNNING
+                  : OBSYNTH_NEWTON_NON_FINITE;
+}
+
+/* r = Tx - z at the current x (Tx = map(x)); 1 when the caller must supply tau(x) for another
+ * update, 0 when the iteration has ended (s->status). A non-finite residual ends it with x back
+ * at the previous iterate. */
+static inline int obsynth_newton_residual(obsynth_newton* s, const Scalar* Tx, const Scalar* z,
+                                          int n, Scalar* r, Scalar* x, const Scalar* x_prev) {
+  Scalar norm = (Scalar)0;
+  int i, finite = 1;
+  if (s->status != OBSYNTH_NEWTON_RUNNING) return 0;
+  for (i = 0; i < n; ++i) {
+    r[i] = Tx[i] - z[i];
+    finite = finite && OBSYNTH_C_ISFINITE(r[i]);
+    norm = OBSYNTH_C_FABS(r[i]) > norm ? OBSYNTH_C_FABS(r[i]) : norm;
+  }
+  if (!finite) {
+    if (s->updates > 0)
+      for (i = 0; i < n; ++i) x[i] = x_prev[i];
+    s->status = OBSYNTH_NEWTON_NON_FINITE;
+    return 0;
+  }
+  s->residual_norm = norm;
+  if (norm <= s->threshold) {
+    s->status = OBSYNTH_NEWTON_CONVERGED;
+    return 0;
+  }
+  if (s->updates >= s->iterations) {
+    s->status = OBSYNTH_NEWTON_NOT_CONVERGED;
+    return 0;
+  }
+  return 1;
+}
+
+/* The Newton update dx = tau r, with tau = (d map / dx)^-1 at x, column-major. */
+static inline void obsynth_newton_step(const Scalar* tau, const Scalar* r, int n, Scalar* dx) {
+  int i, j;
+  for (i = 0; i < n; ++i) {
+    dx[i] = (Scalar)0;
+    for (j = 0; j < n; ++j) dx[i] += tau[j * n + i] * r[j];
+  }
+}
+
+/* x <- x - dx (x_prev keeps x for the fallback). */
+static inline void obsynth_newton_apply(obsynth_newton* s, const Scalar* dx, int n, Scalar* x,
+                                        Scalar* x_prev) {
+  int i;
+  for (i = 0; i < n; ++i) {
+    x_prev[i] = x[i];
+    x[i] -= dx[i];
+  }
+  ++s->updates;
 }
 
 #endif /* OBSYNTH_C_KERNELS_BODY */
