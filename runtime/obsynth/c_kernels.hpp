@@ -31,6 +31,14 @@ inline int discretise(const double* A, int n, double dt, double* E, double* G,
 inline int discretise(const float* A, int n, float dt, float* E, float* G, float* work) noexcept {
   return c_float::obsynth_discretise(A, n, dt, E, G, work);
 }
+inline void rk4_stage(int stage, double h, int n, const double* w0, const double* k, double* acc,
+                      double* t) noexcept {
+  c_double::obsynth_rk4_stage(stage, h, n, w0, k, acc, t);
+}
+inline void rk4_stage(int stage, float h, int n, const float* w0, const float* k, float* acc,
+                      float* t) noexcept {
+  c_float::obsynth_rk4_stage(stage, h, n, w0, k, acc, t);
+}
 // Newton by reverse communication (obsynth_newton_*): the state per precision and its verdicts.
 template <class Scalar>
 using newton_state = std::conditional_t<std::is_same_v<Scalar, float>, c_float::obsynth_newton,

@@ -25,6 +25,7 @@
 #include <type_traits>
 #include <utility>
 
+#include "obsynth/c_kernels.hpp"
 #include "obsynth/eigen.hpp"
 #include "obsynth/numeric.hpp"
 
@@ -41,28 +42,6 @@ constexpr void check_rhs() noexcept {
   static_assert(std::is_nothrow_invocable_v<Rhs&, const Eigen::Matrix<Scalar, N, 1>&,
                                             Eigen::Matrix<Scalar, N, 1>&>,
                 "rhs must be noexcept (declare the lambda or operator() noexcept)");
-}
-/// The RK4 step written out coefficient by coefficient (a fold over 0..N-1), so that the
-/// stage vectors are plain scalars the compiler keeps in registers: the rhs writes k one
-/// scalar at a time, and Eigen's packet code for an N that is not a multiple of the packet
-/// size (5 floats = one SSE packet + 1) spends more moving scalars in and out of packets
-/// than it saves.
-template <class Rhs, class Scalar, int N, int... I>
-inline void rk4_unrolled(Rhs& rhs, Scalar dt, Eigen::Matrix<Scalar, N, 1>& x,
-                         std::integer_sequence<int, I...>) noexcept {
-  const Scalar half_dt = dt * Scalar(0.5);
-  const Scalar sixth_dt = dt / Scalar(6);
-  Eigen::Matrix<Scalar, N, 1> k;    // current stage derivative
-  Eigen::Matrix<Scalar, N, 1> acc;  // k1 + 2 k2 + 2 k3 + k4
-  Eigen::Matrix<Scalar, N, 1> xs;   // stage point
-  rhs(static_cast<const Eigen::Matrix<Scalar, N, 1>&>(x), k);
-  ((acc(I) = k(I), xs(I) = x(I) + half_dt * k(I)), ...);
-  rhs(static_cast<const Eigen::Matrix<Scalar, N, 1>&>(xs), k);
-  ((acc(I) += Scalar(2) * k(I), xs(I) = x(I) + half_dt * k(I)), ...);
-  rhs(static_cast<const Eigen::Matrix<Scalar, N, 1>&>(xs), k);
-  ((acc(I) += Scalar(2) * k(I), xs(I) = x(I) + dt * k(I)), ...);
-  rhs(static_cast<const Eigen::Matrix<Scalar, N, 1>&>(xs), k);
-  ((x(I) += sixth_dt * (acc(I) + k(I))), ...);
 }
 }  // namespace detail
 
@@ -93,12 +72,23 @@ inline void heun_step(Rhs&& rhs, detail::type_identity_t<Scalar> dt,
 
 /// Classical fourth-order Runge-Kutta:
 ///   k1 = F(x), k2 = F(x + dt/2 k1), k3 = F(x + dt/2 k2), k4 = F(x + dt k3),
-///   x <- x + dt/6 (k1 + 2 k2 + 2 k3 + k4). Fourth order.
+///   x <- x + dt/6 (k1 + 2 k2 + 2 k3 + k4). Fourth order. The stages are the C kernel
+/// obsynth_rk4_stage (as the C back end's and the simulator's RK4).
 template <class Scalar, int N, class Rhs>
 inline void rk4_step(Rhs&& rhs, detail::type_identity_t<Scalar> dt,
                      Eigen::Matrix<Scalar, N, 1>& x) noexcept {
   detail::check_rhs<Rhs, Scalar, N>();
-  detail::rk4_unrolled(rhs, dt, x, std::make_integer_sequence<int, N>{});
+  using Vec = Eigen::Matrix<Scalar, N, 1>;
+  Vec k, acc, t;  // stage derivative, k1 + 2 k2 + 2 k3, stage point
+  // Written out stage by stage: each kernel call's stage is then a constant and its switch folds.
+  rhs(static_cast<const Vec&>(x), k);
+  c::rk4_stage(0, Scalar(dt), N, x.data(), k.data(), acc.data(), t.data());
+  rhs(static_cast<const Vec&>(t), k);
+  c::rk4_stage(1, Scalar(dt), N, x.data(), k.data(), acc.data(), t.data());
+  rhs(static_cast<const Vec&>(t), k);
+  c::rk4_stage(2, Scalar(dt), N, x.data(), k.data(), acc.data(), t.data());
+  rhs(static_cast<const Vec&>(t), k);
+  c::rk4_stage(3, Scalar(dt), N, x.data(), k.data(), acc.data(), x.data());
 }
 
 }  // namespace obsynth

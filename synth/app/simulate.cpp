@@ -45,21 +45,20 @@ Vec concat(const Vec& a, const Vec& b) {
   return c;
 }
 
-Vec axpy(const Vec& x, double a, const Vec& k) {
-  Vec r(x);
-  for (std::size_t i = 0; i < r.size(); ++i) r[i] += a * k[i];
-  return r;
-}
-
-// Classical RK4 on a vector field of arbitrary dimension (the scheme of rk4_step).
+// Classical RK4 on a vector field of arbitrary dimension: the stages of the C kernel
+// (obsynth_rk4_stage, as the generated steps), the field evaluated at t, t + dt/2, t + dt/2, t +
+// dt.
 template <class F>
 void rk4(F&& rhs, double t, double dt, Vec& x) {
-  const Vec k1 = rhs(t, x);
-  const Vec k2 = rhs(t + dt / 2, axpy(x, dt / 2, k1));
-  const Vec k3 = rhs(t + dt / 2, axpy(x, dt / 2, k2));
-  const Vec k4 = rhs(t + dt, axpy(x, dt, k3));
-  for (std::size_t i = 0; i < x.size(); ++i)
-    x[i] += dt / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+  const int n = static_cast<int>(x.size());
+  Vec acc(x.size()), point(x.size());
+  const double at[4] = {t, t + dt / 2, t + dt / 2, t + dt};
+  Vec k = rhs(at[0], x);
+  for (int stage = 0; stage < 3; ++stage) {
+    c_double::obsynth_rk4_stage(stage, dt, n, x.data(), k.data(), acc.data(), point.data());
+    k = rhs(at[stage + 1], point);
+  }
+  c_double::obsynth_rk4_stage(3, dt, n, x.data(), k.data(), acc.data(), x.data());
 }
 
 // Runtime-sized access to the runtime's fixed-order differentiator.
@@ -184,12 +183,9 @@ bool exact_discretisation(const ObserverSpec& s, double dt, Vec& E, Vec& Gamma) 
                                       work.data()) != 0;
 }
 
-// ceil(dt / max_substep), 1..4096 (1 when max_substep is 0), as the generated guarded step.
+// ceil(dt / max_substep), 1..4096 (1 when max_substep is 0): the generated guarded step's kernel.
 std::size_t substeps(double dt, const GiNaC::numeric& max_substep) {
-  if (!(max_substep > 0)) return 1;
-  const double ratio = dt / max_substep.to_double();
-  if (!(ratio > 1)) return 1;
-  return ratio >= 4096 ? 4096 : static_cast<std::size_t>(std::ceil(ratio));
+  return static_cast<std::size_t>(c_double::obsynth_substeps(dt, max_substep.to_double()));
 }
 
 // One observer run: the step program (step_program.hpp) interpreted in double, op by op in the

@@ -126,27 +126,27 @@ const char* kDiscretiseOp =
     R"(  if (!(dt == o->dt) && !discretise(o, dt)) return o->status = {{P}}_non_finite;
 )";
 
-// RK4 from o->w into w (one step, the stages evaluate the field directly).
-const char* kRk4Op = R"(  {{rhs}}(o->w, {{rhs_in}}{{PRM}}, k1);
-  for (i = 0; i < N; ++i) t[i] = o->w[i] + dt / {{two}} * k1[i];
-  {{rhs}}(t, {{rhs_in}}{{PRM}}, k2);
-  for (i = 0; i < N; ++i) t[i] = o->w[i] + dt / {{two}} * k2[i];
-  {{rhs}}(t, {{rhs_in}}{{PRM}}, k3);
-  for (i = 0; i < N; ++i) t[i] = o->w[i] + dt * k3[i];
-  {{rhs}}(t, {{rhs_in}}{{PRM}}, k4);
-  for (i = 0; i < N; ++i) w[i] = o->w[i] + dt / {{six}} * (k1[i] + {{two}} * (k2[i] + k3[i]) + k4[i]);
+// RK4 from o->w into w: the field between the kernel's stages (obsynth_rk4_stage).
+const char* kRk4Op = R"(  {{rhs}}(o->w, {{rhs_in}}{{PRM}}, k);
+  obsynth_rk4_stage(0, dt, N, o->w, k, acc, t);
+  {{rhs}}(t, {{rhs_in}}{{PRM}}, k);
+  obsynth_rk4_stage(1, dt, N, o->w, k, acc, t);
+  {{rhs}}(t, {{rhs_in}}{{PRM}}, k);
+  obsynth_rk4_stage(2, dt, N, o->w, k, acc, t);
+  {{rhs}}(t, {{rhs_in}}{{PRM}}, k);
+  obsynth_rk4_stage(3, dt, N, o->w, k, acc, w);
 )";
 
 // RK4 in sub-steps of length h through total_rhs, each stage's success and-ed into ok.
 const char* kRk4GuardedOp = R"({{substeps}}  for (i = 0; i < N; ++i) w[i] = o->w[i];
-{{loop}}  ok = total_rhs(w, u, y{{PRM}}, k1) && ok;
-  for (i = 0; i < N; ++i) t[i] = w[i] + h / {{two}} * k1[i];
-  ok = total_rhs(t, u, y{{PRM}}, k2) && ok;
-  for (i = 0; i < N; ++i) t[i] = w[i] + h / {{two}} * k2[i];
-  ok = total_rhs(t, u, y{{PRM}}, k3) && ok;
-  for (i = 0; i < N; ++i) t[i] = w[i] + h * k3[i];
-  ok = total_rhs(t, u, y{{PRM}}, k4) && ok;
-  for (i = 0; i < N; ++i) w[i] = w[i] + h / {{six}} * (k1[i] + {{two}} * (k2[i] + k3[i]) + k4[i]);
+{{loop}}  ok = total_rhs(w, u, y{{PRM}}, k) && ok;
+  obsynth_rk4_stage(0, h, N, w, k, acc, t);
+  ok = total_rhs(t, u, y{{PRM}}, k) && ok;
+  obsynth_rk4_stage(1, h, N, w, k, acc, t);
+  ok = total_rhs(t, u, y{{PRM}}, k) && ok;
+  obsynth_rk4_stage(2, h, N, w, k, acc, t);
+  ok = total_rhs(t, u, y{{PRM}}, k) && ok;
+  obsynth_rk4_stage(3, h, N, w, k, acc, w);
 {{loop_end}})";
 
 const char* kTotalRhs = R"(
@@ -592,29 +592,22 @@ class CStepPrinter {
     if (!r.field.guarded)
       return render_template(kRk4Op, {{"rhs", b_.fn(r.field.rhs)},
                                       {"rhs_in", r.field.held.empty() ? "u, y" : "c"},
-                                      {"PRM", prm_},
-                                      {"two", b_.lit(2)},
-                                      {"six", b_.lit(6)}});
+                                      {"PRM", prm_}});
     // Sub-steps no longer than max_substep (the design's largest safe RK4 step).
     std::string substeps = "  const Scalar h = dt;\n", loop, loop_end;
     if (r.max_substep > 0) {
       substeps = fmt::format(
           "  /* dt in equal RK4 sub-steps of at most {0} (the largest safe step) */\n"
-          "  const Scalar ratio = dt / {1};\n"
-          "  const int steps = !(ratio > {2}) ? 1 : ratio >= {3} ? 4096 : (int)ratio + "
-          "((Scalar)(int)ratio < ratio ? 1 : 0);\n"
-          "  const Scalar h = dt / (Scalar)steps;\n  int k;\n",
+          "  const int steps = obsynth_substeps(dt, {1});\n"
+          "  const Scalar h = dt / (Scalar)steps;\n  int step;\n",
           fmt::format("{:.6g}", r.max_substep.to_double()),
-          c_scalar_literal(r.max_substep, precision_), b_.lit(1), b_.lit(4096));
-      loop = "  for (k = 0; k < steps; ++k) {\n";
+          c_scalar_literal(r.max_substep, precision_));
+      loop = "  for (step = 0; step < steps; ++step) {\n";
       loop_end = "  }\n";
     }
-    return render_template(kRk4GuardedOp, {{"substeps", substeps},
-                                           {"loop", loop},
-                                           {"loop_end", loop_end},
-                                           {"PRM", prm_},
-                                           {"two", b_.lit(2)},
-                                           {"six", b_.lit(6)}});
+    return render_template(
+        kRk4GuardedOp,
+        {{"substeps", substeps}, {"loop", loop}, {"loop_end", loop_end}, {"PRM", prm_}});
   }
   std::string operator()(const op::StageGuard&) const {
     return fmt::format("  if (!ok) return o->status = {}_singular;\n", P());
@@ -717,8 +710,10 @@ class CStepPrinter {
       return fmt::format("  Scalar {}, w[N]{};\n  int i;\n", e->basis ? "b[K]" : "c[N]",
                          p_.has<op::EstimateLocal>() ? fmt::format(", x[{}_n]", P()) : "");
     const auto* r = p_.find<op::Rk4>();
-    return fmt::format("  Scalar k1[N], k2[N], k3[N], k4[N], t[N], w[N];\n  int i{};\n",
-                       r && r->field.guarded ? ", ok = 1" : "");
+    return fmt::format(
+        "  Scalar k[N], acc[N], t[N], w[N]; /* RK4: stage field, k1 + 2 k2 + 2 k3, point */\n  int "
+        "i{};\n",
+        r && r->field.guarded ? ", ok = 1" : "");
   }
 
   const ObserverSpec& s_;

@@ -225,3 +225,39 @@ TEST(CKernels, ExactStepMatchesTheMatrixExponential) {
 }
 
 }  // namespace
+
+namespace {
+
+// One RK4 step on w' = A w is the Taylor polynomial of e^{A h} to degree 4 (by hand: every
+// stage is a polynomial in A h), here with the last stage written over w0 itself.
+TEST(CKernels, Rk4StagesAreTheDegreeFourTaylorStep) {
+  constexpr int n = 3;
+  const Mat A = closed_loop(n, 1.5);
+  const double h = 0.1;
+  const Eigen::VectorXd w0 = Eigen::VectorXd::LinSpaced(n, 1, -2);
+  const Mat X = A * h;
+  const Mat P = Mat::Identity(n, n) + X + X * X / 2 + X * X * X / 6 + X * X * X * X / 24;
+  const Eigen::VectorXd expected = P * w0;
+  Eigen::VectorXd w = w0, k(n), acc(n), t(n);
+  k = A * w;
+  kd::obsynth_rk4_stage(0, h, n, w.data(), k.data(), acc.data(), t.data());
+  for (int stage = 1; stage <= 3; ++stage) {
+    k = A * t;
+    kd::obsynth_rk4_stage(stage, h, n, w.data(), k.data(), acc.data(),
+                          stage < 3 ? t.data() : w.data());
+  }
+  for (int i = 0; i < n; ++i) EXPECT_NEAR(w(i), expected(i), 1e-15 * (1 + expected.norm()));
+}
+
+TEST(CKernels, SubstepsAreTheCeilingOfTheRatioWithinLimits) {
+  EXPECT_EQ(kd::obsynth_substeps(0.01, 0.0), 1);     // no limit
+  EXPECT_EQ(kd::obsynth_substeps(0.01, 0.02), 1);    // already short enough
+  EXPECT_EQ(kd::obsynth_substeps(0.01, 0.01), 1);    // exactly the limit
+  EXPECT_EQ(kd::obsynth_substeps(0.01, 0.004), 3);   // 2.5 -> 3
+  EXPECT_EQ(kd::obsynth_substeps(0.01, 0.0025), 4);  // 4 exactly
+  EXPECT_EQ(kd::obsynth_substeps(1.0, 1e-9), 4096);  // capped
+  EXPECT_EQ(kd::obsynth_substeps(NAN, 0.01), 1);     // not a number: one step (its guards act)
+  EXPECT_EQ(kf::obsynth_substeps(0.01f, 0.004f), 3);
+}
+
+}  // namespace

@@ -140,6 +140,47 @@ static inline int obsynth_discretise(const Scalar* A, int n, Scalar dt, Scalar* 
   return obsynth_all_finite(E, n * n) && obsynth_all_finite(G, n * n);
 }
 
+/* Classical RK4 for w' = F(w), one stage at a time, so that each caller evaluates F its own
+ * way (generated C functions, C++ callables, the simulator's expression DAG) around one scheme:
+ *
+ *   F(w0) -> k;  obsynth_rk4_stage(0, h, n, w0, k, acc, t);
+ *   F(t)  -> k;  obsynth_rk4_stage(1, h, n, w0, k, acc, t);
+ *   F(t)  -> k;  obsynth_rk4_stage(2, h, n, w0, k, acc, t);
+ *   F(t)  -> k;  obsynth_rk4_stage(3, h, n, w0, k, acc, w1);   w1: the new state
+ *
+ * acc gathers k1 + 2 k2 + 2 k3 and t is the next stage point (w0 + h/2 k1, w0 + h/2 k2,
+ * w0 + h k3); the last stage writes w1 = w0 + h/6 (acc + k4), which may be w0 itself. */
+static inline void obsynth_rk4_stage(int stage, Scalar h, int n, const Scalar* w0, const Scalar* k,
+                                     Scalar* acc, Scalar* t) {
+  const Scalar half = h * (Scalar)0.5, sixth = h / (Scalar)6;
+  int i;
+  for (i = 0; i < n; ++i) switch (stage) {
+      case 0:
+        acc[i] = k[i];
+        t[i] = w0[i] + half * k[i];
+        break;
+      case 1:
+        acc[i] += (Scalar)2 * k[i];
+        t[i] = w0[i] + half * k[i];
+        break;
+      case 2:
+        acc[i] += (Scalar)2 * k[i];
+        t[i] = w0[i] + h * k[i];
+        break;
+      default:
+        t[i] = w0[i] + sixth * (acc[i] + k[i]);
+    }
+}
+
+/* The number of equal sub-steps of dt no longer than max_h: ceil(dt / max_h) in 1..4096 (1 for
+ * max_h <= 0 or a ratio that is not a number). */
+static inline int obsynth_substeps(Scalar dt, Scalar max_h) {
+  const Scalar ratio = max_h > (Scalar)0 ? dt / max_h : (Scalar)0;
+  if (!(ratio > (Scalar)1)) return 1;
+  if (ratio >= (Scalar)4096) return 4096;
+  return (int)ratio + ((Scalar)(int)ratio < ratio ? 1 : 0);
+}
+
 /* One exact zero-order-hold step with obsynth_discretise's matrices: w1 = w0 + (E w0 + G c)
  * (increment = 1, E = Phi - I: the increment is added to w0 once, keeping its relative
  * precision), or w1 = E w0 + G c (increment = 0, E = Phi: double precision, where Phi's rounding
