@@ -159,6 +159,14 @@ std::string c_scalar_literal(const GiNaC::numeric& v, Precision p) {
   return p == Precision::single ? s + "f" : s;
 }
 
+std::string matrix_literals(const std::vector<std::vector<GiNaC::numeric>>& rows, Precision p,
+                            std::string (*literal)(const GiNaC::numeric&, Precision)) {
+  std::vector<std::string> v;
+  for (const auto& row : rows)
+    for (const auto& q : row) v.push_back(literal(q, p));
+  return fmt::format("{}", fmt::join(v, ", "));
+}
+
 namespace {
 
 enum Prec { p_sum = 1, p_product = 2, p_unary = 3, p_atom = 4 };

@@ -40,6 +40,10 @@ std::string c_field_identifier(const std::string& name);
 std::string scalar_literal(const GiNaC::numeric& v, Precision p);
 // The same value as a C99 literal: 2.0, 0.5f (no cast, no integer literals).
 std::string c_scalar_literal(const GiNaC::numeric& v, Precision p);
+// A constant matrix's entries row by row as "a, b, ...", each printed by `literal` (scalar_literal
+// or c_scalar_literal): the initialisers of A_cl and B in both back ends.
+std::string matrix_literals(const std::vector<std::vector<GiNaC::numeric>>& rows, Precision p,
+                            std::string (*literal)(const GiNaC::numeric&, Precision));
 
 struct Assignment {
   std::string target;  // e.g. "out(0)"

@@ -726,20 +726,6 @@ class CStepPrinter {
   bool pd_work_ = false;
 };
 
-std::string closed_loop(const ObserverSpec& s, Precision p) {
-  std::vector<std::string> v;
-  for (const auto& row : s.closed_loop)
-    for (const auto& q : row) v.push_back(c_scalar_literal(q, p));
-  return fmt::format("{}", fmt::join(v, ", "));
-}
-
-std::string input_map(const ObserverSpec& s, Precision p) {
-  std::vector<std::string> v;
-  for (const auto& row : s.input_map)
-    for (const auto& q : row) v.push_back(c_scalar_literal(q, p));
-  return fmt::format("{}", fmt::join(v, ", "));
-}
-
 std::string c_table_literal(double v, Precision p) {
   std::string t = p == Precision::single ? fmt::format("{:.9g}", static_cast<float>(v))
                                          : fmt::format("{:.17g}", v);
@@ -1032,12 +1018,13 @@ EmittedHeader emit_c_pair(const Analysis& a, const ObserverSpec& s, const EmitOp
     src += render_template(
         kDiscretise,
         {{"P", P},
-         {"closed_loop", closed_loop(s, opt.precision)},
+         {"closed_loop", matrix_literals(s.closed_loop, opt.precision, c_scalar_literal)},
          {"G", basis ? "Gamma" : "o->Gamma"},
-         {"input_map", basis ? fmt::format("  static const Scalar B[N * K] = {{ {} }}; /* "
-                                           "row-major */\n  Scalar Gamma[N * N];\n",
-                                           input_map(s, opt.precision))
-                             : ""},
+         {"input_map",
+          basis ? fmt::format("  static const Scalar B[N * K] = {{ {} }}; /* "
+                              "row-major */\n  Scalar Gamma[N * N];\n",
+                              matrix_literals(s.input_map, opt.precision, c_scalar_literal))
+                : ""},
          {"fold", basis ? render_template(kFoldInputMap, {{"zero", b.lit(0)}}) : ""},
          {"gamma_size", basis ? "N * K" : "N * N"},
          {"zero", b.lit(0)}});

@@ -143,16 +143,18 @@ const char* kRk4GuardedDoc =
   /// kept, Status::singular) {{guard_doc}}.
 )";
 
-const char* kExactDoc =
+// The exact steps' doc comment: a common head, then how c is held and, for the fused steps,
+// the rejection (the four tails keep the line breaks of the golden headers).
+const char* kExactDocHead =
     R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
   /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
-  /// Phi and Gamma recomputed only when dt changes.
 )";
 
-const char* kExactBasisDoc =
-    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
-  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
-  /// with c = B b for a constant B: w <- Phi w + (Gamma B) b, Phi and Gamma B recomputed only
+const char* kExactDocTail = R"(  /// Phi and Gamma recomputed only when dt changes.
+)";
+
+const char* kExactBasisDocTail =
+    R"(  /// with c = B b for a constant B: w <- Phi w + (Gamma B) b, Phi and Gamma B recomputed only
   /// when dt changes.
 )";
 
@@ -162,18 +164,15 @@ const char* kExactBasisDoc =
 // the estimate (one branch-free test instead of two loops). The state is stored only after the
 // test: a copy of the old state kept for a restore went through the stack on GCC 12, and the
 // next step's load of the state then waited on two store-to-load forwards (seed 003 double
-// against the expert reference: 1.50x with the copy, 1.03x without).
-const char* kExactFusedDoc =
-    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
-  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
-  /// Phi and Gamma recomputed only when dt changes. On a non-finite {{w}} or estimate the step is
+// against the expert reference: 1.50x with the copy, 1.03x without; 0.92x once
+// ExactLinearStep::apply added G c first).
+const char* kExactFusedDocTail =
+    R"(  /// Phi and Gamma recomputed only when dt changes. On a non-finite {{w}} or estimate the step is
   /// rejected (state and estimate kept, Status::non_finite).
 )";
 
-const char* kExactBasisFusedDoc =
-    R"(  /// One step of length dt with u and y held over it (zero-order hold), exact for the
-  /// linear dynamics w' = A_cl w + c: w <- Phi(dt) w + Gamma(dt) c (obsynth::ExactLinearStep),
-  /// with c = B b for a constant B: w <- Phi w + (Gamma B) b, Phi and Gamma B recomputed only
+const char* kExactBasisFusedDocTail =
+    R"(  /// with c = B b for a constant B: w <- Phi w + (Gamma B) b, Phi and Gamma B recomputed only
   /// when dt changes. On a non-finite {{w}} or estimate the step is rejected (state and estimate
   /// kept, Status::non_finite).
 )";
@@ -713,20 +712,6 @@ std::string estimate_body(const ObserverSpec& s, const StepProgram& p, const Emi
       p.estimate);
 }
 
-std::string closed_loop_literals(const ObserverSpec& s, Precision p) {
-  std::vector<std::string> v;
-  for (const auto& row : s.closed_loop)
-    for (const auto& q : row) v.push_back(scalar_literal(q, p));
-  return fmt::format("{}", fmt::join(v, ", "));
-}
-
-std::string input_map_literals(const ObserverSpec& s, Precision p) {
-  std::vector<std::string> v;
-  for (const auto& row : s.input_map)
-    for (const auto& q : row) v.push_back(scalar_literal(q, p));
-  return fmt::format("{}", fmt::join(v, ", "));
-}
-
 // The private total_rhs(w, u, y) = rhs + [0; M^-1 v; 0] of guarded ODE observers.
 std::string total_rhs_function(const op::VectorField& f, const ClassContext& c) {
   const bool params = !c.P.empty();
@@ -879,8 +864,10 @@ class CxxStepPrinter {
     if (guarded_rk4(p_)) return render_template(kRk4GuardedDoc, {{"guard_doc", rejection_doc(p_)}});
     if (p_.has<op::Rk4>()) return kRk4Doc;
     const bool basis = p_.find<op::ExactLinearStep>()->basis;
-    if (!p_.has<op::EstimateLocal>()) return basis ? kExactBasisDoc : kExactDoc;
-    return render_template(basis ? kExactBasisFusedDoc : kExactFusedDoc, {{"w", s_.state_name}});
+    if (!p_.has<op::EstimateLocal>())
+      return std::string(kExactDocHead) + (basis ? kExactBasisDocTail : kExactDocTail);
+    return kExactDocHead + render_template(basis ? kExactBasisFusedDocTail : kExactFusedDocTail,
+                                           {{"w", s_.state_name}});
   }
 
   const ObserverSpec& s_;
@@ -960,13 +947,15 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const StepProg
   members += c.params_member;
   std::string private_functions;
   if (basis)
-    private_functions =
-        render_template(kDiscretiseBasis, {{"closed_loop", closed_loop_literals(s, opt.precision)},
-                                           {"k", std::to_string(exact->basis)},
-                                           {"input_map", input_map_literals(s, opt.precision)}});
+    private_functions = render_template(
+        kDiscretiseBasis,
+        {{"closed_loop", matrix_literals(s.closed_loop, opt.precision, scalar_literal)},
+         {"k", std::to_string(exact->basis)},
+         {"input_map", matrix_literals(s.input_map, opt.precision, scalar_literal)}});
   else if (exact)
-    private_functions =
-        render_template(kDiscretise, {{"closed_loop", closed_loop_literals(s, opt.precision)}});
+    private_functions = render_template(
+        kDiscretise,
+        {{"closed_loop", matrix_literals(s.closed_loop, opt.precision, scalar_literal)}});
   if (const op::Rk4* r = guarded_rk4(program)) private_functions += total_rhs_function(r->field, c);
   auto v = c.common;
   v.erase("scalar");
