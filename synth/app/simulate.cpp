@@ -341,85 +341,46 @@ class ProgramObserver {
     rejected_ = "the sample period";
     return false;
   }
+  // The delay line, the level and the table estimate: the C kernels obsynth_delay_* (as the
+  // generated C step).
   bool run(const op::RingPush&, Step& st) {
     const SampledDelay& d = *s_.sampled_delay;
-    const std::size_t pz = d.filters, slots = d.delay_steps + 1;
-    const Vec &decay = table(d.decay_table), &gain = table(d.gain_table);
-    const std::size_t next = (head_ + 1) % slots;
-    for (std::size_t j = 0; j < pz; ++j)
-      ring_[next * pz + j] = decay[j] * ring_[head_ * pz + j] + gain[j] * st.y[j % d.outputs];
-    u_ring_[next] = d.levels > 1 ? st.u[d.input_index] : 0.0;
-    head_ = next;
-    if (filled_ < d.delay_steps) ++filled_;
-    return filled_ >= d.delay_steps;
+    return c_double::obsynth_delay_push(ring_.data(), u_ring_.data(), &head_, &filled_,
+                                        delay_steps(), static_cast<int>(d.filters),
+                                        table(d.decay_table).data(), table(d.gain_table).data(),
+                                        st.y.data(), static_cast<int>(d.outputs),
+                                        d.levels > 1 ? st.u[d.input_index] : 0.0) != 0;
   }
   bool run(const op::LevelSelect& ls, Step& st) {
     const SampledDelay& d = *s_.sampled_delay;
     level_ = 0;
     frac_ = slope_ = 0;
     if (!ls.by_input) return true;
-    const std::size_t slots = d.delay_steps + 1, old = (head_ + 1) % slots;  // D steps ago
-    double v = st.u[d.input_index];
-    if (d.level_window_mean) {
-      double acc = 0;
-      for (std::size_t k = 0; k < slots; ++k)
-        if (k != old) acc += u_ring_[k];
-      v = acc / static_cast<double>(d.delay_steps);
-      if (ls.slope) slope_ = window_slope(v, st.dt);
-    }
-    if (ls.interpolate) {
-      const double top = static_cast<double>(d.levels - 1);
-      const double r = std::clamp((v - d.level_lo) / d.level_step, 0.0, top);
-      level_ = std::min(static_cast<std::size_t>(std::floor(r)), d.levels - 2);
-      frac_ = r - static_cast<double>(level_);
-    } else {
-      v = std::floor((v - d.level_lo) / d.level_step + (d.level_nearest ? 0.5 : 0.0));
-      level_ = v <= 0                                   ? 0
-               : v >= static_cast<double>(d.levels - 1) ? d.levels - 1
-                                                        : static_cast<std::size_t>(v);
-    }
+    c_double::obsynth_delay_level(
+        u_ring_.data(), head_, delay_steps(), st.u[d.input_index], d.level_window_mean,
+        ls.slope ? &slope_ : nullptr, st.dt, d.level_lo, d.level_step, static_cast<int>(d.levels),
+        d.level_nearest, ls.interpolate, &level_, ls.interpolate ? &frac_ : nullptr);
     return true;
   }
   bool run(const op::TableLookup&, Step& st) {
     const SampledDelay& d = *s_.sampled_delay;
-    const std::size_t pz = d.filters, slots = d.delay_steps + 1, old = (head_ + 1) % slots;
-    const Vec &delay = table(d.delay_table), &metric = table(d.metric_table),
-              &map = table(d.map_table);
-    const Vec& slope_table = d.slope_table.empty() ? map : table(d.slope_table);
-    Vec raw(pz), eta(pz, 0.0);
-    for (std::size_t j = 0; j < pz; ++j)
-      raw[j] = ring_[head_ * pz + j] - delay[j] * ring_[old * pz + j];
-    for (std::size_t j = 0; j < pz; ++j)
-      for (std::size_t k = 0; k < pz; ++k) eta[j] += metric[j * pz + k] * raw[k];
-    const std::size_t n = d.grid_count.size(), N = d.points();
-    std::vector<std::size_t> idx(n, 0);
-    Vec sx(n, 0.0);
-    double sw = 0;
-    const double* q = map.data() + level_ * N * pz;
-    // The next level's table (read only when interpolating, then level + 1 < levels).
+    const int pz = static_cast<int>(d.filters), n = static_cast<int>(d.grid_count.size());
+    const std::size_t level_size = d.points() * d.filters;
+    const double* q = table(d.map_table).data() + static_cast<std::size_t>(level_) * level_size;
+    const double* dq = d.slope_table.empty() ? nullptr
+                                             : table(d.slope_table).data() +
+                                                   static_cast<std::size_t>(level_) * level_size;
     const bool next_level = d.level_interpolate && d.levels > 1;
-    const double* q1 = next_level ? q + N * pz : q;
-    const double* dq = slope_table.data() + level_ * N * pz;  // read only with a slope table
-    const double* dq1 = next_level ? dq + N * pz : dq;
-    for (std::size_t i = 0; i < N; ++i, q += pz, q1 += pz, dq += pz, dq1 += pz) {
-      double d2 = 0;
-      for (std::size_t j = 0; j < pz; ++j) {
-        double e = q[j] + frac_ * (q1[j] - q[j]) - eta[j];
-        if (slope_ != 0) e += slope_ * (dq[j] + frac_ * (dq1[j] - dq[j]));
-        d2 += e * e;
-      }
-      const double b = 1 / (d.epsilon + std::sqrt(d2));
-      double w = b;
-      for (int k = 1; k < d.weight_power; ++k) w *= b;
-      sw += w;
-      for (std::size_t s = 0; s < n; ++s)
-        sx[s] += w * (d.grid_lo[s] + d.grid_step[s] * static_cast<double>(idx[s]));
-      for (std::size_t s = n; s-- > 0;) {
-        if (++idx[s] < d.grid_count[s]) break;
-        idx[s] = 0;
-      }
-    }
-    for (std::size_t s = 0; s < n; ++s) sx[s] /= sw;
+    const std::vector<int> count(d.grid_count.begin(), d.grid_count.end());
+    const c_double::obsynth_delay_grid grid{n, static_cast<int>(d.points()), d.grid_lo.data(),
+                                            d.grid_step.data(), count.data()};
+    Vec work(2 * d.filters), sx(d.grid_count.size());
+    std::vector<int> idx(d.grid_count.size());
+    c_double::obsynth_delay_estimate(&grid, ring_.data(), head_, delay_steps(), pz,
+                                     table(d.delay_table).data(), table(d.metric_table).data(), q,
+                                     next_level ? q + level_size : nullptr, frac_, dq,
+                                     dq && next_level ? dq + level_size : dq, slope_, d.epsilon,
+                                     d.weight_power, work.data(), idx.data(), sx.data());
     st.x = sx;
     st.w = sx;  // the sampled delay's state is its estimate
     return true;
@@ -480,18 +441,7 @@ class ProgramObserver {
                p_.estimate);
   }
   const Vec& table(const std::string& name) const { return s_.table(name)->values; }
-  // Least-squares slope (du/dt) of the window's D input samples, whose mean is v (spec.hpp).
-  double window_slope(double v, double dt) const {
-    const std::size_t D = s_.sampled_delay->delay_steps, slots = D + 1;
-    const double abar = static_cast<double>(D - 1) / 2;
-    double sxy = 0, sxx = 0;
-    for (std::size_t a = 0; a < D; ++a) {  // a = 0: this step's sample
-      const double da = static_cast<double>(a) - abar;
-      sxy += da * (u_ring_[(head_ + slots - a) % slots] - v);
-      sxx += da * da;
-    }
-    return sxx > 0 ? -sxy / (dt * sxx) : 0.0;
-  }
+  int delay_steps() const { return static_cast<int>(s_.sampled_delay->delay_steps); }
 
   const ObserverSpec& s_;
   const StepProgram p_;
@@ -502,7 +452,7 @@ class ProgramObserver {
   double dt_ = 0;
   std::vector<std::unique_ptr<Jet>> y_, u_;  // the differentiators (JetUpdate)
   Vec ring_, u_ring_;                        // the delay line (RingPush)
-  std::size_t head_ = 0, filled_ = 0, level_ = 0;
+  int head_ = 0, filled_ = 0, level_ = 0;
   double frac_ = 0, slope_ = 0;
   std::string rejected_;
 };

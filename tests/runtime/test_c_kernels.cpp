@@ -261,3 +261,55 @@ TEST(CKernels, SubstepsAreTheCeilingOfTheRatioWithinLimits) {
 }
 
 }  // namespace
+
+namespace {
+
+// The delay line keeps D + 1 slots; the estimate needs D samples. A ramp u = 0.5 t sampled at
+// dt = 0.1 has window mean (the last D samples) and least-squares slope 0.5 by hand.
+TEST(CKernels, DelayLineLevelAndSlopeByHand) {
+  constexpr int D = 4, filters = 1;
+  std::vector<double> ring((D + 1) * filters, 0.0), u_ring(D + 1, 0.0);
+  int head = 0, filled = 0;
+  const double decay[1] = {0.5}, gain[1] = {2.0};
+  int ready = 0;
+  for (int k = 1; k <= D; ++k) {
+    const double y[1] = {1.0};
+    ready = kd::obsynth_delay_push(ring.data(), u_ring.data(), &head, &filled, D, filters, decay,
+                                   gain, y, 1, 0.05 * k);
+    EXPECT_EQ(ready, k == D ? 1 : 0) << k;
+  }
+  // z: 0 -> 2 -> 3 -> 3.5 -> 3.75 (z <- z/2 + 2)
+  EXPECT_DOUBLE_EQ(ring[static_cast<std::size_t>(head)], 3.75);
+  int level = -1;
+  double frac = -1, slope = -1;
+  // window mean of 0.05, 0.10, 0.15, 0.20 = 0.125; levels at lo = 0, step = 0.1: 1.25
+  kd::obsynth_delay_level(u_ring.data(), head, D, 0.2, 1, &slope, 0.1, 0.0, 0.1, 5, 0, 1, &level,
+                          &frac);
+  EXPECT_EQ(level, 1);
+  EXPECT_NEAR(frac, 0.25, 1e-12);
+  EXPECT_NEAR(slope, 0.5, 1e-12);
+  kd::obsynth_delay_level(u_ring.data(), head, D, 0.2, 0, nullptr, 0.1, 0.0, 0.1, 5, 1, 0, &level,
+                          nullptr);
+  EXPECT_EQ(level, 2);  // nearest level of 0.2 / 0.1
+  kd::obsynth_delay_level(u_ring.data(), head, D, 9.0, 0, nullptr, 0.1, 0.0, 0.1, 5, 1, 0, &level,
+                          nullptr);
+  EXPECT_EQ(level, 4);  // clamped
+}
+
+// Two grid points x = 0 and x = 1 with table values q = 0 and q = 1, eta = 0.25 (ring newest
+// 0.25, oldest 0, no delay term, M = 1): weights (eps + |eta - q|)^-2 with eps = 0.5 are
+// 1/0.75^2 and 1/1.25^2, so x = (1/1.5625) / (1/0.5625 + 1/1.5625) = 0.5625 / 2.125.
+TEST(CKernels, DelayEstimateIsTheKernelWeightedMeanByHand) {
+  const double lo[1] = {0.0}, step[1] = {1.0}, q[2] = {0.0, 1.0}, delay[1] = {0.0},
+               metric[1] = {1.0};
+  const int count[1] = {2};
+  const kd::obsynth_delay_grid grid{1, 2, lo, step, count};
+  const double ring[2] = {0.25, 0.0};  // head 0 is the newest, slot 1 the oldest (D = 1)
+  double work[2], x[1];
+  int idx[1];
+  kd::obsynth_delay_estimate(&grid, ring, 0, 1, 1, delay, metric, q, nullptr, 0.0, nullptr, nullptr,
+                             0.0, 0.5, 2, work, idx, x);
+  EXPECT_NEAR(x[0], 0.5625 / 2.125, 1e-15);
+}
+
+}  // namespace

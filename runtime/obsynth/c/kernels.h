@@ -34,12 +34,14 @@
 #undef OBSYNTH_C_FABS
 #undef OBSYNTH_C_SQRT
 #undef OBSYNTH_C_EXP
+#undef OBSYNTH_C_FLOOR
 #undef OBSYNTH_C_SQRT_EPSILON
 #ifdef __cplusplus
 #define OBSYNTH_C_ISFINITE(x) std::isfinite(x)
 #define OBSYNTH_C_FABS(x) std::fabs(x)
 #define OBSYNTH_C_SQRT(x) std::sqrt(x)
 #define OBSYNTH_C_EXP(x) std::exp(x)
+#define OBSYNTH_C_FLOOR(x) std::floor(x)
 #else
 #include <math.h>
 #define OBSYNTH_C_ISFINITE(x) isfinite(x)
@@ -47,10 +49,12 @@
 #define OBSYNTH_C_FABS(x) fabsf(x)
 #define OBSYNTH_C_SQRT(x) sqrtf(x)
 #define OBSYNTH_C_EXP(x) expf(x)
+#define OBSYNTH_C_FLOOR(x) floorf(x)
 #else
 #define OBSYNTH_C_FABS(x) fabs(x)
 #define OBSYNTH_C_SQRT(x) sqrt(x)
 #define OBSYNTH_C_EXP(x) exp(x)
+#define OBSYNTH_C_FLOOR(x) floor(x)
 #endif
 #endif
 
@@ -511,6 +515,119 @@ static inline void obsynth_newton_apply(obsynth_newton* s, const Scalar* dx, int
     x[i] -= dx[i];
   }
   ++s->updates;
+}
+
+/* ---- The finite-time observer's delay line and table estimate (seed 004: SampledDelay) ---- */
+
+/* One sample into the delay line of D + 1 slots of `filters` values each: the next slot gets
+ * decay .* z_head + gain .* y (filter j reads output j % outputs) and u_ring the input u_now.
+ * 1 once D samples have passed since the reset (the estimate can be formed). */
+static inline int obsynth_delay_push(Scalar* ring, Scalar* u_ring, int* head, int* filled, int D,
+                                     int filters, const Scalar* decay, const Scalar* gain,
+                                     const Scalar* y, int outputs, Scalar u_now) {
+  const int next = *head == D ? 0 : *head + 1;
+  int j;
+  for (j = 0; j < filters; ++j)
+    ring[next * filters + j] = decay[j] * ring[*head * filters + j] + gain[j] * y[j % outputs];
+  u_ring[next] = u_now;
+  *head = next;
+  if (*filled < D) ++*filled;
+  return *filled >= D;
+}
+
+/* The input level of this step (the tables are indexed by a level of the input u): v = u_now,
+ * or with window_mean the mean of the last D samples of u_ring (and then, with slope != 0, in
+ * *slope the least-squares slope of those samples per unit time, sample a = 0 the newest).
+ * Nearest or lower level of (v - lo) / step, clamped to 0..levels - 1; with interpolate the
+ * lower of two neighbouring levels and the fraction *frac towards the upper one. */
+static inline void obsynth_delay_level(const Scalar* u_ring, int head, int D, Scalar u_now,
+                                       int window_mean, Scalar* slope, Scalar dt, Scalar lo,
+                                       Scalar step, int levels, int nearest, int interpolate,
+                                       int* level, Scalar* frac) {
+  Scalar v = u_now;
+  int k;
+  if (window_mean) {
+    const int old = head == D ? 0 : head + 1; /* D samples ago: not in the window */
+    Scalar acc = (Scalar)0;
+    for (k = 0; k <= D; ++k)
+      if (k != old) acc += u_ring[k];
+    v = acc / (Scalar)D;
+    if (slope) {
+      Scalar sxy = (Scalar)0, sxx = (Scalar)0;
+      for (k = 0; k < D; ++k) {
+        const Scalar da = (Scalar)k - (Scalar)(D - 1) / (Scalar)2;
+        sxy += da * (u_ring[head >= k ? head - k : head - k + D + 1] - v);
+        sxx += da * da;
+      }
+      *slope = sxx > (Scalar)0 ? -sxy / (dt * sxx) : (Scalar)0;
+    }
+  }
+  if (interpolate) {
+    v = (v - lo) / step;
+    v = v <= (Scalar)0 ? (Scalar)0 : v >= (Scalar)(levels - 1) ? (Scalar)(levels - 1) : v;
+    *level = (int)OBSYNTH_C_FLOOR(v);
+    if (*level > levels - 2) *level = levels - 2;
+    *frac = v - (Scalar)*level;
+  } else {
+    v = OBSYNTH_C_FLOOR((v - lo) / step + (nearest ? (Scalar)0.5 : (Scalar)0));
+    *level = v <= (Scalar)0 ? 0 : v >= (Scalar)(levels - 1) ? levels - 1 : (int)v;
+  }
+}
+
+/* The grid of states a finite-time observer's tables are computed on: n axes of grid_count[s]
+ * points from grid_lo[s] in steps grid_step[s], the last axis fastest. */
+typedef struct {
+  int n, points;
+  const Scalar* lo;
+  const Scalar* step;
+  const int* count;
+} obsynth_delay_grid;
+
+/* The estimate: eta = M (z_now - delay .* z_old) from the newest and the oldest slot, then the
+ * kernel-weighted mean over the grid of the level's table q (filters values per grid point),
+ *   x = sum_i x_i w_i / sum_i w_i,  w_i = (epsilon + |eta - q(x_i)|)^-power,
+ * with q interpolated towards q1 by frac and corrected by slope times the slope tables dq, dq1
+ * (q1, dq, dq1 may be null: not read). work: 2 filters Scalars, idx: n ints. */
+static inline void obsynth_delay_estimate(const obsynth_delay_grid* g, const Scalar* ring, int head,
+                                          int D, int filters, const Scalar* delay,
+                                          const Scalar* metric, const Scalar* q, const Scalar* q1,
+                                          Scalar frac, const Scalar* dq, const Scalar* dq1,
+                                          Scalar slope, Scalar epsilon, int power, Scalar* work,
+                                          int* idx, Scalar* x) {
+  const int old = head == D ? 0 : head + 1; /* D samples ago */
+  Scalar *raw = work, *eta = work + filters, sw = (Scalar)0;
+  int i, j, k, s;
+  for (j = 0; j < filters; ++j)
+    raw[j] = ring[head * filters + j] - delay[j] * ring[old * filters + j];
+  for (j = 0; j < filters; ++j) {
+    eta[j] = (Scalar)0;
+    for (k = 0; k < filters; ++k) eta[j] += metric[j * filters + k] * raw[k];
+  }
+  for (s = 0; s < g->n; ++s) {
+    idx[s] = 0;
+    x[s] = (Scalar)0;
+  }
+  for (i = 0; i < g->points; ++i) {
+    const long at = (long)i * filters;
+    Scalar d2 = (Scalar)0, b, w;
+    for (j = 0; j < filters; ++j) {
+      Scalar e = q[at + j];
+      if (q1) e += frac * (q1[at + j] - q[at + j]);
+      if (dq) e += slope * (dq[at + j] + frac * (dq1[at + j] - dq[at + j]));
+      e -= eta[j];
+      d2 += e * e;
+    }
+    b = (Scalar)1 / (epsilon + OBSYNTH_C_SQRT(d2));
+    w = b;
+    for (k = 1; k < power; ++k) w *= b;
+    sw += w;
+    for (s = 0; s < g->n; ++s) x[s] += w * (g->lo[s] + g->step[s] * (Scalar)idx[s]);
+    for (s = g->n - 1; s >= 0; --s) { /* last axis fastest */
+      if (++idx[s] < g->count[s]) break;
+      idx[s] = 0;
+    }
+  }
+  for (s = 0; s < g->n; ++s) x[s] /= sw;
 }
 
 #endif /* OBSYNTH_C_KERNELS_BODY */
