@@ -44,15 +44,20 @@ Mat closed_loop(int n, double scale) {
   return A;
 }
 
+// exp([[A, I], [0, 0]] dt) (Eigen's Pade approximant): Phi top left, Gamma top right.
+Mat augmented_exponential(const Mat& A, double dt) {
+  const Eigen::Index n = A.rows();
+  Mat M = Mat::Zero(2 * n, 2 * n);
+  M.topLeftCorner(n, n) = A * dt;
+  M.topRightCorner(n, n) = Mat::Identity(n, n) * dt;
+  return M.exp();
+}
+
 TEST(CKernels, DiscretiseMatchesTheMatrixExponential) {
   for (int n : {1, 2, 4, 7})
     for (double dt : {1e-4, 1e-2, 0.5, 3.0}) {
       const Mat A = closed_loop(n, 2.0);
-      // Phi and Gamma from exp([[A, I], [0, 0]] dt) (Eigen's Pade approximant).
-      Mat M = Mat::Zero(2 * n, 2 * n);
-      M.topLeftCorner(n, n) = A * dt;
-      M.topRightCorner(n, n) = Mat::Identity(n, n) * dt;
-      const Mat X = M.exp();
+      const Mat X = augmented_exponential(A, dt);
       std::vector<double> E(static_cast<std::size_t>(n * n)), G(E.size()), work(4 * E.size());
       ASSERT_TRUE(kd::obsynth_discretise(rows(A).data(), n, dt, E.data(), G.data(), work.data()));
       const Mat Phi = matrix(E, n) + Mat::Identity(n, n), Gamma = matrix(G, n);
@@ -209,10 +214,7 @@ TEST(CKernels, ExactStepMatchesTheMatrixExponential) {
   for (int n : {1, 3, 6}) {
     const Mat A = closed_loop(n, 2.0);
     const double dt = 0.05;
-    Mat M = Mat::Zero(2 * n, 2 * n);
-    M.topLeftCorner(n, n) = A * dt;
-    M.topRightCorner(n, n) = Mat::Identity(n, n) * dt;
-    const Mat X = M.exp();
+    const Mat X = augmented_exponential(A, dt);
     std::vector<double> E(static_cast<std::size_t>(n * n)), G(E.size()), work(4 * E.size());
     ASSERT_TRUE(kd::obsynth_discretise(rows(A).data(), n, dt, E.data(), G.data(), work.data()));
     Eigen::VectorXd w = Eigen::VectorXd::LinSpaced(n, -1, 2), c = Eigen::VectorXd::Constant(n, 0.5);
