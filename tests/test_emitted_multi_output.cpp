@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -20,6 +21,7 @@
 #include "app/simulate.hpp"
 #include "app/synthesize.hpp"
 #include "designs/registry.hpp"
+#include "designs/step_program.hpp"
 #include "emit/emit_c.hpp"
 #include "emit/emit_cxx.hpp"
 #include "front/parse.hpp"
@@ -155,6 +157,69 @@ std::string joined(const std::vector<double>& v) {
   return fmt::format("{}", fmt::join(s, ", "));
 }
 
+// The spec's C++ header and C99 pair, compiled under strict flags and fed the plant trajectory of
+// the simulator's run r, give r's estimates step by step (relative 1e-9).
+void expect_emitted_code_matches(const Analysis& a, const ObserverSpec& spec,
+                                 const SimulationResult& r, const Case& c) {
+  const Model& model = a.model;
+  const std::size_t n = model.n();
+  const fs::path dir = fs::temp_directory_path() /
+                       fmt::format("obsynth_multi_{}_{}", c.model, static_cast<long>(::getpid()));
+  fs::create_directories(dir);
+  { std::ofstream(dir / "sim.csv") << r.csv; }
+  std::string fill;
+  for (std::size_t j = 0; j < c.u.size(); ++j) fill += fmt::format("(u)[{}] = {}; ", j, c.u[j]);
+  const std::string defines = fmt::format(
+      "#define DRV_N {}\n#define DRV_M {}\n#define DRV_P {}\n#define DRV_XH0 {}\n#define DRV_DT "
+      "{:.17g}\n"
+      "#define DRV_U(t, u) do {{ {}}} while (0)\n",
+      n, model.m(), model.p(), joined(c.xh0), c.dt, fill);
+  const std::string flags = "-Wall -Wextra -Werror -Wconversion -Wdouble-promotion -pedantic -O2";
+  EmitOptions eo;
+  eo.source_name = std::string(c.model) + ".sym";
+  for (const bool in_c : {false, true}) {
+    SCOPED_TRACE(in_c ? "C99" : "C++");
+    std::string out;
+    if (!in_c) {
+      const EmittedHeader h = emit_cxx_header(a, spec, eo);
+      std::ofstream(dir / h.filename) << h.text;
+      std::ofstream(dir / "driver.cpp")
+          << defines << "#define NS " << c.model << "\n#define CLASS " << camel(c.model)
+          << camel(spec.method) << "\n#define FUNCTIONS " << camel(spec.method) << "Functions\n"
+          << kCxxDriver;
+      out = run(
+          fmt::format("c++ -std=c++17 {} -fno-exceptions -fno-rtti -DEIGEN_NO_MALLOC -I{}/runtime "
+                      "-I/usr/include/eigen3 -DHEADER='\"{}\"' {} -o {}",
+                      flags, OBSYNTH_SOURCE_DIR, (dir / h.filename).string(),
+                      (dir / "driver.cpp").string(), (dir / "drv_cxx").string()));
+    } else {
+      const EmittedHeader h = emit_c_pair(a, spec, eo);
+      std::ofstream(dir / h.filename) << h.text;
+      std::ofstream(dir / h.source_filename) << h.source_text;
+      std::string prefix = std::string(c.model) + "_" + spec.method + "_";
+      for (char& ch : prefix)
+        if (ch == '-') ch = '_';
+      std::ofstream(dir / "driver.c") << defines << "#define PREFIX " << prefix << "\n" << kCDriver;
+      out = run(fmt::format("cc -std=c99 {} -I{} -I{}/runtime -DHEADER='\"{}\"' {} {} -lm -o {}",
+                            flags, dir.string(), OBSYNTH_SOURCE_DIR, h.filename,
+                            (dir / h.source_filename).string(), (dir / "driver.c").string(),
+                            (dir / "drv_c").string()));
+    }
+    ASSERT_EQ(out.find("FAILED"), std::string::npos) << out.substr(0, 2000);
+    out = run((dir / (in_c ? "drv_c" : "drv_cxx")).string() + " " + (dir / "sim.csv").string());
+    ASSERT_EQ(out.find("FAILED"), std::string::npos) << out.substr(0, 400);
+    const auto got = read_rows(out, n);
+    ASSERT_EQ(got.size(), r.t.size());
+    double worst = 0;
+    for (std::size_t k = 0; k + 1 < got.size(); ++k)
+      for (std::size_t i = 0; i < n; ++i)
+        worst = std::max(worst,
+                         std::fabs(got[k][i] - r.xh[k + 1][i]) / (1 + std::fabs(r.xh[k + 1][i])));
+    EXPECT_LE(worst, 1e-9) << spec.method;
+  }
+  fs::remove_all(dir);
+}
+
 class EmittedMultiOutput : public ::testing::TestWithParam<Case> {};
 
 TEST_P(EmittedMultiOutput, DefaultObserverConvergesAndEmittedCodeMatchesTheSimulator) {
@@ -186,62 +251,7 @@ TEST_P(EmittedMultiOutput, DefaultObserverConvergesAndEmittedCodeMatchesTheSimul
     EXPECT_GT(std::fabs(r.x[0][i] - r.xh[0][i]), 0.15 * width);  // it did start away
   }
 
-  const ObserverSpec spec = build_design(a, r.method, {});
-  const fs::path dir = fs::temp_directory_path() /
-                       fmt::format("obsynth_multi_{}_{}", c.model, static_cast<long>(::getpid()));
-  fs::create_directories(dir);
-  { std::ofstream(dir / "sim.csv") << r.csv; }
-  std::string fill;
-  for (std::size_t j = 0; j < c.u.size(); ++j) fill += fmt::format("(u)[{}] = {}; ", j, c.u[j]);
-  const std::string defines = fmt::format(
-      "#define DRV_N {}\n#define DRV_M {}\n#define DRV_P {}\n#define DRV_XH0 {}\n#define DRV_DT "
-      "{:.17g}\n"
-      "#define DRV_U(t, u) do {{ {}}} while (0)\n",
-      n, model.m(), model.p(), joined(c.xh0), c.dt, fill);
-  const std::string flags = "-Wall -Wextra -Werror -Wconversion -Wdouble-promotion -pedantic -O2";
-  EmitOptions eo;
-  eo.source_name = std::string(c.model) + ".sym";
-  for (const bool in_c : {false, true}) {
-    SCOPED_TRACE(in_c ? "C99" : "C++");
-    std::string out;
-    if (!in_c) {
-      const EmittedHeader h = emit_cxx_header(a, spec, eo);
-      std::ofstream(dir / h.filename) << h.text;
-      std::ofstream(dir / "driver.cpp")
-          << defines << "#define NS " << c.model << "\n#define CLASS " << camel(c.model)
-          << camel(r.method) << "\n#define FUNCTIONS " << camel(r.method) << "Functions\n"
-          << kCxxDriver;
-      out = run(
-          fmt::format("c++ -std=c++17 {} -fno-exceptions -fno-rtti -DEIGEN_NO_MALLOC -I{}/runtime "
-                      "-I/usr/include/eigen3 -DHEADER='\"{}\"' {} -o {}",
-                      flags, OBSYNTH_SOURCE_DIR, (dir / h.filename).string(),
-                      (dir / "driver.cpp").string(), (dir / "drv_cxx").string()));
-    } else {
-      const EmittedHeader h = emit_c_pair(a, spec, eo);
-      std::ofstream(dir / h.filename) << h.text;
-      std::ofstream(dir / h.source_filename) << h.source_text;
-      std::string prefix = std::string(c.model) + "_" + r.method + "_";
-      for (char& ch : prefix)
-        if (ch == '-') ch = '_';
-      std::ofstream(dir / "driver.c") << defines << "#define PREFIX " << prefix << "\n" << kCDriver;
-      out = run(fmt::format("cc -std=c99 {} -I{} -I{}/runtime -DHEADER='\"{}\"' {} {} -lm -o {}",
-                            flags, dir.string(), OBSYNTH_SOURCE_DIR, h.filename,
-                            (dir / h.source_filename).string(), (dir / "driver.c").string(),
-                            (dir / "drv_c").string()));
-    }
-    ASSERT_EQ(out.find("FAILED"), std::string::npos) << out.substr(0, 2000);
-    out = run((dir / (in_c ? "drv_c" : "drv_cxx")).string() + " " + (dir / "sim.csv").string());
-    ASSERT_EQ(out.find("FAILED"), std::string::npos) << out.substr(0, 400);
-    const auto got = read_rows(out, n);
-    ASSERT_EQ(got.size(), r.t.size());
-    double worst = 0;
-    for (std::size_t k = 0; k + 1 < got.size(); ++k)
-      for (std::size_t i = 0; i < n; ++i)
-        worst = std::max(worst,
-                         std::fabs(got[k][i] - r.xh[k + 1][i]) / (1 + std::fabs(r.xh[k + 1][i])));
-    EXPECT_LE(worst, 1e-9) << r.method;
-  }
-  fs::remove_all(dir);
+  expect_emitted_code_matches(a, build_design(a, r.method, {}), r, c);
 }
 
 // Inputs inside each box; x0 near the centre, xh0 20 % of each state's box width away.
@@ -300,5 +310,54 @@ INSTANTIATE_TEST_SUITE_P(OutputTransformations, EmittedMultiOutput,
                          [](const ::testing::TestParamInfo<Case>& i) {
                            return std::string(i.param.model);
                          });
+
+}  // namespace
+
+namespace {
+
+// A design with a step scheme of its own (issue 19): the canonical observer of seed 003's
+// example stepped by RK4 with its estimate computed and tested before the commit, a sequence
+// no built-in update kind lowers to, given as the spec's own program (UpdateKind::program).
+// No lowering, printer or simulator code names it: the simulator runs it to convergence, and
+// the emitted C++ header and C99 pair give the simulator's estimates step by step.
+TEST(StepProgram, ADesignsOwnProgramRunsInTheSimulatorAndTheEmittedCode) {
+  const Case c{"models", "slawinski17", {"0.5*sin(t)"}, {0.5, -0.3}, {1.3, 0.5}, 10, 1e-3};
+  const Model model = load_model(std::string(OBSYNTH_SOURCE_DIR) + "/models/slawinski17.sym");
+  const Analysis a = analyse(model);
+  ObserverSpec spec = build_design(a, "canonical", {});
+  ASSERT_EQ(spec.roles.rhs, "z_rhs");  // w' = A_cl w + c with c held over the step
+  op::VectorField field;
+  field.rhs = spec.roles.rhs;
+  field.held = spec.roles.step_constant;
+  StepProgram own;
+  own.step = {
+      op::HoldInput{field.held, false}, op::Rk4{field, 0}, op::EstimateLocal{spec.roles.estimate},
+      op::FiniteGuard{true, true},      op::Commit{true},  op::Finish{false}};
+  own.estimate = est::Function{spec.roles.estimate};
+  own.derivative = field;
+  own.init = spec.roles.init;
+  spec.update = UpdateKind::program;
+  spec.program = std::make_shared<const StepProgram>(own);
+  ASSERT_EQ(lower(spec).step.size(), own.step.size());
+
+  SimulationOptions o;
+  o.method = "canonical";
+  o.u_text = c.u[0];
+  o.x0 = c.x0;
+  o.xhat0 = c.xh0;
+  o.t_end = c.t_end;
+  o.dt = c.dt;
+  o.sampling = Sampling::zoh;
+  SimulationResult r = run_closed_loop(a, spec, o, nullptr);
+  ASSERT_TRUE(r.diverged.empty()) << r.diverged;
+  for (std::size_t i = 0; i < 2; ++i) {  // from 20 % of the box width (4) to 0.1 %
+    EXPECT_GT(std::fabs(r.x[0][i] - r.xh[0][i]), 0.15 * 4);
+    EXPECT_LT(std::fabs(r.x.back()[i] - r.xh.back()[i]), 1e-3 * 4) << i;
+  }
+  r.csv = "t,x1,x2\n";  // the plant trajectory the drivers read (run_closed_loop prints none)
+  for (std::size_t k = 0; k < r.t.size(); ++k)
+    r.csv += fmt::format("{:.10g},{:.17g},{:.17g}\n", r.t[k], r.x[k][0], r.x[k][1]);
+  expect_emitted_code_matches(a, spec, r, c);
+}
 
 }  // namespace

@@ -14,7 +14,7 @@
 #include "app/synthesize.hpp"
 #include "certify/sampling.hpp"
 #include "designs/registry.hpp"
-#include "emit/step_program.hpp"
+#include "designs/step_program.hpp"
 #include "front/parse.hpp"
 #include "obsynth/c_kernels.hpp"
 #include "obsynth/differentiator.hpp"

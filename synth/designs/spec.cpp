@@ -11,20 +11,6 @@
 
 namespace obsynth {
 
-const char* update_kind_name(UpdateKind k) {
-  switch (k) {
-    case UpdateKind::ode:
-      return "ode";
-    case UpdateKind::linear_exact:
-      return "linear_exact";
-    case UpdateKind::jets:
-      return "jets";
-    case UpdateKind::sampled_delay:
-      return "sampled_delay";
-  }
-  return "ode";
-}
-
 std::size_t SymmetricBlock::packed_index(std::size_t r, std::size_t c) const {
   if (r > c) std::swap(r, c);
   // Rows 0..r-1 hold dim, dim-1, ..., dim-r+1 entries.

@@ -12,6 +12,7 @@
 #include <ginac/ginac.h>
 
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -66,8 +67,9 @@ enum class UpdateKind {
   sampled_delay,  // discrete time at one fixed sample period (SampledDelay): a filter bank
                   // z <- a.*z + g y, a delay line eta = z - e^{A T} z(t - T) in a ring buffer,
                   // and a table-driven estimate switched by the input level; no derivatives
+  program,        // the design's own step: ObserverSpec::program, a sequence of the step
+                  // program's ops (step_program.hpp) that no kind above lowers to
 };
-const char* update_kind_name(UpdateKind k);
 
 enum class InitKind {
   identity,  // w = xh0
@@ -197,6 +199,8 @@ struct SolveCorrection {
   std::string singular_doc;  // where M is singular, for the class comment and the report
 };
 
+struct StepProgram;  // step_program.hpp
+
 struct ObserverSpec {
   std::string method;                    // registry name, e.g. "canonical"
   std::string class_suffix;              // class = PascalCase(model) + suffix
@@ -210,6 +214,9 @@ struct ObserverSpec {
   InitKind init = InitKind::identity;
   UpdateKind update = UpdateKind::ode;
   EstimateKind estimate = EstimateKind::identity;
+  // UpdateKind::program: the step as the design wrote it (its estimate and init included);
+  // lower() takes it as it is, so a design with a step scheme of its own needs no other file.
+  std::shared_ptr<const StepProgram> program;
   std::vector<GeneratedFunction> functions;
   // Which function plays which part (names in `functions`; empty when not used).
   struct Roles {

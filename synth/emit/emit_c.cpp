@@ -4,7 +4,7 @@
 
 #include <map>
 
-#include "emit/step_program.hpp"
+#include "designs/step_program.hpp"
 #include "foundation/diagnostics.hpp"
 
 #ifndef OBSYNTH_VERSION
@@ -671,8 +671,9 @@ class CStepPrinter {
                          p_.has<op::EstimateLocal>() ? fmt::format(", x[{}_n]", P()) : "");
     const auto* r = p_.find<op::Rk4>();
     return fmt::format(
-        "  Scalar k[N], acc[N], t[N], w[N]; /* RK4: stage field, k1 + 2 k2 + 2 k3, point */\n  int "
-        "i{};\n",
+        "  Scalar k[N], acc[N], t[N], w[N]{}; /* RK4: stage field, k1 + 2 k2 + 2 k3, point */\n"
+        "  int i{};\n",
+        p_.has<op::EstimateLocal>() ? fmt::format(", x[{}_n]", P()) : "",
         r && r->field.guarded ? ", ok = 1" : "");
   }
 

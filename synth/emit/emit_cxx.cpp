@@ -4,7 +4,7 @@
 
 #include <set>
 
-#include "emit/step_program.hpp"
+#include "designs/step_program.hpp"
 #include "foundation/diagnostics.hpp"
 #include "symbolic/expr_print.hpp"
 
@@ -812,11 +812,14 @@ class CxxStepPrinter {
                            {{"failed", "!solved"}, {"w", s_.state_name}, {"status", "singular"}});
   }
   std::string operator()(const op::FiniteGuard& g) const {
-    if (in_place_)
+    if (in_place_) {  // the state was stepped in place: a failed test restores it
+      const std::string state = s_.state_name + "_";
+      const std::string what = g.state && g.estimate ? state + ", x" : g.estimate ? "x" : state;
       return render_template(kRestoringGuard,
-                             {{"failed", fmt::format("!obsynth::all_finite({}_)", s_.state_name)},
+                             {{"failed", fmt::format("!obsynth::all_finite({})", what)},
                               {"w", s_.state_name},
                               {"status", "non_finite"}});
+    }
     // One test of the locals: w, x, or both (x alone when a non-finite w always shows in x: one
     // test fewer on the hot path, seed 003 against the expert reference: 1.03 -> 1.00).
     const std::string what = g.state && g.estimate ? "w, x" : g.estimate ? "x" : "w";
@@ -830,10 +833,11 @@ class CxxStepPrinter {
                                          {"name", g.block.name}});
   }
   std::string operator()(const op::EstimateLocal& e) const {
-    return fmt::format("    State x;\n    F::{}(w{}, x);\n", e.function, c_.P);
+    return fmt::format("    State x;\n    F::{}({}{}, x);\n", e.function,
+                       in_place_ ? s_.state_name + "_" : "w", c_.P);
   }
   std::string operator()(const op::Commit& c) const {
-    if (in_place_) return "";
+    if (in_place_) return c.estimate ? "    xh_ = x;\n" : "";
     if (p_.has<op::TableLookup>()) return "    xh_ = x;\n";  // the state is the estimate
     return fmt::format("    {}_ = w;\n{}", s_.state_name, c.estimate ? "    xh_ = x;\n" : "");
   }

@@ -1,4 +1,4 @@
-#include "emit/step_program.hpp"
+#include "designs/step_program.hpp"
 
 #include "foundation/diagnostics.hpp"
 
@@ -88,9 +88,8 @@ void lower_sampled_delay(const ObserverSpec& s, StepProgram& p) {
   p.step.push_back(op::Finish{false});
 }
 
-}  // namespace
-
-StepProgram lower(const ObserverSpec& s) {
+// The program of a built-in update kind.
+StepProgram lower_kind(const ObserverSpec& s) {
   StepProgram p;
   p.estimate = estimate_op(s);
   if (s.init == InitKind::function) p.init = s.roles.init;
@@ -116,7 +115,19 @@ StepProgram lower(const ObserverSpec& s) {
     case UpdateKind::sampled_delay:
       lower_sampled_delay(s, p);
       break;
+    case UpdateKind::program:
+      OBSYNTH_ASSERT(false, "UpdateKind::program is not a built-in kind");
   }
+  return p;
+}
+
+}  // namespace
+
+StepProgram lower(const ObserverSpec& s) {
+  OBSYNTH_ASSERT(s.update != UpdateKind::program || s.program != nullptr,
+                 "UpdateKind::program without its program");
+  // The design's own step is taken as it wrote it.
+  StepProgram p = s.update == UpdateKind::program ? *s.program : lower_kind(s);
   p.singular = p.has<op::StageGuard>() || p.has<op::DefiniteGuard>();
   p.not_converged = p.newton();
   return p;
