@@ -1,6 +1,6 @@
 // ns per step() of the James-Baras Riccati observer (seed 000 eq. 2.1-2.2), Google Benchmark.
 //
-//   seed003/generated/<S>   generated/slawinski17_riccati.hpp (obsynth output, Q0 = N = R = I)
+//   seed003/generated/<S>   slawinski17_riccati.hpp (emitted at build time, --Q0 1 --N 1 --R 1)
 //   seed003/expert/<S>      hand-written joint (m, Q) RK4 step: scalar code with the Jacobian
 //                           A = [[u, -1], [-m2, -m1]] and H = [1, 0] written out, Q symmetric
 //                           (3 entries), the 2x2 positive-definiteness test Q11 > 0, det Q > 0

@@ -159,6 +159,29 @@ std::string c_scalar_literal(const GiNaC::numeric& v, Precision p) {
   return p == Precision::single ? s + "f" : s;
 }
 
+std::string table_literal(double v, Precision p) {
+  std::string t = p == Precision::single ? fmt::format("{:.9g}", static_cast<float>(v))
+                                         : fmt::format("{:.17g}", v);
+  if (t.find_first_of(".en") == std::string::npos) t += ".0";
+  return p == Precision::single ? t + "f" : t;
+}
+
+std::string table_literals(const std::vector<double>& values, Precision p) {
+  std::vector<std::string> v;
+  for (const double x : values) v.push_back(table_literal(x, p));
+  return fmt::format("{}", fmt::join(v, ", "));
+}
+
+std::string table_rows(const std::vector<double>& values, Precision p, const std::string& indent) {
+  std::string out;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    out += i % 8 == 0 ? indent : " ";
+    out += table_literal(values[i], p) + ",";
+    if (i % 8 == 7 || i + 1 == values.size()) out += "\n";
+  }
+  return out;
+}
+
 std::string matrix_literals(const std::vector<std::vector<GiNaC::numeric>>& rows, Precision p,
                             std::string (*literal)(const GiNaC::numeric&, Precision)) {
   std::vector<std::string> v;

@@ -40,6 +40,13 @@ std::string c_field_identifier(const std::string& name);
 std::string scalar_literal(const GiNaC::numeric& v, Precision p);
 // The same value as a C99 literal: 2.0, 0.5f (no cast, no integer literals).
 std::string c_scalar_literal(const GiNaC::numeric& v, Precision p);
+// A table entry (a double computed at synthesis, not an exact value) as a literal of the precision,
+// the same text in C and C++: 0.5, 2.0, 0.25f; and a list of them as "a, b, ...".
+std::string table_literal(double v, Precision p);
+std::string table_literals(const std::vector<double>& values, Precision p);
+// A table's entries as initialiser rows of eight, each row indented by `indent`, every entry
+// followed by a comma.
+std::string table_rows(const std::vector<double>& values, Precision p, const std::string& indent);
 // A constant matrix's entries row by row as "a, b, ...", each printed by `literal` (scalar_literal
 // or c_scalar_literal): the initialisers of A_cl and B in both back ends.
 std::string matrix_literals(const std::vector<std::vector<GiNaC::numeric>>& rows, Precision p,

@@ -687,23 +687,11 @@ class CStepPrinter {
   bool pd_work_ = false;
 };
 
-std::string c_table_literal(double v, Precision p) {
-  std::string t = p == Precision::single ? fmt::format("{:.9g}", static_cast<float>(v))
-                                         : fmt::format("{:.17g}", v);
-  if (t.find_first_of(".en") == std::string::npos) t += ".0";
-  return p == Precision::single ? t + "f" : t;
-}
-
 // The tables (static const: flash) and the sampled-delay lifecycle and step.
 std::string c_tables(const ObserverSpec& s, Precision p) {
   std::string out;
   for (const auto& t : s.tables) {
-    std::string values;
-    for (std::size_t i = 0; i < t.values.size(); ++i) {
-      values += i % 8 == 0 ? "    " : " ";
-      values += c_table_literal(t.values[i], p) + ",";
-      if (i % 8 == 7 || i + 1 == t.values.size()) values += "\n";
-    }
+    const std::string values = table_rows(t.values, p, "    ");
     std::vector<std::string> dims;
     for (auto k : t.dims) dims.push_back(std::to_string(k));
     out += render_template(kTableC, {{"doc", t.doc},
@@ -721,11 +709,6 @@ std::map<std::string, std::string> sampled_delay_values(const ObserverSpec& s,
                                                         const Model& m, Precision p) {
   const SampledDelay& d = *s.sampled_delay;
   const bool single = p == Precision::single;
-  auto lits = [&](const std::vector<double>& v) {
-    std::vector<std::string> o;
-    for (double x : v) o.push_back(c_table_literal(x, p));
-    return fmt::format("{}", fmt::join(o, ", "));
-  };
   const bool interpolate = ls.interpolate, slope = ls.slope;
   const std::string level =
       ls.by_input
@@ -733,8 +716,8 @@ std::map<std::string, std::string> sampled_delay_values(const ObserverSpec& s,
                                             {"input", std::to_string(d.input_index)},
                                             {"window_mean", d.level_window_mean ? "1" : "0"},
                                             {"slope_out", slope ? "&o->slope" : "(Scalar*)0"},
-                                            {"level_lo", c_table_literal(d.level_lo, p)},
-                                            {"level_step", c_table_literal(d.level_step, p)},
+                                            {"level_lo", table_literal(d.level_lo, p)},
+                                            {"level_step", table_literal(d.level_step, p)},
                                             {"levels", std::to_string(d.levels)},
                                             {"nearest", d.level_nearest ? "1" : "0"},
                                             {"interpolate", interpolate ? "1" : "0"},
@@ -745,13 +728,13 @@ std::map<std::string, std::string> sampled_delay_values(const ObserverSpec& s,
   const std::string next_level = fmt::format(" + {0}_grid_points * {0}_filters", b.prefix());
   std::vector<std::string> zeros(m.n(), b.lit(0));
   return {{"P", b.prefix()},
-          {"grid_lo", lits(d.grid_lo)},
-          {"grid_step", lits(d.grid_step)},
+          {"grid_lo", table_literals(d.grid_lo, p)},
+          {"grid_step", table_literals(d.grid_step, p)},
           {"grid_count", fmt::format("{}", fmt::join(d.grid_count, ", "))},
           {"zero", b.lit(0)},
           {"one", b.lit(1)},
           {"zeros", fmt::format("{}", fmt::join(zeros, ", "))},
-          {"dt", c_table_literal(d.sample_period, p)},
+          {"dt", table_literal(d.sample_period, p)},
           {"fabs", single ? "fabsf" : "fabs"},
           {"tol", single ? "1e-6f" : "1e-6"},
           {"m", std::to_string(std::max<std::size_t>(m.m(), 1))},
@@ -773,7 +756,7 @@ std::map<std::string, std::string> sampled_delay_values(const ObserverSpec& s,
           {"metric", d.metric_table},
           {"map", d.map_table},
           {"power", std::to_string(d.weight_power)},
-          {"epsilon", c_table_literal(d.epsilon, p)}};
+          {"epsilon", table_literal(d.epsilon, p)}};
 }
 
 // The observer struct's members beyond w: E and Gamma (exact discretisation), the parameters,

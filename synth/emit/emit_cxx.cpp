@@ -232,31 +232,16 @@ const char* kCorrection = R"(    typename F::GainMatrix M;
     return true;
 )";
 
-const char* kDiscretiseBasis = R"(
-  /// Phi = e^{A_cl dt} and Gamma B, Gamma = int_0^dt e^{A_cl s} ds, for the closed loop A_cl
-  /// and the input map B of c = B b (cold: once per sample period).
-#if defined(__GNUC__)
-  __attribute__((noinline, cold))
-#endif
-  bool discretise(Scalar dt) noexcept {
-    Eigen::Matrix<Scalar, n, n> A;
-    A << {{closed_loop}};
-    Eigen::Matrix<Scalar, n, {{k}}> B;
-    B << {{input_map}};
-    return exact_.prepare(A, B, dt);
-  }
-)";
-
+// discretise(): Phi and Gamma (or Gamma B for c = B b) of the closed loop, once per dt.
 const char* kDiscretise = R"(
-  /// Phi = e^{A_cl dt}, Gamma = int_0^dt e^{A_cl s} ds for the closed loop A_cl (cold: once
-  /// per sample period).
+  /// {{doc}}
 #if defined(__GNUC__)
   __attribute__((noinline, cold))
 #endif
   bool discretise(Scalar dt) noexcept {
     Eigen::Matrix<Scalar, n, n> A;
     A << {{closed_loop}};
-    return exact_.prepare(A, dt);
+{{input_map}}    return exact_.prepare(A, {{B}}dt);
   }
 )";
 
@@ -950,16 +935,20 @@ std::string state_class(const Analysis& a, const ObserverSpec& s, const StepProg
   if (fused) members += "  State xh_;\n";
   members += c.params_member;
   std::string private_functions;
-  if (basis)
-    private_functions = render_template(
-        kDiscretiseBasis,
-        {{"closed_loop", matrix_literals(s.closed_loop, opt.precision, scalar_literal)},
-         {"k", std::to_string(exact->basis)},
-         {"input_map", matrix_literals(s.input_map, opt.precision, scalar_literal)}});
-  else if (exact)
+  if (exact)
     private_functions = render_template(
         kDiscretise,
-        {{"closed_loop", matrix_literals(s.closed_loop, opt.precision, scalar_literal)}});
+        {{"doc", basis ? "Phi = e^{A_cl dt} and Gamma B, Gamma = int_0^dt e^{A_cl s} ds, for the "
+                         "closed loop A_cl\n  /// and the input map B of c = B b (cold: once per "
+                         "sample period)."
+                       : "Phi = e^{A_cl dt}, Gamma = int_0^dt e^{A_cl s} ds for the closed loop "
+                         "A_cl (cold: once\n  /// per sample period)."},
+         {"closed_loop", matrix_literals(s.closed_loop, opt.precision, scalar_literal)},
+         {"input_map",
+          basis ? fmt::format("    Eigen::Matrix<Scalar, n, {}> B;\n    B << {};\n", exact->basis,
+                              matrix_literals(s.input_map, opt.precision, scalar_literal))
+                : ""},
+         {"B", basis ? "B, " : ""}});
   if (const op::Rk4* r = guarded_rk4(program)) private_functions += total_rhs_function(r->field, c);
   auto v = c.common;
   v.erase("scalar");
@@ -1087,28 +1076,6 @@ std::string usage_example(const EmittedHeader& h, const ObserverSpec& s, const E
                                   {"set_params", set_params}});
 }
 
-// A table entry in the output precision (round-trip digits).
-std::string table_literal(double v, Precision p) {
-  if (p == Precision::single) {
-    std::string t = fmt::format("{:.9g}", static_cast<float>(v));
-    if (t.find_first_of(".en") == std::string::npos) t += ".0";
-    return t + "f";
-  }
-  std::string t = fmt::format("{:.17g}", v);
-  if (t.find_first_of(".en") == std::string::npos) t += ".0";
-  return t;
-}
-
-std::string table_values(const std::vector<double>& values, Precision p) {
-  std::string out;
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    out += i % 8 == 0 ? "      " : " ";
-    out += table_literal(values[i], p) + ",";
-    if (i % 8 == 7 || i + 1 == values.size()) out += "\n";
-  }
-  return out;
-}
-
 std::string tables_text(const ObserverSpec& s, const EmitOptions& opt, const std::string& name) {
   if (s.tables.empty()) return "";
   std::string body;
@@ -1122,7 +1089,7 @@ std::string tables_text(const ObserverSpec& s, const EmitOptions& opt, const std
                                      {"scalar", precision_name(opt.precision)},
                                      {"name", t.name},
                                      {"size", std::to_string(t.size())},
-                                     {"values", table_values(t.values, opt.precision)}});
+                                     {"values", table_rows(t.values, opt.precision, "      ")}});
     bytes += t.size() * width;
   }
   return render_template(kTables, {{"title", s.title},
@@ -1144,11 +1111,6 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s,
   const SampledDelay& d = *s.sampled_delay;
   const op::LevelSelect& ls = *program.find<op::LevelSelect>();
   const Precision p = opt.precision;
-  auto lits = [&](const std::vector<double>& v) {
-    std::vector<std::string> out;
-    for (double x : v) out.push_back(table_literal(x, p));
-    return fmt::format("{}", fmt::join(out, ", "));
-  };
   const bool interpolate = ls.interpolate, slope = ls.slope;
   const std::string slope_fit =
       slope
@@ -1235,8 +1197,8 @@ std::string sampled_delay_class(const Analysis& a, const ObserverSpec& s,
       {"power", std::to_string(d.weight_power)},
       {"table_scalar", precision_name(p)},
       {"epsilon", scalar_literal(GiNaC::numeric(d.epsilon), p)},
-      {"grid_lo", lits(d.grid_lo)},
-      {"grid_step", lits(d.grid_step)},
+      {"grid_lo", table_literals(d.grid_lo, p)},
+      {"grid_step", table_literals(d.grid_step, p)},
       {"grid_count", fmt::format("{}", fmt::join(d.grid_count, ", "))},
       {"members", c.params_member}};
   v["step"] = CxxStepPrinter(s, program, c, p, v).print();
